@@ -1,0 +1,74 @@
+//! Errors returned by every fallible psr function.
+//!
+//! Each variant says what went wrong and what the caller can do about it. `Internal` is reserved
+//! for bugs in psr itself.
+
+use std::fmt;
+
+/// Everything that can go wrong in a reconstruction.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Error {
+    /// No points were given: a reconstruction needs at least one oriented point.
+    EmptyInput,
+    /// `positions` and `normals` (or an optional per-point array) have different lengths.
+    LengthMismatch {
+        /// which array disagrees with `positions` (e.g. "normals")
+        what: &'static str,
+        positions: usize,
+        other: usize,
+    },
+    /// A position coordinate is NaN or infinite.
+    NonFinitePosition { index: usize },
+    /// A normal component is NaN or infinite.
+    NonFiniteNormal { index: usize },
+    /// A normal has zero (or denormal) length, so it gives no orientation.
+    ZeroNormal { index: usize },
+    /// A per-point confidence weight is negative, NaN or infinite.
+    InvalidWeight { index: usize },
+    /// A parameter is outside its documented range.
+    InvalidParameter {
+        name: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    /// The caller's progress callback asked to stop.
+    Cancelled,
+    /// A bug in psr: please report it with the input that triggered it.
+    Internal(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::EmptyInput => write!(f, "no input points: add at least one oriented point before reconstructing"),
+            Error::LengthMismatch { what, positions, other } => write!(
+                f,
+                "{what} has {other} entries but positions has {positions}: give one entry per point"
+            ),
+            Error::NonFinitePosition { index } => {
+                write!(f, "point {index} has a NaN or infinite coordinate: remove or fix it")
+            }
+            Error::NonFiniteNormal { index } => {
+                write!(f, "normal {index} has a NaN or infinite component: remove or fix it")
+            }
+            Error::ZeroNormal { index } => write!(
+                f,
+                "normal {index} has zero length and gives no orientation: estimate normals first or drop the point"
+            ),
+            Error::InvalidWeight { index } => write!(
+                f,
+                "confidence weight {index} is negative, NaN or infinite: weights must be finite and >= 0"
+            ),
+            Error::InvalidParameter { name, value, expected } => {
+                write!(f, "parameter {name} = {value} is out of range: expected {expected}")
+            }
+            Error::Cancelled => write!(f, "reconstruction cancelled by the progress callback"),
+            Error::Internal(msg) => write!(f, "internal error in psr (a bug, please report it): {msg}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Shorthand for results with [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,126 @@
+//! Reconstruction parameters, their defaults and their validation.
+//!
+//! Defaults follow Kazhdan's PoissonRecon (18.75) wherever the two methods share a parameter, so
+//! that results are comparable option for option.
+
+use crate::error::{Error, Result};
+
+/// The deepest octree depth psr accepts. Depth 16 is a 65,536³ grid, far beyond what any scan
+/// needs; node keys have room for it.
+pub const MAX_DEPTH: u32 = 16;
+
+/// What to do at the faces of the bounding cube.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Boundary {
+    /// The 2006 paper: node functions are integrated over all of space, the cube imposes nothing.
+    Free,
+}
+
+/// Parameters of one reconstruction. `Params::default()` works; every field documents its
+/// default, its range and the equivalent option of the incumbents.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Maximum octree depth D: the finest cells are 2^-D of the (scaled) bounding cube.
+    /// Default 8, range 1..=16. PoissonRecon `--depth`, Open3D `depth`, PCL `setDepth`.
+    pub depth: u32,
+    /// Depth down to which the octree is complete (every node exists), so that the coarse
+    /// solution is defined everywhere. Default 5, range 0..=depth (clamped to depth when larger).
+    /// PoissonRecon `--fullDepth`, PCL `setMinDepth`.
+    pub full_depth: u32,
+    /// Depth at which the sampling density is estimated (§4.5, D̂). `None` = depth − 2 (at least
+    /// 0). Range 0..=depth. PoissonRecon `--kernelDepth`.
+    pub kernel_depth: Option<u32>,
+    /// Target number of samples per octree node: a sample whose density estimate is lower than
+    /// this is splatted at a coarser, fractional depth (§4.5). Default 1.5, range [1, 1e6].
+    /// PoissonRecon `--samplesPerNode`, PCL `setSamplesPerNode`.
+    pub samples_per_node: f32,
+    /// The bounding cube is the points' bounding box enlarged by this factor. Default 1.1, range
+    /// [1, 100]. PoissonRecon `--scale`, Open3D `scale`, PCL `setScale`.
+    pub scale: f32,
+    /// Screening weight α (Kazhdan & Hoppe 2013): how strongly the surface is pulled onto the
+    /// samples. 0 gives the 2006 method. Default 4 (2 × the B-spline degree, PoissonRecon's rule),
+    /// range [0, 1e6]. PoissonRecon `--pointWeight`, PCL `setPointWeight`.
+    pub point_weight: f32,
+    /// Worker threads for this reconstruction; 0 = all cores. Default 0. The result does not
+    /// depend on it. Open3D `n_threads`, PCL `setThreads`.
+    pub threads: usize,
+    /// Conjugate-gradient iterations per depth at most. Default 60, range 1..=10,000.
+    /// PoissonRecon `--iters` (its Gauss–Seidel count, not the same unit).
+    pub max_solver_iterations: u32,
+    /// Relative residual ‖b − Ax‖/‖b‖ at which a depth's solve stops. Default 1e-5,
+    /// range [1e-12, 1). PoissonRecon `--cgAccuracy` (coarsest level only).
+    pub solver_tolerance: f64,
+    /// Boundary condition at the bounding cube. Default [`Boundary::Free`].
+    pub boundary: Boundary,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            depth: 8,
+            full_depth: 5,
+            kernel_depth: None,
+            samples_per_node: 1.5,
+            scale: 1.1,
+            point_weight: 4.0,
+            threads: 0,
+            max_solver_iterations: 60,
+            solver_tolerance: 1e-5,
+            boundary: Boundary::Free,
+        }
+    }
+}
+
+impl Params {
+    /// Parameters with the given depth and every other field at its default.
+    pub fn with_depth(depth: u32) -> Self {
+        Params { depth, ..Params::default() }
+    }
+
+    /// The kernel depth actually used (resolves `None` to depth − 2).
+    pub fn effective_kernel_depth(&self) -> u32 {
+        self.kernel_depth.unwrap_or(self.depth.saturating_sub(2)).min(self.depth)
+    }
+
+    /// The full depth actually used (never deeper than `depth`).
+    pub fn effective_full_depth(&self) -> u32 {
+        self.full_depth.min(self.depth)
+    }
+
+    /// Checks every field against its documented range.
+    pub fn validate(&self) -> Result<()> {
+        fn bad(name: &'static str, value: impl ToString, expected: &'static str) -> Error {
+            Error::InvalidParameter { name, value: value.to_string(), expected }
+        }
+        if !(1..=MAX_DEPTH).contains(&self.depth) {
+            return Err(bad("depth", self.depth, "an integer in 1..=16"));
+        }
+        if self.full_depth > MAX_DEPTH {
+            return Err(bad("full_depth", self.full_depth, "an integer in 0..=16 (values above depth act as depth)"));
+        }
+        if let Some(k) = self.kernel_depth {
+            if k > self.depth {
+                return Err(bad("kernel_depth", k, "an integer in 0..=depth"));
+            }
+        }
+        if !(self.samples_per_node.is_finite() && (1.0..=1e6).contains(&self.samples_per_node)) {
+            return Err(bad("samples_per_node", self.samples_per_node, "a number in [1, 1e6]"));
+        }
+        if !(self.scale.is_finite() && (1.0..=100.0).contains(&self.scale)) {
+            return Err(bad("scale", self.scale, "a number in [1, 100]"));
+        }
+        if !(self.point_weight.is_finite() && (0.0..=1e6).contains(&self.point_weight)) {
+            return Err(bad("point_weight", self.point_weight, "a number in [0, 1e6]"));
+        }
+        if self.threads > 4096 {
+            return Err(bad("threads", self.threads, "0 (all cores) or a count up to 4096"));
+        }
+        if !(1..=10_000).contains(&self.max_solver_iterations) {
+            return Err(bad("max_solver_iterations", self.max_solver_iterations, "an integer in 1..=10000"));
+        }
+        if !(self.solver_tolerance.is_finite() && self.solver_tolerance >= 1e-12 && self.solver_tolerance < 1.0) {
+            return Err(bad("solver_tolerance", self.solver_tolerance, "a number in [1e-12, 1)"));
+        }
+        Ok(())
+    }
+}
