@@ -1,1 +1,348 @@
-//! (being written)
+//! Stage 8 — isosurface extraction (§4.4): a watertight, manifold mesh of {χ = γ}.
+//!
+//! psr extracts on the uniform grid of the finest depth D, but only on the cells the surface
+//! crosses: starting from the cells that hold samples, it follows the surface from cell to cell
+//! (every cell around a sign-changing grid edge is visited), evaluating χ at cell corners once
+//! each. Because all cells have the same size there are no depth changes to crack at; χ itself is
+//! evaluated exactly through the adaptive octree, so coarse regions are simply smooth.
+//!
+//! Within a cell the surface is traced face by face (marching cubes without a case table): on
+//! each face the sign changes are joined into segments, and an ambiguous face (alternating
+//! signs) is resolved by the asymptotic decider on that face's four values alone. Two cells see
+//! the same face values, decide the same way, and so produce the same segments: the mesh is
+//! closed. Each crossed grid edge carries exactly one vertex, shared by the four cells around it,
+//! and each cell's polygons are disjoint loops through those vertices, so every vertex has one
+//! fan and every edge two triangles: the mesh is a 2-manifold (away from the cube's faces). Loops
+//! are triangulated so that no diagonal joins two vertices on one cube face (a neighbour could
+//! produce the same diagonal); when no such fan exists a centre vertex is added.
+//!
+//! Corners are classed "outside" when χ ≥ γ. Triangles are oriented so that their normals point
+//! towards larger χ, which is outside (V points along the outward normals).
+
+use crate::evaluate::Indicator;
+use crate::octree::KeyMap;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// A triangle mesh in unit-cube coordinates.
+#[derive(Debug, Default)]
+pub struct RawMesh {
+    pub vertices: Vec<DVec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Corner index = x + 2y + 4z. Edge index = 4·axis + (bits of the other two axes, in cyclic
+/// order after `axis`).
+fn edge_corners(edge: usize) -> (usize, usize) {
+    let axis = edge / 4;
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let bits = edge % 4;
+    let base = ((bits & 1) << u) | (((bits >> 1) & 1) << v);
+    (base, base | (1 << axis))
+}
+
+fn edge_between(a: usize, b: usize) -> usize {
+    let diff = a ^ b;
+    let axis = diff.trailing_zeros() as usize;
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let lo = a & !diff;
+    4 * axis + ((lo >> u) & 1) + 2 * ((lo >> v) & 1)
+}
+
+/// The four corners of each face, counter-clockwise seen from outside the cube.
+fn face_cycles() -> [[usize; 4]; 6] {
+    let mut faces = [[0; 4]; 6];
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in 0..2 {
+            let at = |du: usize, dv: usize| (side << axis) | (du << u) | (dv << v);
+            let ccw = [at(0, 0), at(1, 0), at(1, 1), at(0, 1)];
+            faces[axis * 2 + side] = if side == 1 { ccw } else { [ccw[0], ccw[3], ccw[2], ccw[1]] };
+        }
+    }
+    faces
+}
+
+/// Bit mask of the faces each edge lies on.
+fn edge_faces(faces: &[[usize; 4]; 6]) -> [u8; 12] {
+    let mut mask = [0u8; 12];
+    for (f, cycle) in faces.iter().enumerate() {
+        for k in 0..4 {
+            mask[edge_between(cycle[k], cycle[(k + 1) % 4])] |= 1 << f;
+        }
+    }
+    mask
+}
+
+/// Traces the surface loops of one cell: each loop is a list of crossed edge indices in order
+/// (counter-clockwise about the normal pointing to larger values). `values` are χ − γ.
+fn cell_loops(values: &[f64; 8], faces: &[[usize; 4]; 6]) -> Vec<Vec<usize>> {
+    let outside = |c: usize| values[c] >= 0.0;
+    let mut next = [usize::MAX; 12];
+    for cycle in faces {
+        let crossing = |k: usize| edge_between(cycle[k], cycle[(k + 1) % 4]);
+        let changes: Vec<usize> = (0..4).filter(|&k| outside(cycle[k]) != outside(cycle[(k + 1) % 4])).collect();
+        match changes.len() {
+            0 => {}
+            2 => {
+                // From the crossing where the walk leaves the outside to where it re-enters.
+                let (a, b) = (changes[0], changes[1]);
+                let (from, to) = if outside(cycle[a]) { (a, b) } else { (b, a) };
+                next[crossing(from)] = crossing(to);
+            }
+            4 => {
+                // Asymptotic decider: the bilinear interpolant's saddle is outside exactly when
+                // the product of the outside pair exceeds that of the inside pair.
+                let (p0, p1) = (values[cycle[0]], values[cycle[2]]);
+                let (q0, q1) = (values[cycle[1]], values[cycle[3]]);
+                let (plus, minus) = if outside(cycle[0]) { (p0 * p1, q0 * q1) } else { (q0 * q1, p0 * p1) };
+                let outside_joined = plus >= minus;
+                for k in 0..4 {
+                    let isolated = if outside_joined { !outside(cycle[k]) } else { outside(cycle[k]) };
+                    if !isolated {
+                        continue;
+                    }
+                    let before = (k + 3) % 4;
+                    if outside_joined {
+                        next[crossing(before)] = crossing(k);
+                    } else {
+                        next[crossing(k)] = crossing(before);
+                    }
+                }
+            }
+            _ => unreachable!("a face has an even number of sign changes"),
+        }
+    }
+    let mut loops = Vec::new();
+    let mut used = [false; 12];
+    for start in 0..12 {
+        if next[start] == usize::MAX || used[start] {
+            continue;
+        }
+        let mut lp = Vec::new();
+        let mut e = start;
+        while !used[e] {
+            used[e] = true;
+            lp.push(e);
+            e = next[e];
+        }
+        loops.push(lp);
+    }
+    loops
+}
+
+/// Packs a grid corner (coordinates < 2^20) and an axis into an edge key.
+#[inline]
+fn edge_key(corner: [i64; 3], axis: usize) -> u64 {
+    corner[0] as u64 | (corner[1] as u64) << 20 | (corner[2] as u64) << 40 | (axis as u64) << 60
+}
+
+#[inline]
+fn corner_key(c: [i64; 3]) -> u64 {
+    c[0] as u64 | (c[1] as u64) << 21 | (c[2] as u64) << 42
+}
+
+#[inline]
+fn corner_of(c: &[i64; 3], k: usize) -> [i64; 3] {
+    [c[0] + (k & 1) as i64, c[1] + ((k >> 1) & 1) as i64, c[2] + ((k >> 2) & 1) as i64]
+}
+
+fn morton_order(c: &[i64; 3]) -> u64 {
+    crate::octree::morton([c[0] as i32, c[1] as i32, c[2] as i32])
+}
+
+/// Extracts {χ = γ} on the depth-`depth` grid, following the surface from the cells in `seeds`
+/// (grid cell coordinates, any order, duplicates allowed).
+pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 3]>) -> RawMesh {
+    let n = 1i64 << depth;
+    let h = 1.0 / n as f64;
+    let faces = face_cycles();
+    let on_faces = edge_faces(&faces);
+    let mut corner_values: KeyMap<f64> = KeyMap::default();
+    let mut vertex_of_edge: KeyMap<u32> = KeyMap::default();
+    let mut visited: KeyMap<()> = KeyMap::default();
+    let mut mesh = RawMesh::default();
+
+    let inside_grid = |c: &[i64; 3]| c.iter().all(|&v| (0..n).contains(&v));
+    let mut frontier: Vec<[i64; 3]> = seeds.into_iter().filter(inside_grid).collect();
+    frontier.sort_unstable_by_key(morton_order);
+    frontier.dedup();
+    frontier.retain(|c| visited.insert(corner_key(*c), ()).is_none());
+
+    while !frontier.is_empty() {
+        // Evaluate the corners this wave needs, in parallel (a pure function of the position).
+        let mut needed: Vec<[i64; 3]> = Vec::new();
+        for c in &frontier {
+            for k in 0..8 {
+                let g = corner_of(c, k);
+                if !corner_values.contains_key(&corner_key(g)) {
+                    needed.push(g);
+                }
+            }
+        }
+        needed.sort_unstable_by_key(|g| corner_key(*g));
+        needed.dedup();
+        let values: Vec<f64> = needed
+            .par_iter()
+            .map(|g| chi.value(DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64) * h) - isovalue)
+            .collect();
+        for (g, v) in needed.iter().zip(values) {
+            corner_values.insert(corner_key(*g), v);
+        }
+
+        let mut next_frontier = Vec::new();
+        for c in &frontier {
+            let vals: [f64; 8] = std::array::from_fn(|k| corner_values[&corner_key(corner_of(c, k))]);
+            let first = vals[0] >= 0.0;
+            if vals.iter().all(|&v| (v >= 0.0) == first) {
+                continue;
+            }
+            let loops = cell_loops(&vals, &faces);
+            // Visit the cells around every crossed edge.
+            for lp in &loops {
+                for &e in lp {
+                    let (a, _) = edge_corners(e);
+                    let axis = e / 4;
+                    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                    let base = corner_of(c, a);
+                    for (du, dv) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let mut cell = base;
+                        cell[axis] = c[axis];
+                        cell[u] -= du;
+                        cell[v] -= dv;
+                        if inside_grid(&cell) && visited.insert(corner_key(cell), ()).is_none() {
+                            next_frontier.push(cell);
+                        }
+                    }
+                }
+            }
+            for lp in loops {
+                let ids: Vec<u32> = lp
+                    .iter()
+                    .map(|&e| {
+                        let (a, b) = edge_corners(e);
+                        let axis = e / 4;
+                        let ga = corner_of(c, a);
+                        *vertex_of_edge.entry(edge_key(ga, axis)).or_insert_with(|| {
+                            let (va, vb) = (vals[a], vals[b]);
+                            let t = (va / (va - vb)).clamp(1e-3, 1.0 - 1e-3);
+                            let mut p = DVec3::new(ga[0] as f64, ga[1] as f64, ga[2] as f64);
+                            p[axis] += t;
+                            mesh.vertices.push(p * h);
+                            (mesh.vertices.len() - 1) as u32
+                        })
+                    })
+                    .collect();
+                triangulate(&lp, &ids, &on_faces, &mut mesh);
+            }
+        }
+        next_frontier.sort_unstable_by_key(morton_order);
+        frontier = next_frontier;
+    }
+    mesh
+}
+
+/// Triangulates one loop (edges `lp`, vertex ids `ids`) as a fan from a vertex none of whose
+/// diagonals joins two vertices on a common cube face, choosing among those the fan whose
+/// smallest triangle is largest; with no such vertex, as a fan around an added centre vertex.
+fn triangulate(lp: &[usize], ids: &[u32], on_faces: &[u8; 12], mesh: &mut RawMesh) {
+    let m = lp.len();
+    if m == 3 {
+        mesh.triangles.push([ids[0], ids[1], ids[2]]);
+        return;
+    }
+    let pos = |k: usize| mesh.vertices[ids[k % m] as usize];
+    let mut best: Option<(f64, usize)> = None;
+    for apex in 0..m {
+        let safe = (2..m - 1).all(|j| on_faces[lp[apex]] & on_faces[lp[(apex + j) % m]] == 0);
+        if !safe {
+            continue;
+        }
+        let smallest = (1..m - 1)
+            .map(|j| (pos(apex + j) - pos(apex)).cross(pos(apex + j + 1) - pos(apex)).length())
+            .fold(f64::INFINITY, f64::min);
+        if best.is_none_or(|(s, _)| smallest > s) {
+            best = Some((smallest, apex));
+        }
+    }
+    match best {
+        Some((_, apex)) => {
+            for j in 1..m - 1 {
+                mesh.triangles.push([ids[apex], ids[(apex + j) % m], ids[(apex + j + 1) % m]]);
+            }
+        }
+        None => {
+            let centre = ids.iter().map(|&i| mesh.vertices[i as usize]).sum::<DVec3>() / m as f64;
+            mesh.vertices.push(centre);
+            let c = (mesh.vertices.len() - 1) as u32;
+            for k in 0..m {
+                mesh.triangles.push([c, ids[k], ids[(k + 1) % m]]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cube_topology_is_consistent() {
+        let faces = face_cycles();
+        let on_faces = edge_faces(&faces);
+        for e in 0..12 {
+            let (a, b) = edge_corners(e);
+            assert_eq!(edge_between(a, b), e);
+            assert_eq!(on_faces[e].count_ones(), 2, "edge {e} lies on two faces");
+        }
+    }
+
+    #[test]
+    fn every_sign_pattern_gives_closed_loops_over_its_crossed_edges() {
+        let faces = face_cycles();
+        for case in 0..256usize {
+            for saddle_bias in [0.3, 3.0] {
+                let values: [f64; 8] = std::array::from_fn(|c| {
+                    let mag = if c % 2 == 0 { saddle_bias } else { 1.0 };
+                    if (case >> c) & 1 == 1 {
+                        mag
+                    } else {
+                        -mag
+                    }
+                });
+                let loops = cell_loops(&values, &faces);
+                let mut seen = [0; 12];
+                for lp in &loops {
+                    assert!(lp.len() >= 3);
+                    for &e in lp {
+                        seen[e] += 1;
+                    }
+                }
+                for (e, &count) in seen.iter().enumerate() {
+                    let (a, b) = edge_corners(e);
+                    let crossed = (values[a] >= 0.0) != (values[b] >= 0.0);
+                    assert_eq!(count, usize::from(crossed), "case {case} edge {e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn single_outside_corner_is_cut_off_facing_outwards() {
+        let faces = face_cycles();
+        let mut values = [-1.0; 8];
+        values[0] = 1.0;
+        let loops = cell_loops(&values, &faces);
+        assert_eq!(loops.len(), 1);
+        let lp = &loops[0];
+        let point = |e: usize| {
+            let (a, b) = edge_corners(e);
+            let pa = DVec3::new((a & 1) as f64, ((a >> 1) & 1) as f64, ((a >> 2) & 1) as f64);
+            let pb = DVec3::new((b & 1) as f64, ((b >> 1) & 1) as f64, ((b >> 2) & 1) as f64);
+            (pa + pb) * 0.5
+        };
+        let normal = (point(lp[1]) - point(lp[0])).cross(point(lp[2]) - point(lp[0]));
+        // Outside (larger values) is towards corner 0, i.e. −(1,1,1).
+        assert!(normal.dot(DVec3::ONE) < 0.0);
+    }
+}

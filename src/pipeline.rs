@@ -1,5 +1,275 @@
-use crate::{Mesh, Params, PointSet, Progress, Result};
+//! The reconstruction, top to bottom: points → density → octree → splat → system → solve →
+//! isovalue → extract → mesh. Each stage is a module; this file only wires them together,
+//! times them and reports progress.
 
-pub(crate) fn run(_points: &PointSet, _params: &Params, _pool: &rayon::ThreadPool, _progress: Progress<'_>) -> Result<Mesh> {
-    Err(crate::Error::Internal("pipeline being written".into()))
+use crate::density::{self, trilinear, DensityField};
+use crate::evaluate::Indicator;
+use crate::octree::{morton, Octree};
+use crate::points::UnitCubeMap;
+use crate::solve::conjugate_gradients;
+use crate::system::{divergence, prolong, restrict_into, DepthOperator, Proxies};
+use crate::{extract, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Times stages and forwards progress; turns a "stop" from the callback into `Cancelled`.
+struct Clock<'p, 'q> {
+    progress: &'p mut Progress<'q>,
+    started: Instant,
+    stats: Stats,
+}
+
+impl Clock<'_, '_> {
+    fn report(&mut self, stage: Stage, fraction: f32) -> Result<()> {
+        if (self.progress)(stage, fraction) {
+            Ok(())
+        } else {
+            Err(Error::Cancelled)
+        }
+    }
+
+    fn done(&mut self, stage: Stage) -> Result<()> {
+        let now = Instant::now();
+        self.stats.stage_seconds.push((stage, (now - self.started).as_secs_f64()));
+        self.started = now;
+        self.report(stage, 1.0)
+    }
+}
+
+/// One sample in unit-cube coordinates with everything the stages derive for it.
+struct Samples {
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    /// Confidence weights (all 1 unless given).
+    confidence: Vec<f64>,
+}
+
+pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, mut progress: Progress<'_>) -> Result<Mesh> {
+    let mut clock = Clock { progress: &mut progress, started: Instant::now(), stats: Stats::default() };
+    let max_depth = params.depth;
+    clock.stats.points = points.len();
+    clock.report(Stage::Points, 0.0)?;
+
+    // 1. Points: into the unit cube.
+    let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
+    let samples = pool.install(|| Samples {
+        positions: points.positions().par_iter().map(|&p| map.to_unit(p)).collect(),
+        normals: points
+            .normals()
+            .par_iter()
+            .map(|n| DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64))
+            .collect(),
+        confidence: match points.weights() {
+            Some(w) => w.iter().map(|&w| w as f64).collect(),
+            None => vec![1.0; points.len()],
+        },
+    });
+    if samples.confidence.iter().all(|&c| c == 0.0) {
+        return Err(Error::InvalidWeight { index: 0 });
+    }
+    clock.done(Stage::Points)?;
+
+    // 3. Density (before the octree: the sample depths decide which nodes the tree needs).
+    let kernel_depth = params.effective_kernel_depth();
+    let field = DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
+    let sample_density = pool.install(|| {
+        density::estimate(&field, &samples.positions, max_depth, params.samples_per_node as f64)
+    });
+    clock.done(Stage::Density)?;
+
+    // 2. Octree: the nodes each sample splats into, at its one or two depths.
+    let mut requested: Vec<Vec<u64>> = vec![Vec::new(); max_depth as usize + 1];
+    for (s, &p) in samples.positions.iter().enumerate() {
+        for (d, w) in depth_split(sample_density.depth[s]) {
+            if w > 0.0 {
+                let inv_h = (d as f64).exp2();
+                requested[d as usize].extend(trilinear(p, inv_h).iter().map(|(c, _)| morton(*c)));
+            }
+        }
+    }
+    let tree = pool.install(|| Octree::build(requested, params.effective_full_depth()));
+    clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
+    clock.done(Stage::Octree)?;
+
+    // 4. Splat: V = Σ_s A_s c_s n_s Σ_o α_o,s F̃_o at the sample's depth(s) (§4.2, §4.5); the
+    // coefficients are those of the unit-integral F̃_o = B_o/h³.
+    let mut field_v: Vec<[Vec<f64>; 3]> =
+        tree.levels.iter().map(|l| [vec![0.0; l.len()], vec![0.0; l.len()], vec![0.0; l.len()]]).collect();
+    for s in 0..samples.positions.len() {
+        let mass = sample_density.area[s] * samples.confidence[s];
+        if mass == 0.0 {
+            continue;
+        }
+        let p = samples.positions[s];
+        let n = samples.normals[s];
+        for (d, w) in depth_split(sample_density.depth[s]) {
+            if w == 0.0 {
+                continue;
+            }
+            let level = &tree.levels[d as usize];
+            let inv_h = (d as f64).exp2();
+            let scale = w * mass;
+            for (c, a) in trilinear(p, inv_h) {
+                let i = level.find(c).ok_or_else(|| Error::Internal("splat node missing from the octree".into()))?;
+                for axis in 0..3 {
+                    field_v[d as usize][axis][i as usize] += scale * a * n[axis];
+                }
+            }
+        }
+    }
+    clock.done(Stage::Splat)?;
+
+    // 5. System: ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo, finest first (restriction is exact).
+    let mut rho: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
+    for d in (0..=max_depth as usize).rev() {
+        let level = &tree.levels[d];
+        let mut r = pool.install(|| divergence(level, &field_v[d]));
+        if d < max_depth as usize {
+            let finer: &Vec<f64> = rho.last().expect("finer level computed first");
+            restrict_into(level, &tree.levels[d + 1], finer, &mut r);
+        }
+        rho.push(r);
+        clock.report(Stage::System, (max_depth as usize - d + 1) as f32 / (max_depth as usize + 1) as f32)?;
+    }
+    rho.reverse();
+    // Screening weights: SPSR's α·Area/Σw·Σ w χ², with the area from the density estimate.
+    let total_area: f64 = sample_density.area.iter().zip(&samples.confidence).map(|(a, c)| a * c).sum();
+    let total_confidence: f64 = samples.confidence.iter().sum();
+    let screening_weights: Vec<f64> =
+        samples.confidence.iter().map(|c| c * total_area / total_confidence).collect();
+    let mut order: Vec<u32> = (0..samples.positions.len() as u32).collect();
+    {
+        let inv_h = (max_depth as f64).exp2();
+        let keys: Vec<u64> = samples
+            .positions
+            .iter()
+            .map(|&p| {
+                let c = crate::system::cell_of(p, inv_h);
+                morton(c)
+            })
+            .collect();
+        pool.install(|| order.par_sort_by_key(|&s| (keys[s as usize], s)));
+    }
+    clock.done(Stage::System)?;
+
+    // 6. Solve, coarse to fine.
+    let point_weight = params.point_weight as f64;
+    let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
+    let mut coarse_field: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let depths = max_depth + 1;
+    for d in 0..=max_depth as usize {
+        let level = &tree.levels[d];
+        let (y, rhs_halo, this_field) = pool.install(|| {
+            let y = if d == 0 { vec![0.0; level.len()] } else { prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0) };
+            // V from coarser depths, represented at this depth (F̃ halves in width: ×1/8).
+            let prolonged: [Vec<f64>; 3] = if d == 0 {
+                [vec![0.0; level.len()], vec![0.0; level.len()], vec![0.0; level.len()]]
+            } else {
+                std::array::from_fn(|a| prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125))
+            };
+            let coarse_div = divergence(level, &prolonged);
+            let rhs_halo: Vec<f64> = rho[d].iter().zip(&coarse_div).map(|(a, b)| a + b).collect();
+            let this_field: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                prolonged[a].iter().zip(&field_v[d][a]).map(|(p, v)| p + v).collect()
+            });
+            (y, rhs_halo, this_field)
+        });
+        coarse_field = this_field;
+        let proxies = pool.install(|| Proxies::build(level, &samples.positions, &screening_weights, &order));
+        let mut op = DepthOperator::new(level, &proxies, point_weight);
+        let mut applied = vec![0.0; level.core.len()];
+        pool.install(|| op.apply(&y, &mut applied));
+        let rhs: Vec<f64> = level.core.iter().zip(&applied).map(|(&c, a)| rhs_halo[c as usize] - a).collect();
+        let base = d as f32 / depths as f32;
+        let mut cancelled_at = None;
+        let (x, outcome) = {
+            let progress = &mut clock.progress;
+            let mut keep_going = |f: f32| {
+                let go = (progress)(Stage::Solve, base + f / depths as f32);
+                if !go {
+                    cancelled_at = Some(d);
+                }
+                go
+            };
+            conjugate_gradients(
+                pool,
+                &mut op,
+                &rhs,
+                params.max_solver_iterations,
+                params.solver_tolerance,
+                &mut keep_going,
+            )
+        };
+        if outcome.cancelled || cancelled_at.is_some() {
+            return Err(Error::Cancelled);
+        }
+        let mut z = y;
+        for (&c, v) in level.core.iter().zip(&x) {
+            z[c as usize] += v;
+        }
+        coefficients.push(z);
+        clock.stats.solves.push(DepthSolve {
+            depth: d as u32,
+            unknowns: level.core.len(),
+            iterations: outcome.iterations,
+            relative_residual: outcome.relative_residual,
+        });
+    }
+    drop(rho);
+    drop(field_v);
+    clock.done(Stage::Solve)?;
+
+    // 7. Isovalue: the area-weighted mean of χ at the samples (§4.5).
+    let chi = Indicator { tree: &tree, coefficients };
+    let (num, den) = pool.install(|| {
+        let values: Vec<f64> = samples.positions.par_iter().map(|&p| chi.value(p)).collect();
+        let mut num = 0.0;
+        let mut den = 0.0;
+        for s in 0..values.len() {
+            let w = sample_density.area[s] * samples.confidence[s];
+            num += w * values[s];
+            den += w;
+        }
+        (num, den)
+    });
+    let isovalue = if den > 0.0 { num / den } else { 0.0 };
+    clock.stats.isovalue = isovalue;
+    clock.done(Stage::Isovalue)?;
+
+    // 8. Extract, following the surface from the finest cells that hold samples.
+    let inv_h = (max_depth as f64).exp2();
+    let seeds: Vec<[i64; 3]> = samples
+        .positions
+        .iter()
+        .map(|&p| {
+            let c = crate::system::cell_of(p, inv_h);
+            [c[0] as i64, c[1] as i64, c[2] as i64]
+        })
+        .collect();
+    let raw = pool.install(|| extract::extract(&chi, isovalue, max_depth, seeds));
+    clock.done(Stage::Extract)?;
+
+    // 9. Mesh: back to input coordinates, with the sampling density at each vertex.
+    let (positions, densities) = pool.install(|| {
+        let positions: Vec<[f32; 3]> = raw
+            .vertices
+            .par_iter()
+            .map(|&v| {
+                let p = map.to_input(v);
+                [p.x as f32, p.y as f32, p.z as f32]
+            })
+            .collect();
+        let densities: Vec<f32> = raw.vertices.par_iter().map(|&v| field.evaluate(v) as f32).collect();
+        (positions, densities)
+    });
+    clock.done(Stage::Mesh)?;
+    Ok(Mesh { positions, triangles: raw.triangles, densities, stats: clock.stats })
+}
+
+/// A fractional depth δ splats into ⌊δ⌋ with weight 1 − frac(δ) and ⌊δ⌋ + 1 with frac(δ).
+fn depth_split(depth: f64) -> [(u32, f64); 2] {
+    let base = depth.floor();
+    let frac = depth - base;
+    [(base as u32, 1.0 - frac), (base as u32 + 1, frac)]
 }

@@ -1,1 +1,105 @@
-//! (being written)
+//! Stage 6 — the coarse-to-fine solve (§4.3).
+//!
+//! Depth by depth from the root, the restriction A_d of the system to the depth-d unknowns is
+//! solved with the contributions of all coarser depths moved to the right-hand side (they are
+//! applied through the prolonged coarser solution, see [`crate::system`]). Each depth is solved
+//! by conjugate gradients preconditioned with A_d's diagonal (the paper's method; the diagonal
+//! evens out the screening weights, which vary from node to node).
+//!
+//! Reductions are computed in fixed chunks whose partial sums are added in order, so the result
+//! is the same bit for bit whatever the number of threads.
+
+use crate::system::{DepthOperator, CHUNK};
+use rayon::prelude::*;
+
+/// How one depth's solve ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CgOutcome {
+    pub iterations: u32,
+    pub relative_residual: f64,
+    /// The callback asked to stop.
+    pub cancelled: bool,
+}
+
+/// Deterministic parallel dot product.
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let partial: Vec<f64> = a
+        .par_chunks(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
+/// Solves A x = b on the core of `op.level` (x starts at zero). `keep_going` is called once
+/// per iteration with the fraction of the iteration budget used; returning false stops.
+pub fn conjugate_gradients(
+    pool: &rayon::ThreadPool,
+    op: &mut DepthOperator<'_>,
+    b: &[f64],
+    max_iterations: u32,
+    tolerance: f64,
+    keep_going: &mut dyn FnMut(f32) -> bool,
+) -> (Vec<f64>, CgOutcome) {
+    let level = op.level;
+    let n = b.len();
+    let core = &level.core;
+    let mut x = vec![0.0; n];
+    let b_norm = pool.install(|| dot(b, b)).sqrt();
+    if b_norm == 0.0 || n == 0 {
+        return (x, CgOutcome { iterations: 0, relative_residual: 0.0, cancelled: false });
+    }
+    let inv_diag: Vec<f64> = pool.install(|| op.diagonal().into_par_iter().map(|d| 1.0 / d).collect());
+    let mut r = b.to_vec();
+    let mut z: Vec<f64> = r.iter().zip(&inv_diag).map(|(r, d)| r * d).collect();
+    let mut p = z.clone();
+    let mut rz = pool.install(|| dot(&r, &z));
+    let mut p_halo = vec![0.0; level.len()];
+    let mut ap = vec![0.0; n];
+    let mut iterations = 0;
+    let mut residual = 1.0;
+    while iterations < max_iterations {
+        if !keep_going(iterations as f32 / max_iterations as f32) {
+            return (x, CgOutcome { iterations, relative_residual: residual, cancelled: true });
+        }
+        pool.install(|| {
+            for (&c, &v) in core.iter().zip(&p) {
+                p_halo[c as usize] = v;
+            }
+            op.apply(&p_halo, &mut ap);
+        });
+        let pap = pool.install(|| dot(&p, &ap));
+        if !(pap > 0.0) {
+            break;
+        }
+        let alpha = rz / pap;
+        let rr = pool.install(|| {
+            x.par_chunks_mut(CHUNK)
+                .zip(p.par_chunks(CHUNK))
+                .for_each(|(x, p)| x.iter_mut().zip(p).for_each(|(x, p)| *x += alpha * p));
+            r.par_chunks_mut(CHUNK)
+                .zip(ap.par_chunks(CHUNK))
+                .for_each(|(r, a)| r.iter_mut().zip(a).for_each(|(r, a)| *r -= alpha * a));
+            dot(&r, &r)
+        });
+        iterations += 1;
+        residual = rr.sqrt() / b_norm;
+        if residual <= tolerance {
+            break;
+        }
+        let rz_new = pool.install(|| {
+            z.par_chunks_mut(CHUNK)
+                .zip(r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)))
+                .for_each(|(z, (r, d))| z.iter_mut().zip(r.iter().zip(d)).for_each(|(z, (r, d))| *z = r * d));
+            dot(&r, &z)
+        });
+        let beta = rz_new / rz;
+        rz = rz_new;
+        pool.install(|| {
+            p.par_chunks_mut(CHUNK)
+                .zip(z.par_chunks(CHUNK))
+                .for_each(|(p, z)| p.iter_mut().zip(z).for_each(|(p, z)| *p = z + beta * *p));
+        });
+    }
+    (x, CgOutcome { iterations, relative_residual: residual, cancelled: false })
+}

@@ -1,1 +1,359 @@
-//! (being written)
+//! Stage 5 — the linear system (§4.3), applied matrix-free.
+//!
+//! At depth d the unknowns are the coefficients x_o of the core nodes. The system is
+//!
+//! ```text
+//!   Σ_o′ ( ⟨∇B_o, ∇B_o′⟩ + α·2^d·Σ_q W_q B_o(q) B_o′(q) ) x_o′ = ⟨∇B_o, V⟩ − (same operator)(χ_coarser)
+//! ```
+//!
+//! the Laplacian (the paper's L up to sign: ⟨ΔF, F′⟩ = −⟨∇F, ∇F′⟩) plus the screening term of
+//! Kazhdan & Hoppe 2013 over "proxy" samples q (the weighted mean of the samples in each node,
+//! with their summed weight W_q). The 2^d factor keeps the balance between the two terms the same
+//! at every depth (the Laplacian's entries scale with the node width, the screening's with its
+//! square). α = 0 is the 2006 method.
+//!
+//! Same-depth stencils are tensor products of the 1-D tables of [`crate::bspline`], so they are
+//! applied as three 1-D passes along the neighbour links (5 taps each) instead of 125-entry rows:
+//! `⟨∇B_o, ∇B_o′⟩ = h (D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)` and `⟨∇B_o, F̃_o′⟩·v = (1/h)(G⊗M⊗M vx + …)`.
+//! A pass over the halo K_d is exact wherever its input is supported on K_d (see
+//! [`crate::octree`]), so no node ever reads a neighbour that should exist but does not.
+//!
+//! Cross-depth terms use the two-scale relation ([`crate::bspline::REFINE`]) instead of
+//! cross-depth tables: coarser coefficients are prolonged into the current depth's halo, and the
+//! divergence of finer vector-field coefficients is restricted to coarser nodes. Both are exact.
+
+use crate::bspline::{tables, REFINE};
+use crate::octree::{Level, NONE};
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Rows per parallel task: fixed, so results never depend on the thread count.
+pub const CHUNK: usize = 4096;
+
+/// out[i] = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d.
+pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mut [f64]) {
+    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, chunk)| {
+        for (j, o) in chunk.iter_mut().enumerate() {
+            *o = tap_sum(level, axis, taps, input, (c * CHUNK + j) as u32);
+        }
+    });
+}
+
+#[inline]
+fn tap_sum(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], i: u32) -> f64 {
+    let nb = &level.neighbors;
+    let (minus, plus) = (2 * axis, 2 * axis + 1);
+    let mut sum = taps[2] * input[i as usize];
+    let m1 = nb[i as usize][minus];
+    if m1 != NONE {
+        sum += taps[1] * input[m1 as usize];
+        let m2 = nb[m1 as usize][minus];
+        if m2 != NONE {
+            sum += taps[0] * input[m2 as usize];
+        }
+    }
+    let p1 = nb[i as usize][plus];
+    if p1 != NONE {
+        sum += taps[3] * input[p1 as usize];
+        let p2 = nb[p1 as usize][plus];
+        if p2 != NONE {
+            sum += taps[4] * input[p2 as usize];
+        }
+    }
+    sum
+}
+
+/// The screening samples of one depth: one proxy per node cell that holds samples and lies
+/// within one node of the core (farther ones touch no core node function).
+#[derive(Debug, Default)]
+pub struct Proxies {
+    /// K_d index of the cell holding the proxy.
+    pub cell: Vec<u32>,
+    /// Summed screening weight of the samples in the cell.
+    pub weight: Vec<f64>,
+    /// b(t − centre) for the three nodes per axis around the cell (cell − 1, cell, cell + 1).
+    pub stencil: Vec<[[f64; 3]; 3]>,
+    /// Proxy index per K_d node, `NONE` when the cell has none.
+    pub of_cell: Vec<u32>,
+}
+
+impl Proxies {
+    /// Groups samples (sorted by cell at this depth: `cells[s]` ascending runs) into proxies.
+    pub fn build(level: &Level, positions: &[DVec3], weights: &[f64], order: &[u32]) -> Proxies {
+        let inv_h = (level.depth as f64).exp2();
+        let mut proxies = Proxies { of_cell: vec![NONE; level.len()], ..Default::default() };
+        let mut s = 0;
+        while s < order.len() {
+            let first = positions[order[s] as usize];
+            let cell = cell_of(first, inv_h);
+            let mut sum_w = 0.0;
+            let mut sum_p = DVec3::ZERO;
+            while s < order.len() && cell_of(positions[order[s] as usize], inv_h) == cell {
+                let k = order[s] as usize;
+                sum_w += weights[k];
+                sum_p += positions[k] * weights[k];
+                s += 1;
+            }
+            if sum_w <= 0.0 {
+                continue;
+            }
+            let Some(idx) = level.find(cell) else { continue };
+            if level.flags[idx as usize] & crate::octree::NEAR == 0 {
+                continue;
+            }
+            let q = sum_p / sum_w;
+            let (_, stencil) = crate::density::stencil27(q, inv_h);
+            proxies.of_cell[idx as usize] = proxies.cell.len() as u32;
+            proxies.cell.push(idx);
+            proxies.weight.push(sum_w);
+            proxies.stencil.push(stencil);
+        }
+        proxies
+    }
+
+    pub fn len(&self) -> usize {
+        self.cell.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cell.is_empty()
+    }
+}
+
+/// The node cell containing `p` at the depth of inverse width `inv_h`.
+#[inline]
+pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
+    let t = (p * inv_h).floor();
+    [t.x as i32, t.y as i32, t.z as i32]
+}
+
+/// The operator A_d = L_d + S_d of one depth, with its scratch space.
+pub struct DepthOperator<'a> {
+    pub level: &'a Level,
+    pub proxies: &'a Proxies,
+    /// α·2^d.
+    pub screening: f64,
+    scratch: [Vec<f64>; 4],
+}
+
+impl<'a> DepthOperator<'a> {
+    pub fn new(level: &'a Level, proxies: &'a Proxies, point_weight: f64) -> Self {
+        let n = level.len();
+        DepthOperator {
+            level,
+            proxies,
+            screening: point_weight * (level.depth as f64).exp2(),
+            scratch: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+        }
+    }
+
+    /// out[c] = (A · input)(core node c), for `input` given on all of K_d.
+    pub fn apply(&mut self, input: &[f64], out: &mut [f64]) {
+        let level = self.level;
+        let t = tables();
+        let h = level.width();
+        let [a, bz, am, cc] = &mut self.scratch;
+        pass(level, 2, &t.mass, input, a);
+        pass(level, 2, &t.stiffness, input, bz);
+        pass(level, 1, &t.mass, a, am);
+        // cc = Dy·a + My·bz, computed in two passes (bz reused as the second's output buffer
+        // is not possible, so accumulate in place).
+        pass(level, 1, &t.stiffness, a, cc);
+        pass(level, 1, &t.mass, bz, a);
+        cc.par_chunks_mut(CHUNK).zip(a.par_chunks(CHUNK)).for_each(|(c, x)| {
+            for (c, x) in c.iter_mut().zip(x) {
+                *c += x;
+            }
+        });
+        let core = &level.core;
+        let (am, cc) = (&*am, &*cc);
+        out.par_chunks_mut(CHUNK).zip(core.par_chunks(CHUNK)).for_each(|(o, nodes)| {
+            for (o, &n) in o.iter_mut().zip(nodes) {
+                *o = h * (tap_sum(level, 0, &t.stiffness, am, n) + tap_sum(level, 0, &t.mass, cc, n));
+            }
+        });
+        if self.screening > 0.0 && !self.proxies.is_empty() {
+            let values = proxy_values(level, self.proxies, input);
+            let scale = self.screening;
+            let proxies = self.proxies;
+            out.par_chunks_mut(CHUNK).zip(core.par_chunks(CHUNK)).for_each(|(o, nodes)| {
+                for (o, &n) in o.iter_mut().zip(nodes) {
+                    *o += scale * gather_screening(level, proxies, &values, n);
+                }
+            });
+        }
+    }
+
+    /// The diagonal of A on the core (for Jacobi preconditioning).
+    pub fn diagonal(&self) -> Vec<f64> {
+        let level = self.level;
+        let t = tables();
+        let lap = level.width() * 3.0 * t.stiffness[2] * t.mass[2] * t.mass[2];
+        let proxies = self.proxies;
+        let scale = self.screening;
+        level
+            .core
+            .par_iter()
+            .map(|&n| {
+                let mut s = 0.0;
+                if scale > 0.0 {
+                    for (slot, &cell) in level.block27(n).iter().enumerate() {
+                        if cell == NONE {
+                            continue;
+                        }
+                        let q = proxies.of_cell[cell as usize];
+                        if q != NONE {
+                            let b = node_weight_at_proxy(&proxies.stencil[q as usize], slot);
+                            s += proxies.weight[q as usize] * b * b;
+                        }
+                    }
+                }
+                lap + scale * s
+            })
+            .collect()
+    }
+}
+
+/// B_o(q) for the core node o whose 27-block has the proxy's cell at `slot` (x fastest):
+/// the cell is at offset δ from o, so o is at offset −δ from the cell, i.e. stencil index 1 − δ.
+#[inline]
+fn node_weight_at_proxy(stencil: &[[f64; 3]; 3], slot: usize) -> f64 {
+    let (dx, dy, dz) = (slot % 3, (slot / 3) % 3, slot / 9);
+    stencil[0][2 - dx] * stencil[1][2 - dy] * stencil[2][2 - dz]
+}
+
+/// χ(q) = Σ_o x_o B_o(q) at every proxy, for coefficients `x` on K_d.
+pub fn proxy_values(level: &Level, proxies: &Proxies, x: &[f64]) -> Vec<f64> {
+    proxies
+        .cell
+        .par_iter()
+        .zip(proxies.stencil.par_iter())
+        .map(|(&cell, st)| evaluate_block(level, cell, st, x))
+        .collect()
+}
+
+/// Σ over the 27 nodes around `cell` of x · (tensor stencil weight).
+#[inline]
+pub fn evaluate_block(level: &Level, cell: u32, st: &[[f64; 3]; 3], x: &[f64]) -> f64 {
+    let block = level.block27(cell);
+    let mut sum = 0.0;
+    for (slot, &n) in block.iter().enumerate() {
+        if n != NONE {
+            sum += x[n as usize] * st[0][slot % 3] * st[1][(slot / 3) % 3] * st[2][slot / 9];
+        }
+    }
+    sum
+}
+
+/// Σ_q W_q B_o(q) χ(q) over the proxies in the cells around core node `n`.
+#[inline]
+fn gather_screening(level: &Level, proxies: &Proxies, values: &[f64], n: u32) -> f64 {
+    let mut s = 0.0;
+    for (slot, &cell) in level.block27(n).iter().enumerate() {
+        if cell == NONE {
+            continue;
+        }
+        let q = proxies.of_cell[cell as usize];
+        if q != NONE {
+            let b = node_weight_at_proxy(&proxies.stencil[q as usize], slot);
+            s += proxies.weight[q as usize] * b * values[q as usize];
+        }
+    }
+    s
+}
+
+/// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
+/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d.
+pub fn divergence(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
+    let t = tables();
+    let n = level.len();
+    let inv_h = 1.0 / level.width();
+    let mut a = vec![0.0; n];
+    let mut b = vec![0.0; n];
+    let mut out = vec![0.0; n];
+    // x component: G_x M_y M_z
+    pass(level, 2, &t.mass, &v[0], &mut a);
+    pass(level, 1, &t.mass, &a, &mut b);
+    pass(level, 0, &t.advection, &b, &mut out);
+    // y component: M_x G_y M_z
+    pass(level, 2, &t.mass, &v[1], &mut a);
+    pass(level, 1, &t.advection, &a, &mut b);
+    pass(level, 0, &t.mass, &b, &mut a);
+    add_into(&mut out, &a);
+    // z component: M_x M_y G_z
+    pass(level, 2, &t.advection, &v[2], &mut a);
+    pass(level, 1, &t.mass, &a, &mut b);
+    pass(level, 0, &t.mass, &b, &mut a);
+    add_into(&mut out, &a);
+    out.par_iter_mut().for_each(|o| *o *= inv_h);
+    out
+}
+
+fn add_into(out: &mut [f64], x: &[f64]) {
+    out.par_chunks_mut(CHUNK).zip(x.par_chunks(CHUNK)).for_each(|(o, x)| {
+        for (o, x) in o.iter_mut().zip(x) {
+            *o += x;
+        }
+    });
+}
+
+/// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:
+/// per axis, child 2m = ¾·parent m + ¼·parent m−1 and child 2m+1 = ¾·parent m + ¼·parent m+1.
+#[inline]
+fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
+    let mut out = [(NONE, 0.0); 8];
+    let p = fine.parent[i as usize];
+    if p == NONE {
+        return out;
+    }
+    let c = fine.coord(i);
+    let partner_dir = [0, 1, 2].map(|axis| 2 * axis + (c[axis].rem_euclid(2) as usize));
+    for (k, slot) in out.iter_mut().enumerate() {
+        let mut node = p;
+        let mut w = 1.0;
+        for axis in 0..3 {
+            if (k >> axis) & 1 == 1 {
+                if node != NONE {
+                    node = coarse.neighbors[node as usize][partner_dir[axis]];
+                }
+                w *= REFINE[0];
+            } else {
+                w *= REFINE[1];
+            }
+        }
+        *slot = (node, w);
+    }
+    out
+}
+
+/// Prolongs coarse coefficients (on K_{d−1}) to the fine halo K_d, exactly: the fine
+/// combination represents the same function wherever the coarse one is complete.
+pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Vec<f64> {
+    (0..fine.len() as u32)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|i| {
+            refinement_parents(coarse, fine, i)
+                .iter()
+                .filter(|(n, _)| *n != NONE)
+                .map(|&(n, w)| w * x[n as usize])
+                .sum::<f64>()
+                * scale
+        })
+        .collect()
+}
+
+/// The transpose of [`prolong`]: adds Σ_children w · fine[child] to every coarse node.
+pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_out: &mut [f64]) {
+    for i in 0..fine.len() as u32 {
+        let v = fine_values[i as usize];
+        if v == 0.0 {
+            continue;
+        }
+        for (n, w) in refinement_parents(coarse, fine, i) {
+            if n != NONE {
+                coarse_out[n as usize] += w * v;
+            }
+        }
+    }
+}
