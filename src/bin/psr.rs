@@ -1,1 +1,306 @@
-fn main() {}
+//! `psr`: reconstructs a watertight triangle mesh from an oriented point cloud.
+//!
+//! ```text
+//! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
+//!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
+//!     [--tolerance 1e-5] [--confidence] [--no-density] [--quiet] [--verbose]
+//! ```
+//!
+//! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
+//! reconstruction error.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+use psr::{ply, Mesh, Params, PointSet, Stage};
+
+/// Poisson surface reconstruction: turns an oriented point cloud (PLY with x y z nx ny nz)
+/// into a watertight triangle mesh (binary PLY).
+#[derive(Parser, Debug)]
+#[command(name = "psr", version, max_term_width = 100)]
+struct Args {
+    /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z nx ny nz.
+    #[arg(long = "in", value_name = "FILE")]
+    input: PathBuf,
+
+    /// Output mesh: binary little-endian PLY (vertex x y z [value], face vertex_indices).
+    #[arg(long = "out", value_name = "FILE")]
+    output: PathBuf,
+
+    /// Maximum octree depth (1..=16): the finest cells are 2^-depth of the bounding cube.
+    #[arg(long, value_name = "D", default_value_t = Params::default().depth)]
+    depth: u32,
+
+    /// Depth down to which the octree is complete (0..=16; values above --depth act as it).
+    #[arg(long, alias = "fullDepth", value_name = "D", default_value_t = Params::default().full_depth)]
+    full_depth: u32,
+
+    /// Depth at which the sampling density is estimated (0..=depth) [default: depth - 2].
+    #[arg(long, alias = "kernelDepth", value_name = "D")]
+    kernel_depth: Option<u32>,
+
+    /// Target number of samples per octree node (1..=1e6); higher is smoother for noisy data.
+    #[arg(long, alias = "samplesPerNode", value_name = "N", default_value_t = Params::default().samples_per_node)]
+    samples_per_node: f32,
+
+    /// The bounding cube is the points' bounding box enlarged by this factor (1..=100).
+    #[arg(long, value_name = "S", default_value_t = Params::default().scale)]
+    scale: f32,
+
+    /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples.
+    #[arg(long, alias = "pointWeight", value_name = "W", default_value_t = Params::default().point_weight)]
+    point_weight: f32,
+
+    /// Worker threads; 0 = all cores. The result does not depend on it.
+    #[arg(long, value_name = "N", default_value_t = Params::default().threads)]
+    threads: usize,
+
+    /// Conjugate-gradient iterations per depth at most (1..=10000).
+    #[arg(long, value_name = "N", default_value_t = Params::default().max_solver_iterations)]
+    iters: u32,
+
+    /// Relative residual at which a depth's solve stops (1e-12 <= t < 1).
+    #[arg(long, value_name = "T", default_value_t = Params::default().solver_tolerance)]
+    tolerance: f64,
+
+    /// Weigh each point by the input's `confidence` (or `value`) property.
+    #[arg(long)]
+    confidence: bool,
+
+    /// Do not write the per-vertex density (`value` property) to the output.
+    #[arg(long)]
+    no_density: bool,
+
+    /// Print nothing but errors.
+    #[arg(long, short, conflicts_with = "verbose")]
+    quiet: bool,
+
+    /// Also print the per-depth node counts and solves, and the isovalue.
+    #[arg(long, short)]
+    verbose: bool,
+}
+
+impl Args {
+    fn params(&self) -> Params {
+        Params {
+            depth: self.depth,
+            full_depth: self.full_depth,
+            kernel_depth: self.kernel_depth,
+            samples_per_node: self.samples_per_node,
+            scale: self.scale,
+            point_weight: self.point_weight,
+            threads: self.threads,
+            max_solver_iterations: self.iters,
+            solver_tolerance: self.tolerance,
+            ..Params::default()
+        }
+    }
+}
+
+/// Why the run failed, which decides the exit status.
+enum Failure {
+    /// Bad arguments or parameters (exit 2).
+    Usage(String),
+    /// Input, output or reconstruction failed (exit 1).
+    Run(String),
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Usage(message)) => {
+            eprintln!("psr: error: {message}");
+            ExitCode::from(2)
+        }
+        Err(Failure::Run(message)) => {
+            eprintln!("psr: error: {message}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn run(args: &Args) -> Result<(), Failure> {
+    let params = args.params();
+    params.validate().map_err(|e| match &e {
+        psr::Error::InvalidParameter { name, .. } => {
+            Failure::Usage(format!("{e} (option --{})", option_of(name)))
+        }
+        _ => Failure::Usage(e.to_string()),
+    })?;
+    check_output_dir(&args.output)?;
+
+    let start = Instant::now();
+    let cloud = ply::read_point_cloud(&args.input).map_err(|e| Failure::Run(e.to_string()))?;
+    let weights = if args.confidence {
+        match &cloud.confidence {
+            Some(c) => Some(c.as_slice()),
+            None => {
+                return Err(Failure::Usage(format!(
+                    "--confidence was given but {} has no confidence (or value) property",
+                    args.input.display()
+                )))
+            }
+        }
+    } else {
+        None
+    };
+    let mut points = PointSet::new();
+    points
+        .extend_weighted(&cloud.positions, &cloud.normals, weights)
+        .map_err(|e| Failure::Run(format!("{}: {e}", args.input.display())))?;
+    drop(cloud);
+    let read_seconds = start.elapsed().as_secs_f64();
+    if args.verbose {
+        eprintln!(
+            "psr: read {} points from {} in {read_seconds:.2}s{}",
+            points.len(),
+            args.input.display(),
+            if points.weights().is_some() {
+                " (with confidence)"
+            } else {
+                ""
+            }
+        );
+        eprintln!("psr: {params:?}");
+    }
+
+    let show_progress = !args.quiet && std::io::stderr().is_terminal();
+    let mut progress = ProgressLine::default();
+    let start = Instant::now();
+    let result = psr::reconstruct_with_progress(&points, &params, &mut |stage, fraction| {
+        if show_progress {
+            progress.update(stage, fraction);
+        }
+        true
+    });
+    progress.clear();
+    let mut mesh = result.map_err(|e| Failure::Run(format!("reconstruction failed: {e}")))?;
+    let reconstruct_seconds = start.elapsed().as_secs_f64();
+
+    if args.no_density {
+        mesh.densities = Vec::new();
+    }
+    let start = Instant::now();
+    ply::write_mesh(&args.output, &mesh).map_err(|e| Failure::Run(e.to_string()))?;
+    let write_seconds = start.elapsed().as_secs_f64();
+
+    if args.verbose {
+        print_details(&mesh);
+    }
+    if !args.quiet {
+        eprintln!(
+            "{}",
+            summary(&mesh, reconstruct_seconds, read_seconds, write_seconds)
+        );
+    }
+    Ok(())
+}
+
+/// The command-line option that sets the [`Params`] field `name`.
+fn option_of(name: &str) -> String {
+    match name {
+        "max_solver_iterations" => "iters".to_string(),
+        "solver_tolerance" => "tolerance".to_string(),
+        other => other.replace('_', "-"),
+    }
+}
+
+/// Fails early, before the long reconstruction, when the output cannot be created.
+fn check_output_dir(output: &Path) -> Result<(), Failure> {
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(Failure::Run(format!(
+            "{}: cannot write the output: directory {} does not exist",
+            output.display(),
+            dir.display()
+        )));
+    }
+    if output.is_dir() {
+        return Err(Failure::Run(format!(
+            "{}: cannot write the output: it is a directory",
+            output.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The one-line report printed at the end of a run.
+fn summary(mesh: &Mesh, reconstruct_seconds: f64, read_seconds: f64, write_seconds: f64) -> String {
+    let stats = &mesh.stats;
+    let stages: Vec<String> = stats
+        .stage_seconds
+        .iter()
+        .map(|(stage, seconds)| format!("{} {seconds:.2}s", stage.name()))
+        .collect();
+    format!(
+        "psr: {} points, {} nodes, {} vertices, {} triangles; {}{}total {reconstruct_seconds:.2}s \
+         (read {read_seconds:.2}s, write {write_seconds:.2}s)",
+        stats.points,
+        stats.total_nodes(),
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        stages.join(" "),
+        if stages.is_empty() { "" } else { " " },
+    )
+}
+
+/// The --verbose report: nodes and solve per depth, and the isovalue.
+fn print_details(mesh: &Mesh) {
+    let stats = &mesh.stats;
+    let depths = stats.nodes_per_depth.len().max(
+        stats
+            .solves
+            .iter()
+            .map(|s| s.depth as usize + 1)
+            .max()
+            .unwrap_or(0),
+    );
+    let mut out = String::from("psr: depth      nodes   unknowns  iterations  rel. residual\n");
+    for depth in 0..depths {
+        let nodes = stats.nodes_per_depth.get(depth).copied().unwrap_or(0);
+        out.push_str(&format!("psr: {depth:>5} {nodes:>10}"));
+        match stats.solves.iter().find(|s| s.depth as usize == depth) {
+            Some(s) => out.push_str(&format!(
+                " {:>10} {:>11} {:>14.3e}\n",
+                s.unknowns, s.iterations, s.relative_residual
+            )),
+            None => out.push_str(&format!(" {:>10} {:>11} {:>14}\n", "-", "-", "-")),
+        }
+    }
+    out.push_str(&format!("psr: isovalue {}", stats.isovalue));
+    eprintln!("{out}");
+}
+
+/// The `\r[stage] NN%` line shown on a terminal.
+#[derive(Default)]
+struct ProgressLine {
+    shown: Option<(Stage, u32)>,
+}
+
+impl ProgressLine {
+    fn update(&mut self, stage: Stage, fraction: f32) {
+        let percent = (fraction.clamp(0.0, 1.0) * 100.0) as u32;
+        if self.shown == Some((stage, percent)) {
+            return;
+        }
+        self.shown = Some((stage, percent));
+        let mut err = std::io::stderr().lock();
+        let _ = write!(err, "\r[{:<8}] {percent:>3}%", stage.name());
+        let _ = err.flush();
+    }
+
+    fn clear(&mut self) {
+        if self.shown.take().is_some() {
+            let mut err = std::io::stderr().lock();
+            let _ = write!(err, "\r{:20}\r", "");
+            let _ = err.flush();
+        }
+    }
+}

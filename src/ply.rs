@@ -1,0 +1,1868 @@
+//! Reading and writing PLY files (Turk's polygon file format), without outside crates.
+//!
+//! * [`read_point_cloud`] reads oriented points: the `vertex` element's `x y z nx ny nz`
+//!   (any PLY scalar type), plus `red green blue` and `confidence` (or `value`) when present.
+//! * [`read_mesh`] reads a triangle mesh: `vertex` `x y z` and the `face` element's
+//!   `vertex_indices` (or `vertex_index`) lists, with polygons split into fans of triangles.
+//! * [`write_mesh`] writes a [`Mesh`] as binary little-endian PLY, with the per-vertex density as
+//!   `float value` (PoissonRecon's name for it).
+//! * [`write_point_cloud`] writes oriented points, in any of the three PLY formats.
+//!
+//! The readers accept the three formats (`ascii`, `binary_little_endian`, `binary_big_endian`),
+//! every scalar type under both its old and its sized name (`uchar` = `uint8`, `float` =
+//! `float32`, …), and skip every property and element they do not need, list properties
+//! included. A malformed, truncated or corrupt file gives a [`PlyError`] that says where the
+//! problem is; the readers never panic, and never allocate for more entries than the file could
+//! hold.
+
+use std::fmt;
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::Mesh;
+
+/// Oriented points read from a PLY file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PlyPoints {
+    pub positions: Vec<[f32; 3]>,
+    /// One normal per position, as stored (not normalised).
+    pub normals: Vec<[f32; 3]>,
+    /// `red green blue`, when the vertex element has all three. Float colours are taken as
+    /// 0..1 and scaled to 0..255; integer colours are clamped to 0..255.
+    pub colors: Option<Vec<[u8; 3]>>,
+    /// The `confidence` property (or else `value`), when the vertex element has one.
+    pub confidence: Option<Vec<f32>>,
+}
+
+impl PlyPoints {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True when there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+}
+
+/// The encoding of a PLY body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlyFormat {
+    Ascii,
+    BinaryLittleEndian,
+    BinaryBigEndian,
+}
+
+impl PlyFormat {
+    fn header_name(self) -> &'static str {
+        match self {
+            PlyFormat::Ascii => "ascii",
+            PlyFormat::BinaryLittleEndian => "binary_little_endian",
+            PlyFormat::BinaryBigEndian => "binary_big_endian",
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors
+// ---------------------------------------------------------------------------------------------
+
+/// Why a PLY file could not be read. `Display` gives a complete message, starting with the
+/// file's path when it is known.
+#[derive(Debug)]
+pub struct PlyError {
+    path: Option<PathBuf>,
+    kind: PlyErrorKind,
+}
+
+/// What went wrong, for callers that want to tell cases apart.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum PlyErrorKind {
+    /// The operating system failed to open or read the file.
+    Io {
+        /// "open" or "read"
+        action: &'static str,
+        source: io::Error,
+    },
+    /// The file does not start with the line `ply` (empty, or another format).
+    NotPly,
+    /// The header is malformed; `line` counts from 1.
+    Header { line: usize, message: String },
+    /// The header declares more entries than the rest of the file could possibly hold.
+    TooLarge {
+        element: String,
+        count: usize,
+        /// Bytes the declared entries need at the very least (counted up to this element).
+        min_bytes: u64,
+        /// Bytes after the header.
+        available: u64,
+    },
+    /// The file ends inside entry `index` of `element` (which declares `count` entries).
+    Truncated {
+        element: String,
+        index: usize,
+        count: usize,
+    },
+    /// A value in the body is malformed or out of range. `line` is given for ASCII files.
+    BadValue {
+        line: Option<usize>,
+        element: String,
+        index: usize,
+        message: String,
+    },
+    /// A required element is absent.
+    MissingElement { element: String },
+    /// A required property is absent from an element; `present` lists the ones it has.
+    MissingProperty {
+        element: String,
+        wanted: String,
+        present: Vec<String>,
+    },
+    /// The vertex element has no `nx ny nz`: the points are not oriented.
+    MissingNormals { present: Vec<String> },
+}
+
+impl PlyError {
+    fn new(kind: PlyErrorKind) -> Self {
+        PlyError { path: None, kind }
+    }
+
+    fn with_path(mut self, path: &Path) -> Self {
+        self.path = Some(path.to_path_buf());
+        self
+    }
+
+    /// The file the error is about, when it was read from a path.
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// What went wrong.
+    pub fn kind(&self) -> &PlyErrorKind {
+        &self.kind
+    }
+}
+
+impl From<PlyErrorKind> for PlyError {
+    fn from(kind: PlyErrorKind) -> Self {
+        PlyError::new(kind)
+    }
+}
+
+impl fmt::Display for PlyError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.path {
+            Some(p) => write!(f, "{}: ", p.display())?,
+            None => write!(f, "PLY input: ")?,
+        }
+        match &self.kind {
+            PlyErrorKind::Io { action, source } => write!(f, "cannot {action} the file: {source}"),
+            PlyErrorKind::NotPly => write!(f, "not a PLY file (its first line is not \"ply\")"),
+            PlyErrorKind::Header { line, message } => write!(f, "bad PLY header, line {line}: {message}"),
+            PlyErrorKind::TooLarge { element, count, min_bytes, available } => write!(
+                f,
+                "the header declares {count} '{element}' entries, which need at least {min_bytes} bytes, \
+                 but only {available} bytes follow the header: the file is truncated or its header is corrupt"
+            ),
+            PlyErrorKind::Truncated { element, index, count } => write!(
+                f,
+                "the file ends early, inside '{element}' entry {index} of {count}: it is truncated"
+            ),
+            PlyErrorKind::BadValue { line: Some(line), element, index, message } => {
+                write!(f, "line {line} ('{element}' entry {index}): {message}")
+            }
+            PlyErrorKind::BadValue { line: None, element, index, message } => {
+                write!(f, "'{element}' entry {index}: {message}")
+            }
+            PlyErrorKind::MissingElement { element } => write!(f, "the file has no '{element}' element"),
+            PlyErrorKind::MissingProperty { element, wanted, present } => write!(
+                f,
+                "the '{element}' element has no {wanted} (its properties: {})",
+                list_or_none(present)
+            ),
+            PlyErrorKind::MissingNormals { present } => write!(
+                f,
+                "the vertex element has no nx ny nz properties (its properties: {}): reconstruction needs \
+                 oriented points, so estimate normals first (e.g. PCA over neighbours, oriented towards the scanner)",
+                list_or_none(present)
+            ),
+        }
+    }
+}
+
+fn list_or_none(names: &[String]) -> String {
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(" ")
+    }
+}
+
+impl std::error::Error for PlyError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match &self.kind {
+            PlyErrorKind::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+fn read_error(e: io::Error) -> PlyErrorKind {
+    PlyErrorKind::Io {
+        action: "read",
+        source: e,
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Header
+// ---------------------------------------------------------------------------------------------
+
+/// A PLY scalar type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    fn from_name(name: &str) -> Option<Scalar> {
+        Some(match name {
+            "char" | "int8" => Scalar::I8,
+            "uchar" | "uint8" => Scalar::U8,
+            "short" | "int16" => Scalar::I16,
+            "ushort" | "uint16" => Scalar::U16,
+            "int" | "int32" => Scalar::I32,
+            "uint" | "uint32" => Scalar::U32,
+            "float" | "float32" => Scalar::F32,
+            "double" | "float64" => Scalar::F64,
+            _ => return None,
+        })
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Scalar::I8 => "char",
+            Scalar::U8 => "uchar",
+            Scalar::I16 => "short",
+            Scalar::U16 => "ushort",
+            Scalar::I32 => "int",
+            Scalar::U32 => "uint",
+            Scalar::F32 => "float",
+            Scalar::F64 => "double",
+        }
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::F64 => 8,
+        }
+    }
+
+    fn is_float(self) -> bool {
+        matches!(self, Scalar::F32 | Scalar::F64)
+    }
+
+    /// Decodes one value from the first `size()` bytes of `b` (which must hold them).
+    fn decode(self, b: &[u8], big: bool) -> f64 {
+        let b2 = || [b[0], b[1]];
+        let b4 = || [b[0], b[1], b[2], b[3]];
+        match (self, big) {
+            (Scalar::I8, _) => b[0] as i8 as f64,
+            (Scalar::U8, _) => b[0] as f64,
+            (Scalar::I16, false) => i16::from_le_bytes(b2()) as f64,
+            (Scalar::I16, true) => i16::from_be_bytes(b2()) as f64,
+            (Scalar::U16, false) => u16::from_le_bytes(b2()) as f64,
+            (Scalar::U16, true) => u16::from_be_bytes(b2()) as f64,
+            (Scalar::I32, false) => i32::from_le_bytes(b4()) as f64,
+            (Scalar::I32, true) => i32::from_be_bytes(b4()) as f64,
+            (Scalar::U32, false) => u32::from_le_bytes(b4()) as f64,
+            (Scalar::U32, true) => u32::from_be_bytes(b4()) as f64,
+            (Scalar::F32, false) => f32::from_le_bytes(b4()) as f64,
+            (Scalar::F32, true) => f32::from_be_bytes(b4()) as f64,
+            (Scalar::F64, false) => {
+                f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
+            }
+            (Scalar::F64, true) => {
+                f64::from_be_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
+            }
+        }
+    }
+
+    /// Parses one ASCII value of this type.
+    fn parse(self, token: &str) -> Option<f64> {
+        if self.is_float() {
+            return token.parse::<f64>().ok();
+        }
+        let v = token.parse::<i64>().ok()?;
+        let (lo, hi) = match self {
+            Scalar::I8 => (i8::MIN as i64, i8::MAX as i64),
+            Scalar::U8 => (0, u8::MAX as i64),
+            Scalar::I16 => (i16::MIN as i64, i16::MAX as i64),
+            Scalar::U16 => (0, u16::MAX as i64),
+            Scalar::I32 => (i32::MIN as i64, i32::MAX as i64),
+            _ => (0, u32::MAX as i64),
+        };
+        (lo..=hi).contains(&v).then_some(v as f64)
+    }
+}
+
+#[derive(Debug, Clone)]
+enum PropType {
+    Scalar(Scalar),
+    List { count: Scalar, item: Scalar },
+}
+
+#[derive(Debug, Clone)]
+struct Property {
+    name: String,
+    ty: PropType,
+    /// Header line that declared it.
+    line: usize,
+}
+
+#[derive(Debug, Clone)]
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+}
+
+impl Element {
+    fn find(&self, names: &[&str]) -> Option<usize> {
+        names
+            .iter()
+            .find_map(|n| self.props.iter().position(|p| p.name == *n))
+    }
+
+    fn prop_names(&self) -> Vec<String> {
+        self.props.iter().map(|p| p.name.clone()).collect()
+    }
+
+    /// Bytes one entry takes at the least (lists counted as empty).
+    fn min_entry_bytes(&self, format: PlyFormat) -> u64 {
+        match format {
+            // Every ASCII value takes at least one character and one separator (the last line
+            // may lack its newline, hence the − 1).
+            PlyFormat::Ascii => (2 * self.props.len() as u64).saturating_sub(1),
+            _ => self
+                .props
+                .iter()
+                .map(|p| match p.ty {
+                    PropType::Scalar(s) => s.size() as u64,
+                    PropType::List { count, .. } => count.size() as u64,
+                })
+                .sum(),
+        }
+    }
+
+    /// The entry size when the element has no list property.
+    fn fixed_stride(&self) -> Option<usize> {
+        self.props
+            .iter()
+            .map(|p| match p.ty {
+                PropType::Scalar(s) => Some(s.size()),
+                PropType::List { .. } => None,
+            })
+            .sum()
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Header {
+    format: PlyFormat,
+    elements: Vec<Element>,
+    /// Bytes of the header, through the newline after `end_header`.
+    bytes: u64,
+    /// Lines of the header, `end_header` included.
+    lines: usize,
+}
+
+impl Header {
+    fn element(&self, name: &str) -> Option<usize> {
+        self.elements.iter().position(|e| e.name == name)
+    }
+}
+
+const MAX_HEADER_LINE: u64 = 64 * 1024;
+const MAX_HEADER_BYTES: u64 = 16 * 1024 * 1024;
+
+fn parse_header<R: BufRead>(r: &mut R) -> Result<Header, PlyErrorKind> {
+    let mut buf = Vec::with_capacity(256);
+    let mut bytes = 0u64;
+    let mut line = 0usize;
+    let mut format = None;
+    let mut elements: Vec<Element> = Vec::new();
+    let header_err = |line: usize, message: String| PlyErrorKind::Header { line, message };
+    loop {
+        buf.clear();
+        let n = r
+            .by_ref()
+            .take(MAX_HEADER_LINE)
+            .read_until(b'\n', &mut buf)
+            .map_err(read_error)?;
+        line += 1;
+        bytes += n as u64;
+        if !buf.ends_with(b"\n") {
+            if line == 1 {
+                return Err(PlyErrorKind::NotPly);
+            }
+            return Err(if n as u64 >= MAX_HEADER_LINE {
+                header_err(line, format!("line longer than {MAX_HEADER_LINE} bytes"))
+            } else {
+                header_err(line, "the file ends before the end_header line".into())
+            });
+        }
+        if bytes > MAX_HEADER_BYTES {
+            return Err(header_err(
+                line,
+                format!("header longer than {MAX_HEADER_BYTES} bytes"),
+            ));
+        }
+        let text = String::from_utf8_lossy(&buf);
+        let mut words = text.split_ascii_whitespace();
+        let Some(keyword) = words.next() else {
+            if line == 1 {
+                return Err(PlyErrorKind::NotPly);
+            }
+            continue; // tolerate blank lines
+        };
+        if line == 1 {
+            if keyword != "ply" || words.next().is_some() {
+                return Err(PlyErrorKind::NotPly);
+            }
+            continue;
+        }
+        match keyword {
+            "comment" | "obj_info" => {}
+            "format" => {
+                if format.is_some() {
+                    return Err(header_err(line, "a second format line".into()));
+                }
+                let f = match words.next() {
+                    Some("ascii") => PlyFormat::Ascii,
+                    Some("binary_little_endian") => PlyFormat::BinaryLittleEndian,
+                    Some("binary_big_endian") => PlyFormat::BinaryBigEndian,
+                    other => {
+                        return Err(header_err(
+                            line,
+                            format!(
+                                "unknown format '{}': expected ascii, binary_little_endian or binary_big_endian",
+                                other.unwrap_or("")
+                            ),
+                        ))
+                    }
+                };
+                match words.next() {
+                    Some(v) if v.starts_with('1') => {}
+                    Some(v) => {
+                        return Err(header_err(
+                            line,
+                            format!("unsupported PLY version '{v}' (only 1.0)"),
+                        ))
+                    }
+                    None => {
+                        return Err(header_err(
+                            line,
+                            "the format line has no version (expected 1.0)".into(),
+                        ))
+                    }
+                }
+                format = Some(f);
+            }
+            "element" => {
+                let (Some(name), Some(count)) = (words.next(), words.next()) else {
+                    return Err(header_err(line, "expected 'element <name> <count>'".into()));
+                };
+                let count: usize = count.parse().map_err(|_| {
+                    header_err(
+                        line,
+                        format!("element {name}: count '{count}' is not a non-negative integer"),
+                    )
+                })?;
+                if elements.iter().any(|e| e.name == name) {
+                    return Err(header_err(
+                        line,
+                        format!("element '{name}' is declared twice"),
+                    ));
+                }
+                elements.push(Element {
+                    name: name.to_string(),
+                    count,
+                    props: Vec::new(),
+                });
+            }
+            "property" => {
+                let Some(element) = elements.last_mut() else {
+                    return Err(header_err(
+                        line,
+                        "a property line before any element line".into(),
+                    ));
+                };
+                let scalar = |word: Option<&str>| -> Result<Scalar, PlyErrorKind> {
+                    let word = word.unwrap_or("");
+                    Scalar::from_name(word).ok_or_else(|| {
+                        header_err(
+                            line,
+                            format!(
+                                "unknown property type '{word}': expected char uchar short ushort int uint float \
+                                 double (or int8 … float64)"
+                            ),
+                        )
+                    })
+                };
+                let first = words.next();
+                let ty = if first == Some("list") {
+                    let count = scalar(words.next())?;
+                    let item = scalar(words.next())?;
+                    if count.is_float() {
+                        return Err(header_err(
+                            line,
+                            format!("a list count of type {}", count.name()),
+                        ));
+                    }
+                    PropType::List { count, item }
+                } else {
+                    PropType::Scalar(scalar(first)?)
+                };
+                let Some(name) = words.next() else {
+                    return Err(header_err(line, "the property has no name".into()));
+                };
+                if element.props.iter().any(|p| p.name == name) {
+                    return Err(header_err(
+                        line,
+                        format!(
+                            "property '{name}' is declared twice in element '{}'",
+                            element.name
+                        ),
+                    ));
+                }
+                element.props.push(Property {
+                    name: name.to_string(),
+                    ty,
+                    line,
+                });
+            }
+            "end_header" => {
+                let Some(format) = format else {
+                    return Err(header_err(line, "end_header before any format line".into()));
+                };
+                return Ok(Header {
+                    format,
+                    elements,
+                    bytes,
+                    lines: line,
+                });
+            }
+            other => return Err(header_err(line, format!("unknown keyword '{other}'"))),
+        }
+    }
+}
+
+/// Checks that the elements up to `last` (inclusive) fit in `available` bytes.
+fn check_sizes(header: &Header, last: usize, available: u64) -> Result<(), PlyErrorKind> {
+    let mut need = 0u64;
+    for e in &header.elements[..=last] {
+        need =
+            need.saturating_add((e.count as u64).saturating_mul(e.min_entry_bytes(header.format)));
+        if need > available {
+            return Err(PlyErrorKind::TooLarge {
+                element: e.name.clone(),
+                count: e.count,
+                min_bytes: need,
+                available,
+            });
+        }
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Body
+// ---------------------------------------------------------------------------------------------
+
+/// Number of values one entry can hand over.
+const SLOTS: usize = 10;
+
+/// What to keep from one element: where each scalar property goes (a slot index) and which list
+/// property, if any, to collect.
+struct Plan {
+    slots: Vec<Option<usize>>,
+    list: Option<usize>,
+}
+
+impl Plan {
+    fn skip(el: &Element) -> Plan {
+        Plan {
+            slots: vec![None; el.props.len()],
+            list: None,
+        }
+    }
+
+    fn keeps_nothing(&self) -> bool {
+        self.list.is_none() && self.slots.iter().all(Option::is_none)
+    }
+}
+
+/// Receives one entry: its index, the planned scalar values and the kept list's items; returns
+/// an error message for a bad entry.
+type Sink<'a> = dyn FnMut(usize, &[f64; SLOTS], &[f64]) -> Result<(), String> + 'a;
+
+/// The body of a PLY file, read element by element.
+struct Body<R> {
+    r: R,
+    format: PlyFormat,
+    /// ASCII: number of the last line read.
+    line: usize,
+    line_buf: Vec<u8>,
+    bin_buf: Vec<u8>,
+}
+
+/// Reads the `n` bytes `buf` can take, or fewer at the end of the input; returns how many.
+fn read_fully<R: Read>(r: &mut R, buf: &mut [u8]) -> io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+impl<R: BufRead> Body<R> {
+    fn new(r: R, header: &Header) -> Self {
+        Body {
+            r,
+            format: header.format,
+            line: header.lines,
+            line_buf: Vec::new(),
+            bin_buf: Vec::new(),
+        }
+    }
+
+    /// Reads every entry of `el`, calling `sink(index, values, list)` for each one when the plan
+    /// keeps anything. `sink` returns an error message for a bad entry.
+    fn read_element(
+        &mut self,
+        el: &Element,
+        plan: &Plan,
+        mut sink: impl FnMut(usize, &[f64; SLOTS], &[f64]) -> Result<(), String>,
+    ) -> Result<(), PlyErrorKind> {
+        match self.format {
+            PlyFormat::Ascii => self.read_ascii(el, plan, &mut sink),
+            PlyFormat::BinaryLittleEndian => self.read_binary(el, plan, false, &mut sink),
+            PlyFormat::BinaryBigEndian => self.read_binary(el, plan, true, &mut sink),
+        }
+    }
+
+    fn truncated(el: &Element, index: usize) -> PlyErrorKind {
+        PlyErrorKind::Truncated {
+            element: el.name.clone(),
+            index,
+            count: el.count,
+        }
+    }
+
+    fn bad_value(&self, el: &Element, index: usize, message: String) -> PlyErrorKind {
+        let line = (self.format == PlyFormat::Ascii).then_some(self.line);
+        PlyErrorKind::BadValue {
+            line,
+            element: el.name.clone(),
+            index,
+            message,
+        }
+    }
+
+    /// Skips exactly `n` bytes, or reports how many were there.
+    fn skip_bytes(&mut self, n: u64) -> io::Result<u64> {
+        io::copy(&mut self.r.by_ref().take(n), &mut io::sink())
+    }
+
+    fn read_binary(
+        &mut self,
+        el: &Element,
+        plan: &Plan,
+        big: bool,
+        sink: &mut Sink<'_>,
+    ) -> Result<(), PlyErrorKind> {
+        let mut values = [0.0f64; SLOTS];
+        if let Some(stride) = el.fixed_stride() {
+            if stride == 0 {
+                if !plan.keeps_nothing() {
+                    for index in 0..el.count {
+                        sink(index, &values, &[]).map_err(|m| self.bad_value(el, index, m))?;
+                    }
+                }
+                return Ok(());
+            }
+            if plan.keeps_nothing() {
+                let total = el.count as u64 * stride as u64;
+                let got = self.skip_bytes(total).map_err(read_error)?;
+                if got < total {
+                    return Err(Self::truncated(el, (got / stride as u64) as usize));
+                }
+                return Ok(());
+            }
+            // Fixed-size entries: decode whole chunks of them at precomputed offsets.
+            let mut fields = Vec::new();
+            let mut offset = 0;
+            for (p, slot) in el.props.iter().zip(&plan.slots) {
+                if let PropType::Scalar(s) = p.ty {
+                    if let Some(slot) = slot {
+                        fields.push((offset, s, *slot));
+                    }
+                    offset += s.size();
+                }
+            }
+            let per_chunk = (1usize << 16).div_ceil(stride).max(1);
+            let mut buf = std::mem::take(&mut self.bin_buf);
+            buf.resize(per_chunk * stride, 0);
+            let mut index = 0;
+            while index < el.count {
+                let n = per_chunk.min(el.count - index);
+                let chunk = &mut buf[..n * stride];
+                let got = read_fully(&mut self.r, chunk).map_err(read_error)?;
+                let complete = got / stride;
+                for entry in chunk[..complete * stride].chunks_exact(stride) {
+                    for &(offset, s, slot) in &fields {
+                        values[slot] = s.decode(&entry[offset..], big);
+                    }
+                    sink(index, &values, &[]).map_err(|m| self.bad_value(el, index, m))?;
+                    index += 1;
+                }
+                if complete < n {
+                    return Err(Self::truncated(el, index));
+                }
+            }
+            self.bin_buf = buf;
+            return Ok(());
+        }
+        // Entries with lists: property by property.
+        let mut list = Vec::new();
+        let mut bytes = [0u8; 8];
+        for index in 0..el.count {
+            list.clear();
+            for (i, p) in el.props.iter().enumerate() {
+                match p.ty {
+                    PropType::Scalar(s) => {
+                        let b = &mut bytes[..s.size()];
+                        self.r
+                            .read_exact(b)
+                            .map_err(|e| eof_or_read(e, el, index))?;
+                        if let Some(slot) = plan.slots[i] {
+                            values[slot] = s.decode(b, big);
+                        }
+                    }
+                    PropType::List { count, item } => {
+                        let b = &mut bytes[..count.size()];
+                        self.r
+                            .read_exact(b)
+                            .map_err(|e| eof_or_read(e, el, index))?;
+                        let n = count.decode(b, big);
+                        if n < 0.0 {
+                            let m = format!("list '{}' has a negative length {n}", p.name);
+                            return Err(self.bad_value(el, index, m));
+                        }
+                        let n = n as u64;
+                        if plan.list == Some(i) {
+                            for _ in 0..n {
+                                let b = &mut bytes[..item.size()];
+                                self.r
+                                    .read_exact(b)
+                                    .map_err(|e| eof_or_read(e, el, index))?;
+                                list.push(item.decode(b, big));
+                            }
+                        } else {
+                            let total = n * item.size() as u64;
+                            if self.skip_bytes(total).map_err(read_error)? < total {
+                                return Err(Self::truncated(el, index));
+                            }
+                        }
+                    }
+                }
+            }
+            if !plan.keeps_nothing() {
+                sink(index, &values, &list).map_err(|m| self.bad_value(el, index, m))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads the next line that is not blank into `line_buf`; false at the end of the input.
+    fn next_line(&mut self) -> Result<bool, PlyErrorKind> {
+        loop {
+            self.line_buf.clear();
+            let n = self
+                .r
+                .read_until(b'\n', &mut self.line_buf)
+                .map_err(read_error)?;
+            if n == 0 {
+                return Ok(false);
+            }
+            self.line += 1;
+            if self.line_buf.iter().any(|b| !b.is_ascii_whitespace()) {
+                return Ok(true);
+            }
+        }
+    }
+
+    fn read_ascii(
+        &mut self,
+        el: &Element,
+        plan: &Plan,
+        sink: &mut Sink<'_>,
+    ) -> Result<(), PlyErrorKind> {
+        let mut values = [0.0f64; SLOTS];
+        let mut list = Vec::new();
+        if el.props.is_empty() {
+            if !plan.keeps_nothing() {
+                for index in 0..el.count {
+                    sink(index, &values, &list).map_err(|m| self.bad_value(el, index, m))?;
+                }
+            }
+            return Ok(());
+        }
+        for index in 0..el.count {
+            if !self.next_line()? {
+                return Err(Self::truncated(el, index));
+            }
+            if plan.keeps_nothing() {
+                continue;
+            }
+            list.clear();
+            let line_buf = std::mem::take(&mut self.line_buf);
+            let result = self.parse_ascii_entry(el, plan, index, &line_buf, &mut values, &mut list);
+            self.line_buf = line_buf;
+            result?;
+            sink(index, &values, &list).map_err(|m| self.bad_value(el, index, m))?;
+        }
+        Ok(())
+    }
+
+    fn parse_ascii_entry(
+        &self,
+        el: &Element,
+        plan: &Plan,
+        index: usize,
+        line: &[u8],
+        values: &mut [f64; SLOTS],
+        list: &mut Vec<f64>,
+    ) -> Result<(), PlyErrorKind> {
+        let Ok(text) = std::str::from_utf8(line) else {
+            return Err(self.bad_value(el, index, "the line is not ASCII text".into()));
+        };
+        let mut tokens = text.split_ascii_whitespace();
+        let mut next = |what: &str, ty: Scalar| -> Result<f64, PlyErrorKind> {
+            let Some(token) = tokens.next() else {
+                return Err(self.bad_value(el, index, format!("the line ends before {what}")));
+            };
+            ty.parse(token).ok_or_else(|| {
+                self.bad_value(
+                    el,
+                    index,
+                    format!("'{token}' is not a valid {} for {what}", ty.name()),
+                )
+            })
+        };
+        for (i, p) in el.props.iter().enumerate() {
+            match p.ty {
+                PropType::Scalar(s) => {
+                    let v = next(&format!("property '{}'", p.name), s)?;
+                    if let Some(slot) = plan.slots[i] {
+                        values[slot] = v;
+                    }
+                }
+                PropType::List { count, item } => {
+                    let n = next(&format!("the length of list '{}'", p.name), count)?;
+                    if n < 0.0 {
+                        let m = format!("list '{}' has a negative length {n}", p.name);
+                        return Err(self.bad_value(el, index, m));
+                    }
+                    for k in 0..n as u64 {
+                        let v = next(&format!("item {k} of list '{}'", p.name), item)?;
+                        if plan.list == Some(i) {
+                            list.push(v);
+                        }
+                    }
+                }
+            }
+        }
+        if tokens.next().is_some() {
+            let m = format!(
+                "more values than the header declares ({} properties)",
+                el.props.len()
+            );
+            return Err(self.bad_value(el, index, m));
+        }
+        Ok(())
+    }
+}
+
+fn eof_or_read(e: io::Error, el: &Element, index: usize) -> PlyErrorKind {
+    if e.kind() == io::ErrorKind::UnexpectedEof {
+        PlyErrorKind::Truncated {
+            element: el.name.clone(),
+            index,
+            count: el.count,
+        }
+    } else {
+        read_error(e)
+    }
+}
+
+/// Initial capacity for `count` entries: all of them when the file size vouched for the count,
+/// otherwise a bounded guess (the vectors grow as entries actually arrive).
+fn capacity(count: usize, size_checked: bool) -> usize {
+    if size_checked {
+        count
+    } else {
+        count.min(1 << 16)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Point clouds
+// ---------------------------------------------------------------------------------------------
+
+/// Reads oriented points from a PLY file (see [`read_point_cloud_from`]).
+pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
+    let file = File::open(path).map_err(|e| {
+        PlyError::new(PlyErrorKind::Io {
+            action: "open",
+            source: e,
+        })
+        .with_path(path)
+    })?;
+    let len = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    read_points(BufReader::with_capacity(1 << 20, file), len)
+        .map_err(|e| PlyError::new(e).with_path(path))
+}
+
+/// Reads oriented points from PLY data: the `vertex` element's `x y z nx ny nz`, and
+/// `red green blue` and `confidence` (or `value`) when present. Other properties and elements
+/// are skipped. The normals `normal_x normal_y normal_z` are accepted in place of `nx ny nz`.
+pub fn read_point_cloud_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
+    read_points(reader, None).map_err(PlyError::new)
+}
+
+fn read_points<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<PlyPoints, PlyErrorKind> {
+    let header = parse_header(&mut r)?;
+    let Some(vi) = header.element("vertex") else {
+        return Err(PlyErrorKind::MissingElement {
+            element: "vertex".into(),
+        });
+    };
+    let vertex = &header.elements[vi];
+    let find3 = |names: [[&str; 2]; 3]| -> Option<[usize; 3]> {
+        Some([
+            vertex.find(&names[0])?,
+            vertex.find(&names[1])?,
+            vertex.find(&names[2])?,
+        ])
+    };
+    let Some(pos) = find3([["x", "x"], ["y", "y"], ["z", "z"]]) else {
+        return Err(PlyErrorKind::MissingProperty {
+            element: "vertex".into(),
+            wanted: "x y z properties".into(),
+            present: vertex.prop_names(),
+        });
+    };
+    let Some(nrm) = find3([["nx", "normal_x"], ["ny", "normal_y"], ["nz", "normal_z"]]) else {
+        return Err(PlyErrorKind::MissingNormals {
+            present: vertex.prop_names(),
+        });
+    };
+    let rgb = find3([
+        ["red", "diffuse_red"],
+        ["green", "diffuse_green"],
+        ["blue", "diffuse_blue"],
+    ]);
+    let conf = vertex.find(&["confidence", "value"]);
+
+    let mut plan = Plan::skip(vertex);
+    for (slot, &p) in pos.iter().chain(&nrm).enumerate() {
+        plan.slots[p] = Some(slot);
+    }
+    let mut float_colors = false;
+    if let Some(rgb) = rgb {
+        for (k, &p) in rgb.iter().enumerate() {
+            plan.slots[p] = Some(6 + k);
+            float_colors |= matches!(vertex.props[p].ty, PropType::Scalar(s) if s.is_float());
+        }
+    }
+    if let Some(c) = conf {
+        plan.slots[c] = Some(9);
+    }
+    for (p, slot) in vertex.props.iter().zip(&plan.slots) {
+        if slot.is_some() && !matches!(p.ty, PropType::Scalar(_)) {
+            return Err(PlyErrorKind::Header {
+                line: p.line,
+                message: format!(
+                    "vertex property '{}' is a list, expected a single number",
+                    p.name
+                ),
+            });
+        }
+    }
+
+    let size_checked = match file_len {
+        Some(len) => {
+            check_sizes(&header, vi, len.saturating_sub(header.bytes))?;
+            true
+        }
+        None => false,
+    };
+    let cap = capacity(vertex.count, size_checked);
+    let mut out = PlyPoints {
+        positions: Vec::with_capacity(cap),
+        normals: Vec::with_capacity(cap),
+        colors: rgb.map(|_| Vec::with_capacity(cap)),
+        confidence: conf.map(|_| Vec::with_capacity(cap)),
+    };
+    let mut body = Body::new(r, &header);
+    for el in &header.elements[..vi] {
+        body.read_element(el, &Plan::skip(el), |_, _, _| Ok(()))?;
+    }
+    let color = |v: f64| -> u8 {
+        let v = if float_colors { v * 255.0 } else { v };
+        v.round().clamp(0.0, 255.0) as u8
+    };
+    body.read_element(vertex, &plan, |_, v, _| {
+        out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
+        out.normals.push([v[3] as f32, v[4] as f32, v[5] as f32]);
+        if let Some(c) = &mut out.colors {
+            c.push([color(v[6]), color(v[7]), color(v[8])]);
+        }
+        if let Some(c) = &mut out.confidence {
+            c.push(v[9] as f32);
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Writes oriented points as PLY (see [`write_point_cloud_to`]).
+pub fn write_point_cloud(path: &Path, points: &PlyPoints, format: PlyFormat) -> io::Result<()> {
+    write_file(path, |w| write_point_cloud_to(w, points, format))
+}
+
+/// Writes oriented points as PLY in the given format: `float x y z nx ny nz`, then
+/// `uchar red green blue` and `float confidence` when present.
+pub fn write_point_cloud_to(
+    mut w: impl Write,
+    points: &PlyPoints,
+    format: PlyFormat,
+) -> io::Result<()> {
+    let n = points.positions.len();
+    let lengths_ok = points.normals.len() == n
+        && points.colors.as_ref().map_or(true, |c| c.len() == n)
+        && points.confidence.as_ref().map_or(true, |c| c.len() == n);
+    if !lengths_ok {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "PlyPoints: normals, colors and confidence must have one entry per position",
+        ));
+    }
+    let mut header = format!(
+        "ply\nformat {} 1.0\ncomment written by psr {}\nelement vertex {n}\n",
+        format.header_name(),
+        env!("CARGO_PKG_VERSION")
+    );
+    for p in ["x", "y", "z", "nx", "ny", "nz"] {
+        header.push_str(&format!("property float {p}\n"));
+    }
+    if points.colors.is_some() {
+        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
+    if points.confidence.is_some() {
+        header.push_str("property float confidence\n");
+    }
+    header.push_str("end_header\n");
+    w.write_all(header.as_bytes())?;
+
+    let mut chunk = Chunk::new(w);
+    for i in 0..n {
+        let floats = points.positions[i].iter().chain(&points.normals[i]);
+        let rgb = points.colors.as_ref().map(|c| c[i]);
+        let conf = points.confidence.as_ref().map(|c| c[i]);
+        match format {
+            PlyFormat::Ascii => {
+                let mut line = String::with_capacity(96);
+                for (k, v) in floats.enumerate() {
+                    if k > 0 {
+                        line.push(' ');
+                    }
+                    line.push_str(&v.to_string());
+                }
+                if let Some([r, g, b]) = rgb {
+                    line.push_str(&format!(" {r} {g} {b}"));
+                }
+                if let Some(c) = conf {
+                    line.push_str(&format!(" {c}"));
+                }
+                line.push('\n');
+                chunk.put(line.as_bytes())?;
+            }
+            PlyFormat::BinaryLittleEndian | PlyFormat::BinaryBigEndian => {
+                let big = format == PlyFormat::BinaryBigEndian;
+                let f32_bytes = |v: f32| {
+                    if big {
+                        v.to_be_bytes()
+                    } else {
+                        v.to_le_bytes()
+                    }
+                };
+                for &v in floats {
+                    chunk.put(&f32_bytes(v))?;
+                }
+                if let Some(rgb) = rgb {
+                    chunk.put(&rgb)?;
+                }
+                if let Some(c) = conf {
+                    chunk.put(&f32_bytes(c))?;
+                }
+            }
+        }
+    }
+    chunk.finish()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Meshes
+// ---------------------------------------------------------------------------------------------
+
+/// A triangle mesh as read from PLY: vertex positions and triangles (indices into them).
+pub type MeshData = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+/// Reads a polygon mesh from a PLY file (see [`read_mesh_from`]).
+pub fn read_mesh(path: &Path) -> Result<MeshData, PlyError> {
+    let file = File::open(path).map_err(|e| {
+        PlyError::new(PlyErrorKind::Io {
+            action: "open",
+            source: e,
+        })
+        .with_path(path)
+    })?;
+    let len = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    read_mesh_impl(BufReader::with_capacity(1 << 20, file), len)
+        .map_err(|e| PlyError::new(e).with_path(path))
+}
+
+/// Reads a polygon mesh from PLY data: the `vertex` element's `x y z` and the `face` element's
+/// `vertex_indices` (or `vertex_index`) lists. A polygon with n > 3 corners becomes a fan of
+/// n − 2 triangles around its first corner; faces with fewer than 3 corners are dropped.
+pub fn read_mesh_from(reader: impl BufRead) -> Result<MeshData, PlyError> {
+    read_mesh_impl(reader, None).map_err(PlyError::new)
+}
+
+fn read_mesh_impl<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<MeshData, PlyErrorKind> {
+    let header = parse_header(&mut r)?;
+    let Some(vi) = header.element("vertex") else {
+        return Err(PlyErrorKind::MissingElement {
+            element: "vertex".into(),
+        });
+    };
+    let Some(fi) = header.element("face") else {
+        return Err(PlyErrorKind::MissingElement {
+            element: "face".into(),
+        });
+    };
+    let (vertex, face) = (&header.elements[vi], &header.elements[fi]);
+    let mut vplan = Plan::skip(vertex);
+    for (slot, name) in ["x", "y", "z"].iter().enumerate() {
+        match vertex.find(&[name]) {
+            Some(p) if matches!(vertex.props[p].ty, PropType::Scalar(_)) => {
+                vplan.slots[p] = Some(slot)
+            }
+            _ => {
+                return Err(PlyErrorKind::MissingProperty {
+                    element: "vertex".into(),
+                    wanted: "x y z properties".into(),
+                    present: vertex.prop_names(),
+                })
+            }
+        }
+    }
+    let mut fplan = Plan::skip(face);
+    match face.find(&["vertex_indices", "vertex_index"]) {
+        Some(p) if matches!(face.props[p].ty, PropType::List { .. }) => fplan.list = Some(p),
+        _ => {
+            return Err(PlyErrorKind::MissingProperty {
+                element: "face".into(),
+                wanted: "vertex_indices list".into(),
+                present: face.prop_names(),
+            })
+        }
+    }
+
+    let size_checked = match file_len {
+        Some(len) => {
+            check_sizes(&header, vi.max(fi), len.saturating_sub(header.bytes))?;
+            true
+        }
+        None => false,
+    };
+    let vertex_count = vertex.count;
+    let mut positions = Vec::with_capacity(capacity(vertex_count, size_checked));
+    let mut triangles = Vec::with_capacity(capacity(face.count, size_checked));
+    let mut body = Body::new(r, &header);
+    let mut corners: Vec<u32> = Vec::new();
+    for (i, el) in header.elements.iter().enumerate().take(vi.max(fi) + 1) {
+        if i == vi {
+            body.read_element(el, &vplan, |_, v, _| {
+                positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
+                Ok(())
+            })?;
+        } else if i == fi {
+            body.read_element(el, &fplan, |_, _, list| {
+                corners.clear();
+                for &v in list {
+                    if !(v >= 0.0 && v.fract() == 0.0 && v < vertex_count as f64) {
+                        return Err(format!(
+                            "vertex index {v} is out of range (the file has {vertex_count} vertices)"
+                        ));
+                    }
+                    corners.push(v as u32);
+                }
+                for k in 2..corners.len() {
+                    triangles.push([corners[0], corners[k - 1], corners[k]]);
+                }
+                Ok(())
+            })?;
+        } else {
+            body.read_element(el, &Plan::skip(el), |_, _, _| Ok(()))?;
+        }
+    }
+    Ok((positions, triangles))
+}
+
+/// Writes a mesh as binary little-endian PLY (see [`write_mesh_to`]).
+pub fn write_mesh(path: &Path, mesh: &Mesh) -> io::Result<()> {
+    write_file(path, |w| write_mesh_to(w, mesh))
+}
+
+/// Writes a mesh as binary little-endian PLY: vertex `float x y z`, plus `float value` (the
+/// per-vertex density) when `mesh.densities` is not empty, and face
+/// `list uchar int vertex_indices`.
+pub fn write_mesh_to(mut w: impl Write, mesh: &Mesh) -> io::Result<()> {
+    let n = mesh.positions.len();
+    let with_density = !mesh.densities.is_empty();
+    if with_density && mesh.densities.len() != n {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "mesh has {} densities for {n} vertices",
+                mesh.densities.len()
+            ),
+        ));
+    }
+    if n > i32::MAX as usize {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "mesh has {n} vertices: PLY int indices cannot address more than {}",
+                i32::MAX
+            ),
+        ));
+    }
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .find(|t| t.iter().any(|&i| i as usize >= n))
+    {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("mesh triangle {t:?} refers to a vertex beyond the {n} vertices"),
+        ));
+    }
+    let mut header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment written by psr {}\nelement vertex {n}\n\
+         property float x\nproperty float y\nproperty float z\n",
+        env!("CARGO_PKG_VERSION")
+    );
+    if with_density {
+        header.push_str("property float value\n");
+    }
+    header.push_str(&format!(
+        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        mesh.triangles.len()
+    ));
+    w.write_all(header.as_bytes())?;
+
+    let mut chunk = Chunk::new(w);
+    for (i, p) in mesh.positions.iter().enumerate() {
+        let mut record = [0u8; 16];
+        for (k, v) in p.iter().enumerate() {
+            record[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        let len = if with_density {
+            record[12..16].copy_from_slice(&mesh.densities[i].to_le_bytes());
+            16
+        } else {
+            12
+        };
+        chunk.put(&record[..len])?;
+    }
+    for t in &mesh.triangles {
+        let mut record = [3u8; 13];
+        for (k, &v) in t.iter().enumerate() {
+            record[1 + 4 * k..5 + 4 * k].copy_from_slice(&(v as i32).to_le_bytes());
+        }
+        chunk.put(&record)?;
+    }
+    chunk.finish()
+}
+
+/// Creates `path`, runs `write` on a buffered writer to it and flushes; errors name the path.
+fn write_file(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+) -> io::Result<()> {
+    let with_path = |action: &str, e: io::Error| {
+        io::Error::new(
+            e.kind(),
+            format!("{}: cannot {action}: {e}", path.display()),
+        )
+    };
+    let file = File::create(path).map_err(|e| with_path("create the file", e))?;
+    let mut w = BufWriter::with_capacity(1 << 20, file);
+    write(&mut w)
+        .and_then(|()| w.flush())
+        .map_err(|e| with_path("write the file", e))?;
+    Ok(())
+}
+
+/// Gathers small records into large writes.
+struct Chunk<W: Write> {
+    w: W,
+    buf: Vec<u8>,
+}
+
+const CHUNK_BYTES: usize = 1 << 20;
+
+impl<W: Write> Chunk<W> {
+    fn new(w: W) -> Self {
+        Chunk {
+            w,
+            buf: Vec::with_capacity(CHUNK_BYTES),
+        }
+    }
+
+    fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
+        if self.buf.len() + bytes.len() > CHUNK_BYTES {
+            self.w.write_all(&self.buf)?;
+            self.buf.clear();
+        }
+        self.buf.extend_from_slice(bytes);
+        Ok(())
+    }
+
+    fn finish(mut self) -> io::Result<()> {
+        self.w.write_all(&self.buf)?;
+        self.w.flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_points(with_extras: bool) -> PlyPoints {
+        let positions = vec![[0.5, -1.25, 3.0e-7], [1.0e6, 2.5, -0.1], [0.0, 0.0, 0.0]];
+        let normals = vec![
+            [0.0, 0.0, 1.0],
+            [0.6, 0.8, 0.0],
+            [-0.33333334, 0.6666667, -0.6666667],
+        ];
+        PlyPoints {
+            positions,
+            normals,
+            colors: with_extras.then(|| vec![[255, 0, 7], [1, 2, 3], [128, 64, 32]]),
+            confidence: with_extras.then(|| vec![0.25, 1.0, 7.5]),
+        }
+    }
+
+    fn to_bytes(points: &PlyPoints, format: PlyFormat) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        write_point_cloud_to(&mut bytes, points, format).unwrap();
+        bytes
+    }
+
+    fn read(bytes: &[u8]) -> Result<PlyPoints, PlyError> {
+        read_point_cloud_from(bytes)
+    }
+
+    /// A file name in the temporary directory, unique to this process and test.
+    fn temp_path(name: &str) -> PathBuf {
+        std::env::temp_dir().join(format!("psr-ply-test-{}-{name}", std::process::id()))
+    }
+
+    #[test]
+    fn round_trips_in_every_format() {
+        for format in [
+            PlyFormat::Ascii,
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+        ] {
+            for extras in [false, true] {
+                let points = sample_points(extras);
+                let back = read(&to_bytes(&points, format)).unwrap();
+                assert_eq!(back, points, "{format:?} extras={extras}");
+            }
+        }
+    }
+
+    #[test]
+    fn round_trips_through_a_file_and_reads_the_header_we_write() {
+        let path = temp_path("cloud.ply");
+        let points = sample_points(true);
+        write_point_cloud(&path, &points, PlyFormat::BinaryLittleEndian).unwrap();
+        let back = read_point_cloud(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(back, points);
+    }
+
+    /// Builds a binary file by hand: header text, then raw body bytes.
+    fn binary_file(header: &str, body: &[u8]) -> Vec<u8> {
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend_from_slice(body);
+        bytes
+    }
+
+    #[test]
+    fn skips_other_properties_lists_and_elements_in_binary() {
+        let header =
+            "ply\r\nformat binary_little_endian 1.0\r\ncomment any text\r\nobj_info more\r\n\
+            element camera 2\r\nproperty list uchar float path\r\nproperty int8 id\r\n\
+            element vertex 2\r\nproperty uchar flags\r\nproperty double x\r\nproperty int16 y\r\n\
+            property list ushort uint neighbours\r\nproperty float32 z\r\nproperty uint8 nx\r\n\
+            property char ny\r\nproperty uint nz\r\nproperty float value\r\nproperty uchar red\r\n\
+            element face 1\r\nproperty list uchar int vertex_indices\r\nend_header\r\n";
+        let mut body = Vec::new();
+        // camera: a 2-float list then an id; a 0-length list then an id.
+        body.extend_from_slice(&[2]);
+        body.extend_from_slice(&1.0f32.to_le_bytes());
+        body.extend_from_slice(&2.0f32.to_le_bytes());
+        body.extend_from_slice(&[5, 0, 6]);
+        for (i, &(x, y, z)) in [(1.5f64, -3i16, 0.25f32), (-2.0, 7, 8.0)]
+            .iter()
+            .enumerate()
+        {
+            body.push(0xAA);
+            body.extend_from_slice(&x.to_le_bytes());
+            body.extend_from_slice(&y.to_le_bytes());
+            body.extend_from_slice(&(i as u16 + 1).to_le_bytes());
+            for k in 0..=i as u32 {
+                body.extend_from_slice(&(k * 1000).to_le_bytes());
+            }
+            body.extend_from_slice(&z.to_le_bytes());
+            body.push(1);
+            body.push((-2i8) as u8);
+            body.extend_from_slice(&3u32.to_le_bytes());
+            body.extend_from_slice(&0.5f32.to_le_bytes());
+            body.push(9);
+        }
+        body.extend_from_slice(&[3, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0]);
+        let points = read(&binary_file(header, &body)).unwrap();
+        assert_eq!(points.positions, vec![[1.5, -3.0, 0.25], [-2.0, 7.0, 8.0]]);
+        assert_eq!(points.normals, vec![[1.0, -2.0, 3.0]; 2]);
+        assert_eq!(points.confidence, Some(vec![0.5, 0.5]));
+        assert_eq!(points.colors, None, "red alone is not a colour");
+        // The face element after the vertices is never needed, so a cut there does not matter;
+        // a cut inside the vertices does.
+        let cut = binary_file(header, &body[..body.len() - 20]);
+        assert!(
+            matches!(read(&cut).unwrap_err().kind(), PlyErrorKind::Truncated { element, index: 1, count: 2 } if element == "vertex")
+        );
+    }
+
+    #[test]
+    fn skips_other_properties_lists_and_elements_in_ascii() {
+        let text = "ply\nformat ascii 1.0\nelement material 1\nproperty list uchar uchar name\n\
+            element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+            property list uchar int junk\nproperty float nx\nproperty float ny\nproperty float nz\n\
+            property float confidence\nproperty float value\n\
+            element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+            3 65 66 67\n\
+            1 2 3 2 10 11 0 0 1 0.5 9\n\
+            \n\
+            -1e-3 4.5 6 0 1 0 0 2 7\r\n\
+            7 8 9 3 1 2 3 1 0 0 1 9\n\
+            3 0 1 2\n";
+        let points = read(text.as_bytes()).unwrap();
+        assert_eq!(
+            points.positions,
+            vec![[1.0, 2.0, 3.0], [-1e-3, 4.5, 6.0], [7.0, 8.0, 9.0]]
+        );
+        assert_eq!(
+            points.normals,
+            vec![[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+        );
+        assert_eq!(
+            points.confidence,
+            Some(vec![0.5, 2.0, 1.0]),
+            "confidence wins over value"
+        );
+    }
+
+    #[test]
+    fn reads_big_endian_doubles_and_float_colours() {
+        let header = "ply\nformat binary_big_endian 1.0\nelement vertex 1\n\
+            property float64 x\nproperty float64 y\nproperty float64 z\n\
+            property double nx\nproperty double ny\nproperty double nz\n\
+            property float red\nproperty float green\nproperty float blue\nend_header\n";
+        let mut body = Vec::new();
+        for v in [0.1f64, 0.2, 0.3, 0.0, -1.0, 0.0] {
+            body.extend_from_slice(&v.to_be_bytes());
+        }
+        for v in [1.0f32, 0.5, 0.0] {
+            body.extend_from_slice(&v.to_be_bytes());
+        }
+        let points = read(&binary_file(header, &body)).unwrap();
+        assert_eq!(points.positions, vec![[0.1, 0.2, 0.3]]);
+        assert_eq!(points.normals, vec![[0.0, -1.0, 0.0]]);
+        assert_eq!(points.colors, Some(vec![[255, 128, 0]]));
+    }
+
+    #[test]
+    fn truncated_files_give_a_truncation_error() {
+        for format in [
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+            PlyFormat::Ascii,
+        ] {
+            let bytes = to_bytes(&sample_points(true), format);
+            let cut = if format == PlyFormat::Ascii {
+                // Drop the whole last line.
+                let body = &bytes[..bytes.len() - 1];
+                &bytes[..body.iter().rposition(|&b| b == b'\n').unwrap() + 1]
+            } else {
+                &bytes[..bytes.len() - 3]
+            };
+            let err = read(cut).unwrap_err();
+            assert!(
+                matches!(
+                    err.kind(),
+                    PlyErrorKind::Truncated {
+                        index: 2,
+                        count: 3,
+                        ..
+                    }
+                ),
+                "{format:?}: {err}"
+            );
+            assert!(err.to_string().contains("truncated"), "{err}");
+        }
+    }
+
+    #[test]
+    fn every_prefix_and_many_corruptions_fail_cleanly() {
+        for format in [PlyFormat::BinaryLittleEndian, PlyFormat::Ascii] {
+            let bytes = to_bytes(&sample_points(true), format);
+            // An ASCII file cut inside its last line may still parse (as a shorter last number).
+            let last_line = bytes[..bytes.len() - 1]
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .unwrap()
+                + 1;
+            for len in 0..bytes.len() {
+                let result = read(&bytes[..len]);
+                if format != PlyFormat::Ascii || len <= last_line {
+                    assert!(result.is_err(), "{format:?} prefix {len}");
+                }
+            }
+            // Flip bytes pseudo-randomly: any result is fine as long as nothing panics.
+            let mut state = 0x9E37_79B9_7F4A_7C15u64;
+            for _ in 0..2000 {
+                let mut corrupt = bytes.clone();
+                for _ in 0..3 {
+                    state = state
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let at = (state >> 33) as usize % corrupt.len();
+                    corrupt[at] = (state >> 20) as u8;
+                }
+                let _ = read(&corrupt);
+                let _ = read_mesh_from(&corrupt[..]);
+            }
+        }
+    }
+
+    #[test]
+    fn missing_normals_are_named() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+            property float z\nproperty uchar red\nend_header\n1 2 3 4\n";
+        let err = read(text.as_bytes()).unwrap_err();
+        assert!(matches!(err.kind(), PlyErrorKind::MissingNormals { .. }));
+        let message = err.to_string();
+        assert!(message.contains("no nx ny nz"), "{message}");
+        assert!(message.contains("x y z red"), "{message}");
+    }
+
+    #[test]
+    fn bad_headers_are_reported_with_their_line() {
+        let cases: &[(&str, &str)] = &[
+            ("", "not a PLY file"),
+            ("PLY\n", "not a PLY file"),
+            ("\u{89}PNG\r\n", "not a PLY file"),
+            (
+                "ply\nformat ascii 1.0\nelement vertex 1\n",
+                "before the end_header",
+            ),
+            (
+                "ply\nformat ascii 1.0\nproperty float x\nend_header\n",
+                "line 3",
+            ),
+            ("ply\nformat xml 1.0\nend_header\n", "unknown format 'xml'"),
+            ("ply\nformat ascii 2.0\nend_header\n", "version"),
+            ("ply\nelement vertex 1\nend_header\n", "before any format"),
+            (
+                "ply\nformat ascii 1.0\nelement vertex -3\nend_header\n",
+                "line 3",
+            ),
+            (
+                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n",
+                "float128",
+            ),
+            (
+                "ply\nformat ascii 1.0\nelement f 1\nproperty list float int v\nend_header\n",
+                "list count",
+            ),
+            (
+                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float x\n",
+                "twice",
+            ),
+            (
+                "ply\nformat ascii 1.0\nbogus\nend_header\n",
+                "unknown keyword 'bogus'",
+            ),
+            (
+                "ply\nformat ascii 1.0\nelement face 0\nend_header\n",
+                "no 'vertex' element",
+            ),
+            (
+                "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n",
+                "no x y z",
+            ),
+        ];
+        for (text, expected) in cases {
+            let message = read(text.as_bytes()).unwrap_err().to_string();
+            assert!(message.contains(expected), "{text:?}: {message}");
+        }
+    }
+
+    #[test]
+    fn bad_ascii_values_name_the_line() {
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+            property float z\nproperty float nx\nproperty float ny\nproperty uchar nz\nend_header\n";
+        let cases = [
+            ("1 2 3 0 0 1\n1 2 x 0 0 1\n", "line 12"),
+            ("1 2 3 0 0 1\n1 2 3 0 0 256\n", "not a valid uchar"),
+            ("1 2 3 0 0\n", "line 11"),
+            ("1 2 3 0 0 1 5\n", "more values"),
+        ];
+        for (body, expected) in cases {
+            let message = read(format!("{head}{body}").as_bytes())
+                .unwrap_err()
+                .to_string();
+            assert!(message.contains(expected), "{body:?}: {message}");
+        }
+    }
+
+    #[test]
+    fn absurd_counts_are_refused_before_allocating() {
+        let path = temp_path("absurd.ply");
+        let header = "ply\nformat binary_little_endian 1.0\nelement vertex 18446744073709551615\n\
+            property float x\nproperty float y\nproperty float z\nproperty float nx\n\
+            property float ny\nproperty float nz\nend_header\n";
+        std::fs::write(&path, binary_file(header, &[0; 48])).unwrap();
+        let err = read_point_cloud(&path).unwrap_err();
+        std::fs::remove_file(&path).unwrap();
+        assert!(matches!(err.kind(), PlyErrorKind::TooLarge { .. }), "{err}");
+        assert!(
+            err.to_string().starts_with(&path.display().to_string()),
+            "{err}"
+        );
+        // Without a file size to check against, the count only bounds nothing: reading stops at
+        // the end of the data.
+        let err = read(&binary_file(header, &[0; 48])).unwrap_err();
+        assert!(
+            matches!(err.kind(), PlyErrorKind::Truncated { index: 2, .. }),
+            "{err}"
+        );
+        let faces = "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\n\
+            property float y\nproperty float z\nelement face 1\nproperty list uint int vertex_indices\nend_header\n";
+        let err = read_mesh_from(&binary_file(faces, &u32::MAX.to_le_bytes())[..]).unwrap_err();
+        assert!(
+            matches!(err.kind(), PlyErrorKind::Truncated { .. }),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn the_smallest_ascii_file_passes_the_size_check() {
+        let path = temp_path("tiny.ply");
+        let text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+            property float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n\
+            0 0 0 0 0 1\n1 1 1 1 0 0";
+        std::fs::write(&path, text).unwrap();
+        let result = read_point_cloud(&path);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(result.unwrap().positions, vec![[0.0; 3], [1.0; 3]]);
+    }
+
+    #[test]
+    fn missing_files_name_the_path() {
+        let path = temp_path("does-not-exist.ply");
+        let err = read_point_cloud(&path).unwrap_err();
+        assert!(matches!(
+            err.kind(),
+            PlyErrorKind::Io { action: "open", .. }
+        ));
+        assert!(std::error::Error::source(&err).is_some());
+        let message = err.to_string();
+        assert!(
+            message.contains("does-not-exist.ply") && message.contains("cannot open"),
+            "{message}"
+        );
+    }
+
+    fn sample_mesh(densities: bool) -> Mesh {
+        Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, -1.5],
+            ],
+            triangles: vec![[0, 1, 2], [0, 3, 1], [3, 2, 1]],
+            densities: if densities {
+                vec![1.0, 2.0, 0.5, 0.0]
+            } else {
+                Vec::new()
+            },
+            ..Mesh::default()
+        }
+    }
+
+    #[test]
+    fn meshes_round_trip_with_and_without_density() {
+        for densities in [false, true] {
+            let mesh = sample_mesh(densities);
+            let mut bytes = Vec::new();
+            write_mesh_to(&mut bytes, &mesh).unwrap();
+            let header_len = bytes
+                .windows(11)
+                .position(|w| w == b"end_header\n")
+                .unwrap()
+                + 11;
+            let header = std::str::from_utf8(&bytes[..header_len]).unwrap();
+            assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"));
+            assert!(header.contains("element vertex 4\n") && header.contains("element face 3\n"));
+            assert!(header.contains("property list uchar int vertex_indices\n"));
+            assert_eq!(header.contains("property float value\n"), densities);
+            let stride = if densities { 16 } else { 12 };
+            assert_eq!(bytes.len(), header_len + 4 * stride + 3 * 13);
+            let (positions, triangles) = read_mesh_from(&bytes[..]).unwrap();
+            assert_eq!(positions, mesh.positions);
+            assert_eq!(triangles, mesh.triangles);
+            // The density comes back as a point cloud's `value` only with normals; check bytes.
+            if densities {
+                let v = &bytes[header_len + 12..header_len + 16];
+                assert_eq!(f32::from_le_bytes([v[0], v[1], v[2], v[3]]), 1.0);
+            }
+        }
+        let path = temp_path("mesh.ply");
+        write_mesh(&path, &sample_mesh(true)).unwrap();
+        let (positions, triangles) = read_mesh(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!((positions.len(), triangles.len()), (4, 3));
+    }
+
+    #[test]
+    fn write_mesh_refuses_inconsistent_meshes() {
+        let mut mesh = sample_mesh(true);
+        mesh.densities.pop();
+        assert!(write_mesh_to(io::sink(), &mesh).is_err());
+        let mut mesh = sample_mesh(false);
+        mesh.triangles.push([0, 1, 4]);
+        assert!(write_mesh_to(io::sink(), &mesh).is_err());
+        let err =
+            write_mesh(&temp_path("no-such-dir").join("m.ply"), &sample_mesh(false)).unwrap_err();
+        assert!(err.to_string().contains("no-such-dir"), "{err}");
+    }
+
+    #[test]
+    fn polygons_become_fans_and_bad_indices_are_errors() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+            property float z\nelement face 3\nproperty uchar flags\nproperty list uchar uint vertex_index\n\
+            end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 1\n7 4 0 1 2 3\n0 2 0 1\n1 5 0 1 2 3 4\n";
+        let (positions, triangles) = read_mesh_from(text.as_bytes()).unwrap();
+        assert_eq!(positions.len(), 5);
+        assert_eq!(
+            triangles,
+            vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3], [0, 3, 4]]
+        );
+        let bad = text.replace("0 2 0 1\n", "0 3 0 1 5\n");
+        let message = read_mesh_from(bad.as_bytes()).unwrap_err().to_string();
+        assert!(
+            message.contains("out of range") && message.contains("line 17"),
+            "{message}"
+        );
+        let no_faces =
+            "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n\
+            property float z\nend_header\n";
+        let message = read_mesh_from(no_faces.as_bytes()).unwrap_err().to_string();
+        assert!(message.contains("no 'face' element"), "{message}");
+    }
+
+    /// The shared data sets, when this checkout has them beside it.
+    fn shared(name: &str) -> Option<PathBuf> {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data")
+            .join(name);
+        path.exists().then_some(path)
+    }
+
+    #[test]
+    fn reads_the_shared_bunny_files() {
+        if let Some(path) = shared("bunny_scans.reference.ply") {
+            let (positions, triangles) = read_mesh(&path).unwrap();
+            assert_eq!((positions.len(), triangles.len()), (35_947, 69_451));
+        }
+        if let Some(path) = shared("bunny_scans.ply") {
+            let points = read_point_cloud(&path).unwrap();
+            assert_eq!(points.len(), 362_272);
+            assert!(points.colors.is_none() && points.confidence.is_none());
+            let n = points.normals[1000];
+            assert!(((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-4);
+        }
+        if let Some(path) = shared("lion_takanawa_rgb.ply") {
+            let points = read_point_cloud(&path).unwrap();
+            assert_eq!(points.colors.as_ref().map(Vec::len), Some(341_989));
+        }
+    }
+}
