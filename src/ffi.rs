@@ -539,9 +539,11 @@ unsafe fn set_param(
 ) -> psr_status {
     guard(function, r, || {
         let handle = handle_mut(function, r)?;
-        let mut probe = Params::default();
         // Check the value against the widest range its parameter may take on its own.
-        probe.depth = crate::params::MAX_DEPTH;
+        let mut probe = Params {
+            depth: crate::params::MAX_DEPTH,
+            ..Params::default()
+        };
         apply(&mut probe);
         probe
             .validate()

@@ -142,12 +142,24 @@ pub fn reconstruct_with_progress(points: &PointSet, params: &Params, progress: P
     } else {
         params.threads
     };
+    // The pipeline runs on the caller's thread (so the progress callback does too); only its
+    // parallel sections run inside this reconstruction's own pool. Its threads are joined
+    // (pthread_join, not just finished) before this returns, so no psr code runs after it and a
+    // host may unload the library at once.
+    let mut workers = Vec::with_capacity(threads);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
-        .thread_name(|i| format!("psr-worker-{i}"))
+        .spawn_handler(|thread| {
+            let name = format!("psr-worker-{}", thread.index());
+            workers.push(std::thread::Builder::new().name(name).spawn(move || thread.run())?);
+            Ok(())
+        })
         .build()
         .map_err(|e| Error::Internal(format!("could not start {threads} worker threads: {e}")))?;
-    // The pipeline runs on the caller's thread (so the progress callback does too); only its
-    // parallel sections run inside this reconstruction's own pool.
-    pipeline::run(points, params, &pool, progress)
+    let result = pipeline::run(points, params, &pool, progress);
+    drop(pool);
+    for worker in workers {
+        let _ = worker.join();
+    }
+    result
 }

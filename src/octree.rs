@@ -36,6 +36,14 @@ pub fn morton(c: Coord) -> u64 {
     spread((c[0] + OFFSET) as u64) | (spread((c[1] + OFFSET) as u64) << 1) | (spread((c[2] + OFFSET) as u64) << 2)
 }
 
+/// Morton key of non-negative coordinates without the halo offset, so that the keys of a cell's
+/// descendants at any finer depth are contiguous (sorting points by this key at depth D sorts
+/// them by cell at every coarser depth too).
+#[inline]
+pub fn morton_nested(c: [u32; 3]) -> u64 {
+    spread(c[0] as u64) | (spread(c[1] as u64) << 1) | (spread(c[2] as u64) << 2)
+}
+
 /// Inverse of [`morton`].
 #[inline]
 pub fn unmorton(k: u64) -> Coord {
@@ -108,6 +116,9 @@ pub struct Level {
     pub parent: Vec<u32>,
     /// Indices of the core nodes, ascending.
     pub core: Vec<u32>,
+    /// With Neumann boundaries: every halo node outside the cube, the node it mirrors (its
+    /// reflection across the cube's faces, inside the cube) and a bit per reflected axis.
+    pub mirrors: Vec<Mirror>,
     index: KeyMap<u32>,
 }
 
@@ -156,6 +167,33 @@ impl Level {
     }
 }
 
+/// A halo node outside the cube that stands for the reflection of an inside node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Mirror {
+    pub outside: u32,
+    pub inside: u32,
+    /// Bit a set: reflected across a face normal to axis a.
+    pub flips: u8,
+}
+
+/// Reflects a node index into [0, n) across the faces of the cube (node centres at i + ½, so
+/// index −1 − i mirrors i and 2n − 1 − i mirrors i from the far face); `None` if inside.
+#[inline]
+pub fn reflect(c: Coord, n: i32) -> Option<(Coord, u8)> {
+    let mut out = c;
+    let mut flips = 0u8;
+    for a in 0..3 {
+        if c[a] < 0 {
+            out[a] = -1 - c[a];
+            flips |= 1 << a;
+        } else if c[a] >= n {
+            out[a] = 2 * n - 1 - c[a];
+            flips |= 1 << a;
+        }
+    }
+    (flips != 0).then_some((out, flips))
+}
+
 /// The whole tree: one [`Level`] per depth 0..=max depth.
 #[derive(Debug, Default)]
 pub struct Octree {
@@ -166,7 +204,9 @@ impl Octree {
     /// Builds the tree from the core node keys requested at each depth (`requested[d]`, any
     /// order, duplicates allowed). Adds the parents of every core node and the complete grid
     /// down to `full_depth`, then the halo.
-    pub fn build(mut requested: Vec<Vec<u64>>, full_depth: u32) -> Octree {
+    /// With `neumann`, the requested keys must lie inside the cube, and every halo node outside
+    /// it is linked to the inside node it mirrors.
+    pub fn build(mut requested: Vec<Vec<u64>>, full_depth: u32, neumann: bool) -> Octree {
         let max_depth = requested.len() as u32 - 1;
         // Core sets, finest first so parents can be added on the way up.
         let mut cores: Vec<Vec<u64>> = vec![Vec::new(); requested.len()];
@@ -193,7 +233,7 @@ impl Octree {
         let mut levels: Vec<Level> = cores
             .into_iter()
             .enumerate()
-            .map(|(d, core_keys)| Level::with_halo(d as u32, core_keys))
+            .map(|(d, core_keys)| Level::with_halo(d as u32, core_keys, neumann))
             .collect();
         for d in 1..levels.len() {
             let (coarse, fine) = levels.split_at_mut(d);
@@ -222,7 +262,7 @@ pub fn parent_key(k: u64) -> u64 {
 }
 
 impl Level {
-    fn with_halo(depth: u32, core_keys: Vec<u64>) -> Level {
+    fn with_halo(depth: u32, core_keys: Vec<u64>, neumann: bool) -> Level {
         let core_coords: Vec<Coord> = core_keys.iter().map(|&k| unmorton(k)).collect();
         let near = dilate(&core_coords, 1);
         let halo = dilate(&near, 1);
@@ -259,7 +299,19 @@ impl Level {
                 n
             })
             .collect();
-        Level { depth, keys, flags, neighbors, parent: Vec::new(), core, index }
+        let mut mirrors = Vec::new();
+        if neumann {
+            let n = 1i32 << depth;
+            for (i, &k) in keys.iter().enumerate() {
+                if let Some((inside, flips)) = reflect(unmorton(k), n) {
+                    // The reflection of a halo node is within two nodes of the same core nodes.
+                    if let Some(&inside) = index.get(&morton(inside)) {
+                        mirrors.push(Mirror { outside: i as u32, inside, flips });
+                    }
+                }
+            }
+        }
+        Level { depth, keys, flags, neighbors, parent: Vec::new(), core, mirrors, index }
     }
 }
 
@@ -346,7 +398,7 @@ mod tests {
     #[test]
     fn tree_is_proper_with_halo_and_links() {
         let requested = vec![vec![], vec![], vec![], vec![morton([5, 2, 7])]];
-        let tree = Octree::build(requested, 1);
+        let tree = Octree::build(requested, 1, true);
         let finest = &tree.levels[3];
         assert_eq!(finest.core.len(), 1);
         assert_eq!(finest.len(), 125);
@@ -362,5 +414,9 @@ mod tests {
         assert!(block.iter().all(|&n| n != NONE));
         assert_eq!(finest.coord(block[0]), [4, 1, 6]);
         assert_eq!(finest.coord(block[26]), [6, 3, 8]);
+        // Neumann mirrors: (5, 2, 7) is far from the faces of the 8³ grid except z (8 → 7).
+        let outside = finest.find([5, 2, 8]).unwrap();
+        let m = finest.mirrors.iter().find(|m| m.outside == outside).unwrap();
+        assert_eq!((finest.coord(m.inside), m.flips), ([5, 2, 7], 4));
     }
 }

@@ -12,8 +12,13 @@ pub const MAX_DEPTH: u32 = 16;
 /// What to do at the faces of the bounding cube.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Boundary {
-    /// The 2006 paper: node functions are integrated over all of space, the cube imposes nothing.
+    /// The 2006 paper: node functions are integrated over all of space and simply end a little
+    /// beyond the cube, which pulls χ towards 0 there (like a Dirichlet condition one node out).
+    /// Close to the cube's faces this distorts the surface.
     Free,
+    /// ∂χ/∂n = 0 on the cube's faces: node functions are reflected at the faces (the even,
+    /// folded basis). PoissonRecon's and Open3D's default; the most accurate near the faces.
+    Neumann,
 }
 
 /// Parameters of one reconstruction. `Params::default()` works; every field documents its
@@ -50,7 +55,8 @@ pub struct Params {
     /// Relative residual ‖b − Ax‖/‖b‖ at which a depth's solve stops. Default 1e-5,
     /// range [1e-12, 1). PoissonRecon `--cgAccuracy` (coarsest level only).
     pub solver_tolerance: f64,
-    /// Boundary condition at the bounding cube. Default [`Boundary::Free`].
+    /// Boundary condition at the bounding cube. Default [`Boundary::Neumann`] (PoissonRecon
+    /// `--bType 3`, Open3D's only choice).
     pub boundary: Boundary,
 }
 
@@ -66,7 +72,7 @@ impl Default for Params {
             threads: 0,
             max_solver_iterations: 60,
             solver_tolerance: 1e-5,
-            boundary: Boundary::Free,
+            boundary: Boundary::Neumann,
         }
     }
 }

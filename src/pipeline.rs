@@ -7,8 +7,8 @@ use crate::evaluate::Indicator;
 use crate::octree::{morton, Octree};
 use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
-use crate::system::{divergence, prolong, restrict_into, DepthOperator, Proxies};
-use crate::{extract, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats};
+use crate::system::{divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator, Proxies};
+use crate::{extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -79,16 +79,19 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     clock.done(Stage::Density)?;
 
     // 2. Octree: the nodes each sample splats into, at its one or two depths.
+    let neumann = params.boundary == Boundary::Neumann;
     let mut requested: Vec<Vec<u64>> = vec![Vec::new(); max_depth as usize + 1];
     for (s, &p) in samples.positions.iter().enumerate() {
         for (d, w) in depth_split(sample_density.depth[s]) {
             if w > 0.0 {
                 let inv_h = (d as f64).exp2();
-                requested[d as usize].extend(trilinear(p, inv_h).iter().map(|(c, _)| morton(*c)));
+                for (c, _) in trilinear(p, inv_h) {
+                    requested[d as usize].push(morton(splat_node(c, d, neumann)));
+                }
             }
         }
     }
-    let tree = pool.install(|| Octree::build(requested, params.effective_full_depth()));
+    let tree = pool.install(|| Octree::build(requested, params.effective_full_depth(), neumann));
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 
@@ -111,12 +114,15 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
             let inv_h = (d as f64).exp2();
             let scale = w * mass;
             for (c, a) in trilinear(p, inv_h) {
-                let i = level.find(c).ok_or_else(|| Error::Internal("splat node missing from the octree".into()))?;
+                let i = level.find(splat_node(c, d, neumann)).ok_or_else(|| Error::Internal("splat node missing from the octree".into()))?;
                 for axis in 0..3 {
                     field_v[d as usize][axis][i as usize] += scale * a * n[axis];
                 }
             }
         }
+    }
+    for (level, v) in tree.levels.iter().zip(field_v.iter_mut()) {
+        fill_mirrors_field(level, v);
     }
     clock.done(Stage::Splat)?;
 
@@ -129,6 +135,7 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
             let finer: &Vec<f64> = rho.last().expect("finer level computed first");
             restrict_into(level, &tree.levels[d + 1], finer, &mut r);
         }
+        fill_mirrors(level, &mut r);
         rho.push(r);
         clock.report(Stage::System, (max_depth as usize - d + 1) as f32 / (max_depth as usize + 1) as f32)?;
     }
@@ -146,7 +153,7 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
             .iter()
             .map(|&p| {
                 let c = crate::system::cell_of(p, inv_h);
-                morton(c)
+                crate::octree::morton_nested(c.map(|v| v.max(0) as u32))
             })
             .collect();
         pool.install(|| order.par_sort_by_key(|&s| (keys[s as usize], s)));
@@ -154,20 +161,27 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     clock.done(Stage::System)?;
 
     // 6. Solve, coarse to fine.
-    let point_weight = params.point_weight as f64;
+    // Screening weight α·2^D at every depth: the finest depth's balance between the Laplacian and
+    // the screening term (SPSR), kept at coarser depths, where it is then relatively stronger.
+    // The cascade never revisits a coarse depth, so a coarse solution that ignores the samples
+    // would leave an offset the thin finer bands cannot take out.
+    let screening = params.point_weight as f64 * (max_depth as f64).exp2();
     let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
     let mut coarse_field: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let depths = max_depth + 1;
     for d in 0..=max_depth as usize {
         let level = &tree.levels[d];
         let (y, rhs_halo, this_field) = pool.install(|| {
-            let y = if d == 0 { vec![0.0; level.len()] } else { prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0) };
+            let mut y =
+                if d == 0 { vec![0.0; level.len()] } else { prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0) };
+            fill_mirrors(level, &mut y);
             // V from coarser depths, represented at this depth (F̃ halves in width: ×1/8).
-            let prolonged: [Vec<f64>; 3] = if d == 0 {
+            let mut prolonged: [Vec<f64>; 3] = if d == 0 {
                 [vec![0.0; level.len()], vec![0.0; level.len()], vec![0.0; level.len()]]
             } else {
                 std::array::from_fn(|a| prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125))
             };
+            fill_mirrors_field(level, &mut prolonged);
             let coarse_div = divergence(level, &prolonged);
             let rhs_halo: Vec<f64> = rho[d].iter().zip(&coarse_div).map(|(a, b)| a + b).collect();
             let this_field: [Vec<f64>; 3] = std::array::from_fn(|a| {
@@ -176,8 +190,9 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
             (y, rhs_halo, this_field)
         });
         coarse_field = this_field;
-        let proxies = pool.install(|| Proxies::build(level, &samples.positions, &screening_weights, &order));
-        let mut op = DepthOperator::new(level, &proxies, point_weight);
+        fill_mirrors_field(level, &mut coarse_field);
+        let proxies = pool.install(|| Proxies::build(level, &samples.positions, &screening_weights, &order, proxy_depth(d as u32, max_depth)));
+        let mut op = DepthOperator::new(level, &proxies, screening);
         let mut applied = vec![0.0; level.core.len()];
         pool.install(|| op.apply(&y, &mut applied));
         let rhs: Vec<f64> = level.core.iter().zip(&applied).map(|(&c, a)| rhs_halo[c as usize] - a).collect();
@@ -208,6 +223,7 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
         for (&c, v) in level.core.iter().zip(&x) {
             z[c as usize] += v;
         }
+        fill_mirrors(level, &mut z);
         coefficients.push(z);
         clock.stats.solves.push(DepthSolve {
             depth: d as u32,
@@ -265,6 +281,24 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     });
     clock.done(Stage::Mesh)?;
     Ok(Mesh { positions, triangles: raw.triangles, densities, stats: clock.stats })
+}
+
+/// The node a trilinear weight goes to: with Neumann boundaries a node just outside the cube is
+/// replaced by its reflection inside (the folded basis has no outside nodes).
+fn splat_node(c: [i32; 3], depth: u32, neumann: bool) -> [i32; 3] {
+    if neumann {
+        if let Some((inside, _)) = crate::octree::reflect(c, 1 << depth) {
+            return inside;
+        }
+    }
+    c
+}
+
+/// The depth at which the screening samples of depth d are grouped: two depths finer (16× less
+/// sag of a proxy below a curved surface than grouping at d; measured 3% more accurate on
+/// spheres than grouping at d, and as accurate as using every sample).
+fn proxy_depth(d: u32, max_depth: u32) -> u32 {
+    (d + 2).min(max_depth)
 }
 
 /// A fractional depth δ splats into ⌊δ⌋ with weight 1 − frac(δ) and ⌊δ⌋ + 1 with frac(δ).

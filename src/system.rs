@@ -63,32 +63,56 @@ fn tap_sum(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], i: u32) -
     sum
 }
 
-/// The screening samples of one depth: one proxy per node cell that holds samples and lies
-/// within one node of the core (farther ones touch no core node function).
+/// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
+/// reflects, so free-space stencils act as the folded (even) basis (no-op with free boundaries).
+pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
+    for m in &level.mirrors {
+        x[m.outside as usize] = x[m.inside as usize];
+    }
+}
+
+/// [`fill_mirrors`] for a vector field: a component normal to a reflecting face changes sign.
+pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
+    for m in &level.mirrors {
+        for (axis, comp) in v.iter_mut().enumerate() {
+            let sign = if m.flips & (1 << axis) != 0 { -1.0 } else { 1.0 };
+            comp[m.outside as usize] = sign * comp[m.inside as usize];
+        }
+    }
+}
+
+/// The screening samples of one depth: the samples grouped by node cell at a finer "proxy
+/// depth" (weighted mean position, summed weight), kept when their cell at this depth lies
+/// within one node of the core (farther ones touch no core node function). Grouping at a finer
+/// depth than the level's own keeps the proxies on the surface: the mean of the samples in a
+/// large cell lies inside a convex surface by about width²/(8·radius).
 #[derive(Debug, Default)]
 pub struct Proxies {
-    /// K_d index of the cell holding the proxy.
+    /// K_d index of the cell (at this depth) holding each proxy; proxies of one cell are
+    /// consecutive.
     pub cell: Vec<u32>,
-    /// Summed screening weight of the samples in the cell.
+    /// Summed screening weight of the samples of each proxy.
     pub weight: Vec<f64>,
-    /// b(t − centre) for the three nodes per axis around the cell (cell − 1, cell, cell + 1).
+    /// b(t − centre) for the three nodes per axis around the proxy's cell (cell − 1, cell,
+    /// cell + 1), evaluated at the proxy.
     pub stencil: Vec<[[f64; 3]; 3]>,
-    /// Proxy index per K_d node, `NONE` when the cell has none.
-    pub of_cell: Vec<u32>,
+    /// Per K_d node, the range of its proxies (`start..end`; empty when none).
+    pub of_cell: Vec<(u32, u32)>,
 }
 
 impl Proxies {
-    /// Groups samples (sorted by cell at this depth: `cells[s]` ascending runs) into proxies.
-    pub fn build(level: &Level, positions: &[DVec3], weights: &[f64], order: &[u32]) -> Proxies {
+    /// Groups samples (in `order`, sorted by Morton key at a depth ≥ `proxy_depth`) into
+    /// proxies at `proxy_depth` ≥ the level's depth.
+    pub fn build(level: &Level, positions: &[DVec3], weights: &[f64], order: &[u32], proxy_depth: u32) -> Proxies {
         let inv_h = (level.depth as f64).exp2();
-        let mut proxies = Proxies { of_cell: vec![NONE; level.len()], ..Default::default() };
+        let inv_proxy_h = (proxy_depth as f64).exp2();
+        let mut proxies = Proxies { of_cell: vec![(0, 0); level.len()], ..Default::default() };
         let mut s = 0;
         while s < order.len() {
-            let first = positions[order[s] as usize];
-            let cell = cell_of(first, inv_h);
+            let group = cell_of(positions[order[s] as usize], inv_proxy_h);
             let mut sum_w = 0.0;
             let mut sum_p = DVec3::ZERO;
-            while s < order.len() && cell_of(positions[order[s] as usize], inv_h) == cell {
+            while s < order.len() && cell_of(positions[order[s] as usize], inv_proxy_h) == group {
                 let k = order[s] as usize;
                 sum_w += weights[k];
                 sum_p += positions[k] * weights[k];
@@ -97,13 +121,22 @@ impl Proxies {
             if sum_w <= 0.0 {
                 continue;
             }
+            let shift = proxy_depth - level.depth;
+            let cell = [group[0] >> shift, group[1] >> shift, group[2] >> shift];
             let Some(idx) = level.find(cell) else { continue };
             if level.flags[idx as usize] & crate::octree::NEAR == 0 {
                 continue;
             }
             let q = sum_p / sum_w;
             let (_, stencil) = crate::density::stencil27(q, inv_h);
-            proxies.of_cell[idx as usize] = proxies.cell.len() as u32;
+            let at = proxies.cell.len() as u32;
+            let range = &mut proxies.of_cell[idx as usize];
+            if range.0 == range.1 {
+                *range = (at, at + 1);
+            } else {
+                debug_assert_eq!(range.1, at, "proxies of one cell are consecutive");
+                range.1 = at + 1;
+            }
             proxies.cell.push(idx);
             proxies.weight.push(sum_w);
             proxies.stencil.push(stencil);
@@ -131,18 +164,19 @@ pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
 pub struct DepthOperator<'a> {
     pub level: &'a Level,
     pub proxies: &'a Proxies,
-    /// α·2^d.
+    /// Weight of the screening term.
     pub screening: f64,
     scratch: [Vec<f64>; 4],
 }
 
 impl<'a> DepthOperator<'a> {
-    pub fn new(level: &'a Level, proxies: &'a Proxies, point_weight: f64) -> Self {
+    /// `screening` is the weight α_d of the screening term at this depth.
+    pub fn new(level: &'a Level, proxies: &'a Proxies, screening: f64) -> Self {
         let n = level.len();
         DepthOperator {
             level,
             proxies,
-            screening: point_weight * (level.depth as f64).exp2(),
+            screening,
             scratch: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
         }
     }
@@ -181,6 +215,13 @@ impl<'a> DepthOperator<'a> {
                     *o += scale * gather_screening(level, proxies, &values, n);
                 }
             });
+            // Neumann: an inside node's function is folded with its reflections, so it also
+            // collects what the proxies give its mirror images.
+            for m in &level.mirrors {
+                if let Ok(pos) = core.binary_search(&m.inside) {
+                    out[pos] += scale * gather_screening(level, proxies, &values, m.outside);
+                }
+            }
         }
     }
 
@@ -201,10 +242,10 @@ impl<'a> DepthOperator<'a> {
                         if cell == NONE {
                             continue;
                         }
-                        let q = proxies.of_cell[cell as usize];
-                        if q != NONE {
-                            let b = node_weight_at_proxy(&proxies.stencil[q as usize], slot);
-                            s += proxies.weight[q as usize] * b * b;
+                        let (start, end) = proxies.of_cell[cell as usize];
+                        for q in start as usize..end as usize {
+                            let b = node_weight_at_proxy(&proxies.stencil[q], slot);
+                            s += proxies.weight[q] * b * b;
                         }
                     }
                 }
@@ -253,10 +294,10 @@ fn gather_screening(level: &Level, proxies: &Proxies, values: &[f64], n: u32) ->
         if cell == NONE {
             continue;
         }
-        let q = proxies.of_cell[cell as usize];
-        if q != NONE {
-            let b = node_weight_at_proxy(&proxies.stencil[q as usize], slot);
-            s += proxies.weight[q as usize] * b * values[q as usize];
+        let (start, end) = proxies.of_cell[cell as usize];
+        for q in start as usize..end as usize {
+            let b = node_weight_at_proxy(&proxies.stencil[q], slot);
+            s += proxies.weight[q] * b * values[q];
         }
     }
     s
