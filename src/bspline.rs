@@ -126,7 +126,13 @@ mod tests {
     fn mass_table_is_the_quintic_b_spline_at_integers() {
         // ∫ b(t) b(t−δ) dt is the degree-5 B-spline at δ: 11/20, 13/60, 1/120.
         let m = tables().mass;
-        for (got, want) in m.iter().zip([1.0 / 120.0, 13.0 / 60.0, 11.0 / 20.0, 13.0 / 60.0, 1.0 / 120.0]) {
+        for (got, want) in m.iter().zip([
+            1.0 / 120.0,
+            13.0 / 60.0,
+            11.0 / 20.0,
+            13.0 / 60.0,
+            1.0 / 120.0,
+        ]) {
             assert!(close(*got, want), "{got} vs {want}");
         }
     }
@@ -135,7 +141,10 @@ mod tests {
     fn stiffness_table_is_minus_the_second_derivative_of_the_quintic() {
         // −B5″(δ) = −(B3(δ+1) − 2 B3(δ) + B3(δ−1)): 1, −1/3, −1/6; sums to zero (constants).
         let d = tables().stiffness;
-        for (got, want) in d.iter().zip([-1.0 / 6.0, -1.0 / 3.0, 1.0, -1.0 / 3.0, -1.0 / 6.0]) {
+        for (got, want) in d
+            .iter()
+            .zip([-1.0 / 6.0, -1.0 / 3.0, 1.0, -1.0 / 3.0, -1.0 / 6.0])
+        {
             assert!(close(*got, want), "{got} vs {want}");
         }
     }
@@ -144,7 +153,10 @@ mod tests {
     fn advection_table_is_the_antisymmetric_first_derivative() {
         // G(δ) = B5′(δ) = B4(δ + ½) − B4(δ − ½): 5/12 at δ = −1, 1/24 at δ = −2.
         let g = tables().advection;
-        for (got, want) in g.iter().zip([1.0 / 24.0, 5.0 / 12.0, 0.0, -5.0 / 12.0, -1.0 / 24.0]) {
+        for (got, want) in g
+            .iter()
+            .zip([1.0 / 24.0, 5.0 / 12.0, 0.0, -5.0 / 12.0, -1.0 / 24.0])
+        {
             assert!(close(*got, want), "{got} vs {want}");
         }
     }
@@ -153,7 +165,11 @@ mod tests {
     fn refinement_reproduces_the_coarse_function() {
         for k in -160..=160 {
             let t = k as f64 / 40.0; // coarse units, centre at 0
-            let fine: f64 = REFINE.iter().enumerate().map(|(j, w)| w * value(2.0 * t - (j as f64 - 1.5))).sum();
+            let fine: f64 = REFINE
+                .iter()
+                .enumerate()
+                .map(|(j, w)| w * value(2.0 * t - (j as f64 - 1.5)))
+                .sum();
             assert!(close(fine, value(t)), "t={t}");
         }
     }

@@ -35,7 +35,10 @@ pub fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
         let wx = if dx == 1 { f.x } else { 1.0 - f.x };
         let wy = if dy == 1 { f.y } else { 1.0 - f.y };
         let wz = if dz == 1 { f.z } else { 1.0 - f.z };
-        *slot = ([b[0] + dx as i32, b[1] + dy as i32, b[2] + dz as i32], wx * wy * wz);
+        *slot = (
+            [b[0] + dx as i32, b[1] + dy as i32, b[2] + dz as i32],
+            wx * wy * wz,
+        );
     }
     out
 }
@@ -75,7 +78,11 @@ impl DensityField {
                 *counts.entry(morton(node)).or_insert(0.0) += w * c;
             }
         }
-        DensityField { depth, inv_h, counts }
+        DensityField {
+            depth,
+            inv_h,
+            counts,
+        }
     }
 
     /// W(q) = Σ_o count_o B_o(q).
@@ -85,7 +92,11 @@ impl DensityField {
         for (k, wz) in w[2].iter().enumerate() {
             for (j, wy) in w[1].iter().enumerate() {
                 for (i, wx) in w[0].iter().enumerate() {
-                    let key = morton([c[0] - 1 + i as i32, c[1] - 1 + j as i32, c[2] - 1 + k as i32]);
+                    let key = morton([
+                        c[0] - 1 + i as i32,
+                        c[1] - 1 + j as i32,
+                        c[2] - 1 + k as i32,
+                    ]);
                     if let Some(n) = self.counts.get(&key) {
                         sum += n * wx * wy * wz;
                     }
@@ -107,23 +118,42 @@ pub struct SampleDensity {
 }
 
 /// Evaluates W at every sample and derives its area and depth.
-pub fn estimate(field: &DensityField, positions: &[DVec3], max_depth: u32, samples_per_node: f64) -> SampleDensity {
+pub fn estimate(
+    field: &DensityField,
+    positions: &[DVec3],
+    max_depth: u32,
+    samples_per_node: f64,
+) -> SampleDensity {
     let h2 = (-2.0 * field.depth as f64).exp2();
     let density: Vec<f64> = positions.par_iter().map(|&p| field.evaluate(p)).collect();
     // A sample always lies within the support of its own splat, so W(s) > 0 unless its
     // confidence is 0; such samples get no area and the coarsest depth.
-    let area = density.iter().map(|&w| if w > 0.0 { PLANE_KERNEL_PEAK * h2 / w } else { 0.0 }).collect();
-    let depth = density
+    let area = density
         .iter()
         .map(|&w| {
             if w > 0.0 {
-                (field.depth as f64 + (w / samples_per_node).log2() * 0.5).clamp(0.0, max_depth as f64)
+                PLANE_KERNEL_PEAK * h2 / w
             } else {
                 0.0
             }
         })
         .collect();
-    SampleDensity { density, area, depth }
+    let depth = density
+        .iter()
+        .map(|&w| {
+            if w > 0.0 {
+                (field.depth as f64 + (w / samples_per_node).log2() * 0.5)
+                    .clamp(0.0, max_depth as f64)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    SampleDensity {
+        density,
+        area,
+        depth,
+    }
 }
 
 #[cfg(test)]
@@ -162,13 +192,22 @@ mod tests {
                 }
             }
             let field = DensityField::splat(&pts, None, depth);
-            let est = estimate(&field, &[DVec3::new(0.5, 0.5, z), DVec3::new(0.31, 0.62, z)], 8, 1.5);
+            let est = estimate(
+                &field,
+                &[DVec3::new(0.5, 0.5, z), DVec3::new(0.31, 0.62, z)],
+                8,
+                1.5,
+            );
             assert!((est.area[0] - est.area[1]).abs() < 1e-3 * est.area[0]);
             mean_area += est.area[0] / 8.0;
             // (512/32)² = 256 samples per depth-5 node: log₄(W/1.5) ≈ 3.7 depths finer, so
             // the depth is clamped at D = 8.
             assert_eq!(est.depth[0], 8.0);
         }
-        assert!((mean_area / (s * s) - 1.0).abs() < 0.02, "mean area {mean_area} vs {}", s * s);
+        assert!(
+            (mean_area / (s * s) - 1.0).abs() < 0.02,
+            "mean area {mean_area} vs {}",
+            s * s
+        );
     }
 }

@@ -57,7 +57,11 @@ fn face_cycles() -> [[usize; 4]; 6] {
         for side in 0..2 {
             let at = |du: usize, dv: usize| (side << axis) | (du << u) | (dv << v);
             let ccw = [at(0, 0), at(1, 0), at(1, 1), at(0, 1)];
-            faces[axis * 2 + side] = if side == 1 { ccw } else { [ccw[0], ccw[3], ccw[2], ccw[1]] };
+            faces[axis * 2 + side] = if side == 1 {
+                ccw
+            } else {
+                [ccw[0], ccw[3], ccw[2], ccw[1]]
+            };
         }
     }
     faces
@@ -81,7 +85,9 @@ fn cell_loops(values: &[f64; 8], faces: &[[usize; 4]; 6]) -> Vec<Vec<usize>> {
     let mut next = [usize::MAX; 12];
     for cycle in faces {
         let crossing = |k: usize| edge_between(cycle[k], cycle[(k + 1) % 4]);
-        let changes: Vec<usize> = (0..4).filter(|&k| outside(cycle[k]) != outside(cycle[(k + 1) % 4])).collect();
+        let changes: Vec<usize> = (0..4)
+            .filter(|&k| outside(cycle[k]) != outside(cycle[(k + 1) % 4]))
+            .collect();
         match changes.len() {
             0 => {}
             2 => {
@@ -95,10 +101,18 @@ fn cell_loops(values: &[f64; 8], faces: &[[usize; 4]; 6]) -> Vec<Vec<usize>> {
                 // the product of the outside pair exceeds that of the inside pair.
                 let (p0, p1) = (values[cycle[0]], values[cycle[2]]);
                 let (q0, q1) = (values[cycle[1]], values[cycle[3]]);
-                let (plus, minus) = if outside(cycle[0]) { (p0 * p1, q0 * q1) } else { (q0 * q1, p0 * p1) };
+                let (plus, minus) = if outside(cycle[0]) {
+                    (p0 * p1, q0 * q1)
+                } else {
+                    (q0 * q1, p0 * p1)
+                };
                 let outside_joined = plus >= minus;
                 for k in 0..4 {
-                    let isolated = if outside_joined { !outside(cycle[k]) } else { outside(cycle[k]) };
+                    let isolated = if outside_joined {
+                        !outside(cycle[k])
+                    } else {
+                        outside(cycle[k])
+                    };
                     if !isolated {
                         continue;
                     }
@@ -144,7 +158,11 @@ fn corner_key(c: [i64; 3]) -> u64 {
 
 #[inline]
 fn corner_of(c: &[i64; 3], k: usize) -> [i64; 3] {
-    [c[0] + (k & 1) as i64, c[1] + ((k >> 1) & 1) as i64, c[2] + ((k >> 2) & 1) as i64]
+    [
+        c[0] + (k & 1) as i64,
+        c[1] + ((k >> 1) & 1) as i64,
+        c[2] + ((k >> 2) & 1) as i64,
+    ]
 }
 
 fn morton_order(c: &[i64; 3]) -> u64 {
@@ -192,7 +210,8 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 
 
         let mut next_frontier = Vec::new();
         for c in &frontier {
-            let vals: [f64; 8] = std::array::from_fn(|k| corner_values[&corner_key(corner_of(c, k))]);
+            let vals: [f64; 8] =
+                std::array::from_fn(|k| corner_values[&corner_key(corner_of(c, k))]);
             let first = vals[0] >= 0.0;
             if vals.iter().all(|&v| (v >= 0.0) == first) {
                 continue;
@@ -262,7 +281,11 @@ fn triangulate(lp: &[usize], ids: &[u32], on_faces: &[u8; 12], mesh: &mut RawMes
             continue;
         }
         let smallest = (1..m - 1)
-            .map(|j| (pos(apex + j) - pos(apex)).cross(pos(apex + j + 1) - pos(apex)).length())
+            .map(|j| {
+                (pos(apex + j) - pos(apex))
+                    .cross(pos(apex + j + 1) - pos(apex))
+                    .length()
+            })
             .fold(f64::INFINITY, f64::min);
         if best.map_or(true, |(s, _)| smallest > s) {
             best = Some((smallest, apex));
@@ -271,11 +294,16 @@ fn triangulate(lp: &[usize], ids: &[u32], on_faces: &[u8; 12], mesh: &mut RawMes
     match best {
         Some((_, apex)) => {
             for j in 1..m - 1 {
-                mesh.triangles.push([ids[apex], ids[(apex + j) % m], ids[(apex + j + 1) % m]]);
+                mesh.triangles
+                    .push([ids[apex], ids[(apex + j) % m], ids[(apex + j + 1) % m]]);
             }
         }
         None => {
-            let centre = ids.iter().map(|&i| mesh.vertices[i as usize]).sum::<DVec3>() / m as f64;
+            let centre = ids
+                .iter()
+                .map(|&i| mesh.vertices[i as usize])
+                .sum::<DVec3>()
+                / m as f64;
             mesh.vertices.push(centre);
             let c = (mesh.vertices.len() - 1) as u32;
             for k in 0..m {

@@ -114,10 +114,10 @@ pub enum psr_status {
 pub enum psr_stage {
     /// Copying the points and mapping them into the unit cube.
     Points = 0,
+    /// Estimating the sampling density (it decides the depths the octree needs).
+    Density = 1,
     /// Building the octree.
-    Octree = 1,
-    /// Estimating the sampling density.
-    Density = 2,
+    Octree = 2,
     /// Splatting the normals into the vector field.
     Splat = 3,
     /// Assembling the linear system.

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! The reconstruction is one straight pipeline; each stage is a module:
-//! points → octree → density → splat → system → solve → isovalue → extract → mesh.
+//! points → density → octree → splat → system → solve → isovalue → extract → mesh.
 
 pub mod bspline;
 pub mod density;
@@ -37,8 +37,9 @@ pub use points::PointSet;
 #[repr(u32)]
 pub enum Stage {
     Points = 0,
-    Octree = 1,
-    Density = 2,
+    /// The density estimate comes before the octree: each sample's depth decides its nodes.
+    Density = 1,
+    Octree = 2,
     Splat = 3,
     System = 4,
     Solve = 5,
@@ -51,8 +52,8 @@ impl Stage {
     /// All stages in pipeline order.
     pub const ALL: [Stage; 9] = [
         Stage::Points,
-        Stage::Octree,
         Stage::Density,
+        Stage::Octree,
         Stage::Splat,
         Stage::System,
         Stage::Solve,
@@ -132,13 +133,19 @@ pub fn reconstruct(points: &PointSet, params: &Params) -> Result<Mesh> {
 
 /// [`reconstruct`] with a progress callback that may cancel (then the result is
 /// `Err(Error::Cancelled)`).
-pub fn reconstruct_with_progress(points: &PointSet, params: &Params, progress: Progress<'_>) -> Result<Mesh> {
+pub fn reconstruct_with_progress(
+    points: &PointSet,
+    params: &Params,
+    progress: Progress<'_>,
+) -> Result<Mesh> {
     params.validate()?;
     if points.is_empty() {
         return Err(Error::EmptyInput);
     }
     let threads = if params.threads == 0 {
-        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
     } else {
         params.threads
     };
@@ -151,7 +158,11 @@ pub fn reconstruct_with_progress(points: &PointSet, params: &Params, progress: P
         .num_threads(threads)
         .spawn_handler(|thread| {
             let name = format!("psr-worker-{}", thread.index());
-            workers.push(std::thread::Builder::new().name(name).spawn(move || thread.run())?);
+            workers.push(
+                std::thread::Builder::new()
+                    .name(name)
+                    .spawn(move || thread.run())?,
+            );
             Ok(())
         })
         .build()

@@ -33,7 +33,9 @@ pub type Coord = [i32; 3];
 /// Morton key of a node coordinate (21 bits per axis after the offset).
 #[inline]
 pub fn morton(c: Coord) -> u64 {
-    spread((c[0] + OFFSET) as u64) | (spread((c[1] + OFFSET) as u64) << 1) | (spread((c[2] + OFFSET) as u64) << 2)
+    spread((c[0] + OFFSET) as u64)
+        | (spread((c[1] + OFFSET) as u64) << 1)
+        | (spread((c[2] + OFFSET) as u64) << 2)
 }
 
 /// Morton key of non-negative coordinates without the halo offset, so that the keys of a cell's
@@ -47,7 +49,11 @@ pub fn morton_nested(c: [u32; 3]) -> u64 {
 /// Inverse of [`morton`].
 #[inline]
 pub fn unmorton(k: u64) -> Coord {
-    [compact(k) as i32 - OFFSET, compact(k >> 1) as i32 - OFFSET, compact(k >> 2) as i32 - OFFSET]
+    [
+        compact(k) as i32 - OFFSET,
+        compact(k >> 1) as i32 - OFFSET,
+        compact(k >> 2) as i32 - OFFSET,
+    ]
 }
 
 #[inline]
@@ -89,7 +95,9 @@ impl Hasher for KeyHasher {
     }
     #[inline]
     fn write_u64(&mut self, k: u64) {
-        self.0 = (k ^ (k >> 29)).wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(26);
+        self.0 = (k ^ (k >> 29))
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(26);
     }
 }
 
@@ -154,7 +162,13 @@ impl Level {
     #[inline]
     pub fn block27(&self, i: u32) -> [u32; 27] {
         let mut out = [NONE; 27];
-        let step = |n: u32, dir: usize| if n == NONE { NONE } else { self.neighbors[n as usize][dir] };
+        let step = |n: u32, dir: usize| {
+            if n == NONE {
+                NONE
+            } else {
+                self.neighbors[n as usize][dir]
+            }
+        };
         for (zi, zn) in [step(i, 4), i, step(i, 5)].into_iter().enumerate() {
             for (yi, yn) in [step(zn, 2), zn, step(zn, 3)].into_iter().enumerate() {
                 let row = zi * 9 + yi * 3;
@@ -306,12 +320,25 @@ impl Level {
                 if let Some((inside, flips)) = reflect(unmorton(k), n) {
                     // The reflection of a halo node is within two nodes of the same core nodes.
                     if let Some(&inside) = index.get(&morton(inside)) {
-                        mirrors.push(Mirror { outside: i as u32, inside, flips });
+                        mirrors.push(Mirror {
+                            outside: i as u32,
+                            inside,
+                            flips,
+                        });
                     }
                 }
             }
         }
-        Level { depth, keys, flags, neighbors, parent: Vec::new(), core, mirrors, index }
+        Level {
+            depth,
+            keys,
+            flags,
+            neighbors,
+            parent: Vec::new(),
+            core,
+            mirrors,
+            index,
+        }
     }
 }
 
@@ -416,7 +443,11 @@ mod tests {
         assert_eq!(finest.coord(block[26]), [6, 3, 8]);
         // Neumann mirrors: (5, 2, 7) is far from the faces of the 8³ grid except z (8 → 7).
         let outside = finest.find([5, 2, 8]).unwrap();
-        let m = finest.mirrors.iter().find(|m| m.outside == outside).unwrap();
+        let m = finest
+            .mirrors
+            .iter()
+            .find(|m| m.outside == outside)
+            .unwrap();
         assert_eq!((finest.coord(m.inside), m.flips), ([5, 2, 7], 4));
     }
 }

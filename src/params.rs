@@ -80,12 +80,17 @@ impl Default for Params {
 impl Params {
     /// Parameters with the given depth and every other field at its default.
     pub fn with_depth(depth: u32) -> Self {
-        Params { depth, ..Params::default() }
+        Params {
+            depth,
+            ..Params::default()
+        }
     }
 
     /// The kernel depth actually used (resolves `None` to depth − 2).
     pub fn effective_kernel_depth(&self) -> u32 {
-        self.kernel_depth.unwrap_or(self.depth.saturating_sub(2)).min(self.depth)
+        self.kernel_depth
+            .unwrap_or(self.depth.saturating_sub(2))
+            .min(self.depth)
     }
 
     /// The full depth actually used (never deeper than `depth`).
@@ -96,13 +101,21 @@ impl Params {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<()> {
         fn bad(name: &'static str, value: impl ToString, expected: &'static str) -> Error {
-            Error::InvalidParameter { name, value: value.to_string(), expected }
+            Error::InvalidParameter {
+                name,
+                value: value.to_string(),
+                expected,
+            }
         }
         if !(1..=MAX_DEPTH).contains(&self.depth) {
             return Err(bad("depth", self.depth, "an integer in 1..=16"));
         }
         if self.full_depth > MAX_DEPTH {
-            return Err(bad("full_depth", self.full_depth, "an integer in 0..=16 (values above depth act as depth)"));
+            return Err(bad(
+                "full_depth",
+                self.full_depth,
+                "an integer in 0..=16 (values above depth act as depth)",
+            ));
         }
         if let Some(k) = self.kernel_depth {
             if k > self.depth {
@@ -110,22 +123,45 @@ impl Params {
             }
         }
         if !(self.samples_per_node.is_finite() && (1.0..=1e6).contains(&self.samples_per_node)) {
-            return Err(bad("samples_per_node", self.samples_per_node, "a number in [1, 1e6]"));
+            return Err(bad(
+                "samples_per_node",
+                self.samples_per_node,
+                "a number in [1, 1e6]",
+            ));
         }
         if !(self.scale.is_finite() && (1.0..=100.0).contains(&self.scale)) {
             return Err(bad("scale", self.scale, "a number in [1, 100]"));
         }
         if !(self.point_weight.is_finite() && (0.0..=1e6).contains(&self.point_weight)) {
-            return Err(bad("point_weight", self.point_weight, "a number in [0, 1e6]"));
+            return Err(bad(
+                "point_weight",
+                self.point_weight,
+                "a number in [0, 1e6]",
+            ));
         }
         if self.threads > 4096 {
-            return Err(bad("threads", self.threads, "0 (all cores) or a count up to 4096"));
+            return Err(bad(
+                "threads",
+                self.threads,
+                "0 (all cores) or a count up to 4096",
+            ));
         }
         if !(1..=10_000).contains(&self.max_solver_iterations) {
-            return Err(bad("max_solver_iterations", self.max_solver_iterations, "an integer in 1..=10000"));
+            return Err(bad(
+                "max_solver_iterations",
+                self.max_solver_iterations,
+                "an integer in 1..=10000",
+            ));
         }
-        if !(self.solver_tolerance.is_finite() && self.solver_tolerance >= 1e-12 && self.solver_tolerance < 1.0) {
-            return Err(bad("solver_tolerance", self.solver_tolerance, "a number in [1e-12, 1)"));
+        if !(self.solver_tolerance.is_finite()
+            && self.solver_tolerance >= 1e-12
+            && self.solver_tolerance < 1.0)
+        {
+            return Err(bad(
+                "solver_tolerance",
+                self.solver_tolerance,
+                "a number in [1e-12, 1)",
+            ));
         }
         Ok(())
     }

@@ -7,8 +7,12 @@ use crate::evaluate::Indicator;
 use crate::octree::{morton, Octree};
 use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
-use crate::system::{divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator, Proxies};
-use crate::{extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats};
+use crate::system::{
+    divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator, Proxies,
+};
+use crate::{
+    extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
+};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -31,7 +35,9 @@ impl Clock<'_, '_> {
 
     fn done(&mut self, stage: Stage) -> Result<()> {
         let now = Instant::now();
-        self.stats.stage_seconds.push((stage, (now - self.started).as_secs_f64()));
+        self.stats
+            .stage_seconds
+            .push((stage, (now - self.started).as_secs_f64()));
         self.started = now;
         self.report(stage, 1.0)
     }
@@ -45,8 +51,17 @@ struct Samples {
     confidence: Vec<f64>,
 }
 
-pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, mut progress: Progress<'_>) -> Result<Mesh> {
-    let mut clock = Clock { progress: &mut progress, started: Instant::now(), stats: Stats::default() };
+pub(crate) fn run(
+    points: &PointSet,
+    params: &Params,
+    pool: &rayon::ThreadPool,
+    mut progress: Progress<'_>,
+) -> Result<Mesh> {
+    let mut clock = Clock {
+        progress: &mut progress,
+        started: Instant::now(),
+        stats: Stats::default(),
+    };
     let max_depth = params.depth;
     clock.stats.points = points.len();
     clock.report(Stage::Points, 0.0)?;
@@ -54,7 +69,11 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     // 1. Points: into the unit cube.
     let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
     let samples = pool.install(|| Samples {
-        positions: points.positions().par_iter().map(|&p| map.to_unit(p)).collect(),
+        positions: points
+            .positions()
+            .par_iter()
+            .map(|&p| map.to_unit(p))
+            .collect(),
         normals: points
             .normals()
             .par_iter()
@@ -74,7 +93,12 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     let kernel_depth = params.effective_kernel_depth();
     let field = DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
     let sample_density = pool.install(|| {
-        density::estimate(&field, &samples.positions, max_depth, params.samples_per_node as f64)
+        density::estimate(
+            &field,
+            &samples.positions,
+            max_depth,
+            params.samples_per_node as f64,
+        )
     });
     clock.done(Stage::Density)?;
 
@@ -97,8 +121,11 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
 
     // 4. Splat: V = Σ_s A_s c_s n_s Σ_o α_o,s F̃_o at the sample's depth(s) (§4.2, §4.5); the
     // coefficients are those of the unit-integral F̃_o = B_o/h³.
-    let mut field_v: Vec<[Vec<f64>; 3]> =
-        tree.levels.iter().map(|l| [vec![0.0; l.len()], vec![0.0; l.len()], vec![0.0; l.len()]]).collect();
+    let mut field_v: Vec<[Vec<f64>; 3]> = tree
+        .levels
+        .iter()
+        .map(|l| [vec![0.0; l.len()], vec![0.0; l.len()], vec![0.0; l.len()]])
+        .collect();
     for s in 0..samples.positions.len() {
         let mass = sample_density.area[s] * samples.confidence[s];
         if mass == 0.0 {
@@ -114,7 +141,9 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
             let inv_h = (d as f64).exp2();
             let scale = w * mass;
             for (c, a) in trilinear(p, inv_h) {
-                let i = level.find(splat_node(c, d, neumann)).ok_or_else(|| Error::Internal("splat node missing from the octree".into()))?;
+                let i = level
+                    .find(splat_node(c, d, neumann))
+                    .ok_or_else(|| Error::Internal("splat node missing from the octree".into()))?;
                 for axis in 0..3 {
                     field_v[d as usize][axis][i as usize] += scale * a * n[axis];
                 }
@@ -137,14 +166,25 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
         }
         fill_mirrors(level, &mut r);
         rho.push(r);
-        clock.report(Stage::System, (max_depth as usize - d + 1) as f32 / (max_depth as usize + 1) as f32)?;
+        clock.report(
+            Stage::System,
+            (max_depth as usize - d + 1) as f32 / (max_depth as usize + 1) as f32,
+        )?;
     }
     rho.reverse();
     // Screening weights: SPSR's α·Area/Σw·Σ w χ², with the area from the density estimate.
-    let total_area: f64 = sample_density.area.iter().zip(&samples.confidence).map(|(a, c)| a * c).sum();
+    let total_area: f64 = sample_density
+        .area
+        .iter()
+        .zip(&samples.confidence)
+        .map(|(a, c)| a * c)
+        .sum();
     let total_confidence: f64 = samples.confidence.iter().sum();
-    let screening_weights: Vec<f64> =
-        samples.confidence.iter().map(|c| c * total_area / total_confidence).collect();
+    let screening_weights: Vec<f64> = samples
+        .confidence
+        .iter()
+        .map(|c| c * total_area / total_confidence)
+        .collect();
     let mut order: Vec<u32> = (0..samples.positions.len() as u32).collect();
     {
         let inv_h = (max_depth as f64).exp2();
@@ -172,30 +212,56 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     for d in 0..=max_depth as usize {
         let level = &tree.levels[d];
         let (y, rhs_halo, this_field) = pool.install(|| {
-            let mut y =
-                if d == 0 { vec![0.0; level.len()] } else { prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0) };
+            let mut y = if d == 0 {
+                vec![0.0; level.len()]
+            } else {
+                prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0)
+            };
             fill_mirrors(level, &mut y);
             // V from coarser depths, represented at this depth (F̃ halves in width: ×1/8).
             let mut prolonged: [Vec<f64>; 3] = if d == 0 {
-                [vec![0.0; level.len()], vec![0.0; level.len()], vec![0.0; level.len()]]
+                [
+                    vec![0.0; level.len()],
+                    vec![0.0; level.len()],
+                    vec![0.0; level.len()],
+                ]
             } else {
-                std::array::from_fn(|a| prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125))
+                std::array::from_fn(|a| {
+                    prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125)
+                })
             };
             fill_mirrors_field(level, &mut prolonged);
             let coarse_div = divergence(level, &prolonged);
             let rhs_halo: Vec<f64> = rho[d].iter().zip(&coarse_div).map(|(a, b)| a + b).collect();
             let this_field: [Vec<f64>; 3] = std::array::from_fn(|a| {
-                prolonged[a].iter().zip(&field_v[d][a]).map(|(p, v)| p + v).collect()
+                prolonged[a]
+                    .iter()
+                    .zip(&field_v[d][a])
+                    .map(|(p, v)| p + v)
+                    .collect()
             });
             (y, rhs_halo, this_field)
         });
         coarse_field = this_field;
         fill_mirrors_field(level, &mut coarse_field);
-        let proxies = pool.install(|| Proxies::build(level, &samples.positions, &screening_weights, &order, proxy_depth(d as u32, max_depth)));
+        let proxies = pool.install(|| {
+            Proxies::build(
+                level,
+                &samples.positions,
+                &screening_weights,
+                &order,
+                proxy_depth(d as u32, max_depth),
+            )
+        });
         let mut op = DepthOperator::new(level, &proxies, screening);
         let mut applied = vec![0.0; level.core.len()];
         pool.install(|| op.apply(&y, &mut applied));
-        let rhs: Vec<f64> = level.core.iter().zip(&applied).map(|(&c, a)| rhs_halo[c as usize] - a).collect();
+        let rhs: Vec<f64> = level
+            .core
+            .iter()
+            .zip(&applied)
+            .map(|(&c, a)| rhs_halo[c as usize] - a)
+            .collect();
         let base = d as f32 / depths as f32;
         let mut cancelled_at = None;
         let (x, outcome) = {
@@ -237,9 +303,16 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
     clock.done(Stage::Solve)?;
 
     // 7. Isovalue: the area-weighted mean of χ at the samples (§4.5).
-    let chi = Indicator { tree: &tree, coefficients };
+    let chi = Indicator {
+        tree: &tree,
+        coefficients,
+    };
     let (num, den) = pool.install(|| {
-        let values: Vec<f64> = samples.positions.par_iter().map(|&p| chi.value(p)).collect();
+        let values: Vec<f64> = samples
+            .positions
+            .par_iter()
+            .map(|&p| chi.value(p))
+            .collect();
         let mut num = 0.0;
         let mut den = 0.0;
         for s in 0..values.len() {
@@ -276,11 +349,20 @@ pub(crate) fn run(points: &PointSet, params: &Params, pool: &rayon::ThreadPool, 
                 [p.x as f32, p.y as f32, p.z as f32]
             })
             .collect();
-        let densities: Vec<f32> = raw.vertices.par_iter().map(|&v| field.evaluate(v) as f32).collect();
+        let densities: Vec<f32> = raw
+            .vertices
+            .par_iter()
+            .map(|&v| field.evaluate(v) as f32)
+            .collect();
         (positions, densities)
     });
     clock.done(Stage::Mesh)?;
-    Ok(Mesh { positions, triangles: raw.triangles, densities, stats: clock.stats })
+    Ok(Mesh {
+        positions,
+        triangles: raw.triangles,
+        densities,
+        stats: clock.stats,
+    })
 }
 
 /// The node a trilinear weight goes to: with Neumann boundaries a node just outside the cube is

@@ -47,11 +47,19 @@ impl PointSet {
         weights: Option<&[f32]>,
     ) -> Result<()> {
         if normals.len() != positions.len() {
-            return Err(Error::LengthMismatch { what: "normals", positions: positions.len(), other: normals.len() });
+            return Err(Error::LengthMismatch {
+                what: "normals",
+                positions: positions.len(),
+                other: normals.len(),
+            });
         }
         if let Some(w) = weights {
             if w.len() != positions.len() {
-                return Err(Error::LengthMismatch { what: "weights", positions: positions.len(), other: w.len() });
+                return Err(Error::LengthMismatch {
+                    what: "weights",
+                    positions: positions.len(),
+                    other: w.len(),
+                });
             }
         }
         let unit_normals = validate_batch(positions, normals, weights)?;
@@ -105,7 +113,11 @@ impl PointSet {
 }
 
 /// Checks one batch and returns its normals normalised.
-fn validate_batch(positions: &[[f32; 3]], normals: &[[f32; 3]], weights: Option<&[f32]>) -> Result<Vec<[f32; 3]>> {
+fn validate_batch(
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    weights: Option<&[f32]>,
+) -> Result<Vec<[f32; 3]>> {
     let mut unit = Vec::with_capacity(normals.len());
     for (index, (p, n)) in positions.iter().zip(normals).enumerate() {
         if !p.iter().all(|c| c.is_finite()) {
@@ -155,7 +167,11 @@ impl UnitCubeMap {
         let magnitude = lo.abs().max(hi.abs()).max_element();
         // A zero extent (all points coincide) gets a cube a little larger than f32 resolution at
         // that magnitude, so the octree still has room for the samples' neighbourhoods.
-        let base = if extent > 0.0 { extent } else { (magnitude * 1e-4).max(1e-6) };
+        let base = if extent > 0.0 {
+            extent
+        } else {
+            (magnitude * 1e-4).max(1e-6)
+        };
         let size = base * scale;
         let origin = (lo + hi) * 0.5 - DVec3::splat(size * 0.5);
         UnitCubeMap { origin, size }
@@ -183,12 +199,18 @@ mod tests {
         let bad = set.extend(&[[0.0; 3], [f32::NAN, 0.0, 0.0]], &[[1.0, 0.0, 0.0]; 2]);
         assert_eq!(bad, Err(Error::NonFinitePosition { index: 1 }));
         assert_eq!(set.len(), 1);
-        assert_eq!(set.extend(&[[0.0; 3]], &[[0.0; 3]]), Err(Error::ZeroNormal { index: 0 }));
+        assert_eq!(
+            set.extend(&[[0.0; 3]], &[[0.0; 3]]),
+            Err(Error::ZeroNormal { index: 0 })
+        );
         assert_eq!(
             set.extend(&[[0.0; 3]], &[[f32::INFINITY, 0.0, 0.0]]),
             Err(Error::NonFiniteNormal { index: 0 })
         );
-        assert!(matches!(set.extend(&[[0.0; 3]; 2], &[[1.0, 0.0, 0.0]]), Err(Error::LengthMismatch { .. })));
+        assert!(matches!(
+            set.extend(&[[0.0; 3]; 2], &[[1.0, 0.0, 0.0]]),
+            Err(Error::LengthMismatch { .. })
+        ));
         assert_eq!(set.len(), 1);
     }
 

@@ -47,9 +47,17 @@ pub fn conjugate_gradients(
     let mut x = vec![0.0; n];
     let b_norm = pool.install(|| dot(b, b)).sqrt();
     if b_norm == 0.0 || n == 0 {
-        return (x, CgOutcome { iterations: 0, relative_residual: 0.0, cancelled: false });
+        return (
+            x,
+            CgOutcome {
+                iterations: 0,
+                relative_residual: 0.0,
+                cancelled: false,
+            },
+        );
     }
-    let inv_diag: Vec<f64> = pool.install(|| op.diagonal().into_par_iter().map(|d| 1.0 / d).collect());
+    let inv_diag: Vec<f64> =
+        pool.install(|| op.diagonal().into_par_iter().map(|d| 1.0 / d).collect());
     let mut r = b.to_vec();
     let mut z: Vec<f64> = r.iter().zip(&inv_diag).map(|(r, d)| r * d).collect();
     let mut p = z.clone();
@@ -60,7 +68,14 @@ pub fn conjugate_gradients(
     let mut residual = 1.0;
     while iterations < max_iterations {
         if !keep_going(iterations as f32 / max_iterations as f32) {
-            return (x, CgOutcome { iterations, relative_residual: residual, cancelled: true });
+            return (
+                x,
+                CgOutcome {
+                    iterations,
+                    relative_residual: residual,
+                    cancelled: true,
+                },
+            );
         }
         pool.install(|| {
             for (&c, &v) in core.iter().zip(&p) {
@@ -90,7 +105,11 @@ pub fn conjugate_gradients(
         let rz_new = pool.install(|| {
             z.par_chunks_mut(CHUNK)
                 .zip(r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)))
-                .for_each(|(z, (r, d))| z.iter_mut().zip(r.iter().zip(d)).for_each(|(z, (r, d))| *z = r * d));
+                .for_each(|(z, (r, d))| {
+                    z.iter_mut()
+                        .zip(r.iter().zip(d))
+                        .for_each(|(z, (r, d))| *z = r * d)
+                });
             dot(&r, &z)
         });
         let beta = rz_new / rz;
@@ -101,5 +120,12 @@ pub fn conjugate_gradients(
                 .for_each(|(p, z)| p.iter_mut().zip(z).for_each(|(p, z)| *p = z + beta * *p));
         });
     }
-    (x, CgOutcome { iterations, relative_residual: residual, cancelled: false })
+    (
+        x,
+        CgOutcome {
+            iterations,
+            relative_residual: residual,
+            cancelled: false,
+        },
+    )
 }

@@ -32,11 +32,13 @@ pub const CHUNK: usize = 4096;
 
 /// out[i] = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d.
 pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mut [f64]) {
-    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, chunk)| {
-        for (j, o) in chunk.iter_mut().enumerate() {
-            *o = tap_sum(level, axis, taps, input, (c * CHUNK + j) as u32);
-        }
-    });
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, chunk)| {
+            for (j, o) in chunk.iter_mut().enumerate() {
+                *o = tap_sum(level, axis, taps, input, (c * CHUNK + j) as u32);
+            }
+        });
 }
 
 #[inline]
@@ -75,7 +77,11 @@ pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
 pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
     for m in &level.mirrors {
         for (axis, comp) in v.iter_mut().enumerate() {
-            let sign = if m.flips & (1 << axis) != 0 { -1.0 } else { 1.0 };
+            let sign = if m.flips & (1 << axis) != 0 {
+                -1.0
+            } else {
+                1.0
+            };
             comp[m.outside as usize] = sign * comp[m.inside as usize];
         }
     }
@@ -103,10 +109,19 @@ pub struct Proxies {
 impl Proxies {
     /// Groups samples (in `order`, sorted by Morton key at a depth ≥ `proxy_depth`) into
     /// proxies at `proxy_depth` ≥ the level's depth.
-    pub fn build(level: &Level, positions: &[DVec3], weights: &[f64], order: &[u32], proxy_depth: u32) -> Proxies {
+    pub fn build(
+        level: &Level,
+        positions: &[DVec3],
+        weights: &[f64],
+        order: &[u32],
+        proxy_depth: u32,
+    ) -> Proxies {
         let inv_h = (level.depth as f64).exp2();
         let inv_proxy_h = (proxy_depth as f64).exp2();
-        let mut proxies = Proxies { of_cell: vec![(0, 0); level.len()], ..Default::default() };
+        let mut proxies = Proxies {
+            of_cell: vec![(0, 0); level.len()],
+            ..Default::default()
+        };
         let mut s = 0;
         while s < order.len() {
             let group = cell_of(positions[order[s] as usize], inv_proxy_h);
@@ -123,7 +138,9 @@ impl Proxies {
             }
             let shift = proxy_depth - level.depth;
             let cell = [group[0] >> shift, group[1] >> shift, group[2] >> shift];
-            let Some(idx) = level.find(cell) else { continue };
+            let Some(idx) = level.find(cell) else {
+                continue;
+            };
             if level.flags[idx as usize] & crate::octree::NEAR == 0 {
                 continue;
             }
@@ -194,27 +211,35 @@ impl<'a> DepthOperator<'a> {
         // is not possible, so accumulate in place).
         pass(level, 1, &t.stiffness, a, cc);
         pass(level, 1, &t.mass, bz, a);
-        cc.par_chunks_mut(CHUNK).zip(a.par_chunks(CHUNK)).for_each(|(c, x)| {
-            for (c, x) in c.iter_mut().zip(x) {
-                *c += x;
-            }
-        });
+        cc.par_chunks_mut(CHUNK)
+            .zip(a.par_chunks(CHUNK))
+            .for_each(|(c, x)| {
+                for (c, x) in c.iter_mut().zip(x) {
+                    *c += x;
+                }
+            });
         let core = &level.core;
         let (am, cc) = (&*am, &*cc);
-        out.par_chunks_mut(CHUNK).zip(core.par_chunks(CHUNK)).for_each(|(o, nodes)| {
-            for (o, &n) in o.iter_mut().zip(nodes) {
-                *o = h * (tap_sum(level, 0, &t.stiffness, am, n) + tap_sum(level, 0, &t.mass, cc, n));
-            }
-        });
+        out.par_chunks_mut(CHUNK)
+            .zip(core.par_chunks(CHUNK))
+            .for_each(|(o, nodes)| {
+                for (o, &n) in o.iter_mut().zip(nodes) {
+                    *o = h
+                        * (tap_sum(level, 0, &t.stiffness, am, n)
+                            + tap_sum(level, 0, &t.mass, cc, n));
+                }
+            });
         if self.screening > 0.0 && !self.proxies.is_empty() {
             let values = proxy_values(level, self.proxies, input);
             let scale = self.screening;
             let proxies = self.proxies;
-            out.par_chunks_mut(CHUNK).zip(core.par_chunks(CHUNK)).for_each(|(o, nodes)| {
-                for (o, &n) in o.iter_mut().zip(nodes) {
-                    *o += scale * gather_screening(level, proxies, &values, n);
-                }
-            });
+            out.par_chunks_mut(CHUNK)
+                .zip(core.par_chunks(CHUNK))
+                .for_each(|(o, nodes)| {
+                    for (o, &n) in o.iter_mut().zip(nodes) {
+                        *o += scale * gather_screening(level, proxies, &values, n);
+                    }
+                });
             // Neumann: an inside node's function is folded with its reflections, so it also
             // collects what the proxies give its mirror images.
             for m in &level.mirrors {
@@ -331,11 +356,13 @@ pub fn divergence(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
 }
 
 fn add_into(out: &mut [f64], x: &[f64]) {
-    out.par_chunks_mut(CHUNK).zip(x.par_chunks(CHUNK)).for_each(|(o, x)| {
-        for (o, x) in o.iter_mut().zip(x) {
-            *o += x;
-        }
-    });
+    out.par_chunks_mut(CHUNK)
+        .zip(x.par_chunks(CHUNK))
+        .for_each(|(o, x)| {
+            for (o, x) in o.iter_mut().zip(x) {
+                *o += x;
+            }
+        });
 }
 
 /// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:

@@ -1,0 +1,395 @@
+/*
+ * Contract tests of the psr C API, from C, against the installed header and library:
+ * NULL for every pointer argument, free(NULL), solve before any points, a bad point in the
+ * middle of a second batch, strides and overflow, short copy-out buffers, out-parameters left
+ * alone on failure, cancellation from the callback, a forced internal panic (when the library
+ * was built with the test hook), and two handles on two threads matching sequential runs.
+ *
+ * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
+ * failure. Meant to run under valgrind or AddressSanitizer as well.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <psr.h>
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int passed, failed;
+
+#define CHECK(cond)                                                     \
+    do {                                                                \
+        if (cond) {                                                     \
+            passed++;                                                   \
+        } else {                                                        \
+            failed++;                                                   \
+            printf("FAIL %s:%d: %s\n", __FILE__, __LINE__, #cond);      \
+        }                                                               \
+    } while (0)
+
+#define CHECK_STATUS(call, want)                                                      \
+    do {                                                                              \
+        psr_status got_ = (call);                                                     \
+        if (got_ == (want)) {                                                         \
+            passed++;                                                                 \
+        } else {                                                                      \
+            failed++;                                                                 \
+            printf("FAIL %s:%d: %s returned %s, want %s\n", __FILE__, __LINE__, #call, \
+                   psr_status_string((int)got_), psr_status_string((int)(want)));     \
+        }                                                                             \
+    } while (0)
+
+static void section(const char *name) { printf("-- %s\n", name); }
+
+static int contains(const char *haystack, const char *needle) {
+    return haystack != NULL && strstr(haystack, needle) != NULL;
+}
+
+/* n points on a sphere (Fibonacci lattice) of radius 1 with outward normals, packed. */
+static void sphere(size_t n, float *positions, float *normals) {
+    const double golden = 3.14159265358979323846 * (3.0 - sqrt(5.0));
+    size_t i;
+    for (i = 0; i < n; i++) {
+        double y = 1.0 - 2.0 * ((double)i + 0.5) / (double)n;
+        double ring = sqrt(1.0 - y * y), phi = golden * (double)i;
+        double d[3];
+        int k;
+        d[0] = ring * cos(phi);
+        d[1] = y;
+        d[2] = ring * sin(phi);
+        for (k = 0; k < 3; k++) {
+            positions[3 * i + k] = (float)(0.25 + d[k]);
+            normals[3 * i + k] = (float)d[k];
+        }
+    }
+}
+
+static psr_reconstructor *new_with_sphere(size_t n, unsigned depth) {
+    psr_reconstructor *r = NULL;
+    float *p = malloc(3 * n * sizeof(float)), *nr = malloc(3 * n * sizeof(float));
+    sphere(n, p, nr);
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, depth), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, nr, 0, n), PSR_STATUS_OK);
+    free(p); /* add_points copied them */
+    free(nr);
+    return r;
+}
+
+static void test_null_arguments(void) {
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = (psr_mesh *)&r; /* sentinel: must stay as it is */
+    psr_mesh *const sentinel = m;
+    uint32_t u = 7;
+    int32_t i = 7;
+    float f = 7.0f, buf[8];
+    double d = 7.0;
+    size_t z = 7;
+    float p[3] = {0, 0, 0}, n[3] = {0, 0, 1};
+
+    section("NULL for every pointer argument");
+    psr_reconstructor_free(NULL);
+    psr_mesh_free(NULL);
+    CHECK_STATUS(psr_reconstructor_new(NULL), PSR_STATUS_NULL_ARGUMENT);
+
+    CHECK_STATUS(psr_reconstructor_set_depth(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_full_depth(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_kernel_depth(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_samples_per_node(NULL, 2.0f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_scale(NULL, 1.2f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_point_weight(NULL, 1.0f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_threads(NULL, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_max_solver_iterations(NULL, 9), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_solver_tolerance(NULL, 1e-3), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_full_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_kernel_depth(NULL, &i), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_samples_per_node(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_scale(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_point_weight(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_threads(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_max_solver_iterations(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_solver_tolerance(NULL, &d), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_point_count(NULL, &z), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(u == 7 && i == 7 && f == 7.0f && d == 7.0 && z == 7);
+    CHECK_STATUS(psr_reconstructor_add_points(NULL, p, 0, n, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_clear_points(NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_progress_callback(NULL, NULL, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve(NULL, &m), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(m == sentinel);
+    CHECK(contains(psr_reconstructor_last_error(NULL), "NULL"));
+
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "out is NULL"));
+    CHECK_STATUS(psr_reconstructor_get_full_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_kernel_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_samples_per_node(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_scale(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_point_weight(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_threads(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_max_solver_iterations(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_solver_tolerance(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_point_count(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points(r, NULL, 0, n, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "positions"));
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, NULL, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "normals"));
+    CHECK_STATUS(psr_reconstructor_add_points(r, NULL, 0, NULL, 0, 0), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    psr_reconstructor_free(r);
+
+    CHECK(psr_mesh_vertex_count(NULL) == 0);
+    CHECK(psr_mesh_triangle_count(NULL) == 0);
+    CHECK(psr_mesh_positions(NULL) == NULL);
+    CHECK(psr_mesh_triangles(NULL) == NULL);
+    CHECK(psr_mesh_densities(NULL) == NULL);
+    CHECK(isnan(psr_mesh_isovalue(NULL)));
+    CHECK_STATUS(psr_mesh_copy_positions(NULL, buf, 8), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_copy_triangles(NULL, (uint32_t *)buf, 8), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_copy_densities(NULL, buf, 8), PSR_STATUS_NULL_ARGUMENT);
+}
+
+static void test_order_and_parameters(void) {
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL;
+    uint32_t depth = 0;
+    int32_t kernel = 0;
+
+    section("defaults, setters, solve before any points");
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_depth(r, &depth), PSR_STATUS_OK);
+    CHECK(depth == 8);
+    CHECK_STATUS(psr_reconstructor_get_kernel_depth(r, &kernel), PSR_STATUS_OK);
+    CHECK(kernel == -1);
+    CHECK(strcmp(psr_reconstructor_last_error(r), "") == 0);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 0), PSR_STATUS_INVALID_PARAMETER);
+    CHECK(contains(psr_reconstructor_last_error(r), "depth"));
+    CHECK_STATUS(psr_reconstructor_set_scale(r, (float)NAN), PSR_STATUS_INVALID_PARAMETER);
+    CHECK(contains(psr_reconstructor_last_error(r), "scale"));
+    CHECK_STATUS(psr_reconstructor_set_solver_tolerance(r, 2.0), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_reconstructor_get_depth(r, &depth), PSR_STATUS_OK);
+    CHECK(depth == 8);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_EMPTY_INPUT);
+    CHECK(m == NULL);
+    CHECK(contains(psr_reconstructor_last_error(r), "no input points"));
+    psr_reconstructor_free(r);
+
+    CHECK(strcmp(psr_status_string(PSR_STATUS_OK), "PSR_STATUS_OK") == 0);
+    CHECK(strcmp(psr_status_string(9), "PSR_STATUS_BUFFER_TOO_SMALL") == 0);
+    CHECK(strcmp(psr_status_string(-5), "PSR_STATUS_UNKNOWN") == 0);
+    CHECK(strcmp(psr_status_string(1000), "PSR_STATUS_UNKNOWN") == 0);
+    CHECK(psr_version_major() == PSR_VERSION_MAJOR && psr_version_minor() == PSR_VERSION_MINOR &&
+          psr_version_patch() == PSR_VERSION_PATCH);
+}
+
+static void test_bad_batches(void) {
+    psr_reconstructor *r = NULL;
+    float p[15], n[15];
+    size_t count = 0;
+    const float *far = (const float *)p;
+
+    section("a NaN in the middle of a second batch; strides; overflow");
+    r = new_with_sphere(4, 5);
+    sphere(5, p, n);
+    p[2 * 3 + 1] = (float)NAN;
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, n, 0, 5), PSR_STATUS_NON_FINITE_POSITION);
+    CHECK(contains(psr_reconstructor_last_error(r), "point 2"));
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == 4);
+    p[2 * 3 + 1] = 0.0f;
+    n[3 * 3] = n[3 * 3 + 1] = n[3 * 3 + 2] = 0.0f;
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, n, 0, 5), PSR_STATUS_ZERO_NORMAL);
+    CHECK(contains(psr_reconstructor_last_error(r), "normal 3"));
+    n[3 * 3 + 2] = (float)INFINITY;
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, n, 0, 5), PSR_STATUS_NON_FINITE_NORMAL);
+    n[3 * 3 + 2] = 1.0f;
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 8, n, 0, 2), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "position_stride_bytes"));
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, n, 11, 2), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points(r, far, 0, far, 0, (size_t)-1), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points(r, far, 1000, far, 0, ((size_t)-1) / 100), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == 4);
+    /* Interleaved: positions and normals in one array with a 24-byte stride. */
+    {
+        float interleaved[12] = {0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1};
+        CHECK_STATUS(psr_reconstructor_add_points(r, interleaved, 24, interleaved + 3, 24, 2), PSR_STATUS_OK);
+        CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+        CHECK(count == 6);
+    }
+    CHECK_STATUS(psr_reconstructor_clear_points(r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == 0);
+    psr_reconstructor_free(r);
+}
+
+static void test_mesh(void) {
+    psr_reconstructor *r = new_with_sphere(1000, 5);
+    psr_mesh *m = NULL;
+    size_t nv, nt, k;
+    float *pos, *den;
+    uint32_t *tri;
+    int same = 1;
+
+    section("solve, views, copies, short buffers, mesh outliving its reconstructor");
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    if (m == NULL) {
+        printf("   (%s)\n", psr_reconstructor_last_error(r));
+        psr_reconstructor_free(r);
+        return;
+    }
+    psr_reconstructor_free(r); /* the mesh stays valid */
+    nv = psr_mesh_vertex_count(m);
+    nt = psr_mesh_triangle_count(m);
+    CHECK(nv > 100 && nt > 100);
+    CHECK(isfinite(psr_mesh_isovalue(m)));
+    pos = malloc(3 * nv * sizeof(float));
+    den = malloc(nv * sizeof(float));
+    tri = malloc(3 * nt * sizeof(uint32_t));
+    pos[0] = -123.0f;
+    CHECK_STATUS(psr_mesh_copy_positions(m, pos, 3 * nv - 1), PSR_STATUS_BUFFER_TOO_SMALL);
+    CHECK(pos[0] == -123.0f);
+    CHECK_STATUS(psr_mesh_copy_triangles(m, tri, 3 * nt - 1), PSR_STATUS_BUFFER_TOO_SMALL);
+    CHECK_STATUS(psr_mesh_copy_densities(m, den, nv - 1), PSR_STATUS_BUFFER_TOO_SMALL);
+    CHECK_STATUS(psr_mesh_copy_positions(m, pos, 0), PSR_STATUS_BUFFER_TOO_SMALL);
+    CHECK_STATUS(psr_mesh_copy_positions(m, NULL, 3 * nv), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_copy_positions(m, pos, 3 * nv), PSR_STATUS_OK);
+    CHECK_STATUS(psr_mesh_copy_triangles(m, tri, 3 * nt), PSR_STATUS_OK);
+    CHECK_STATUS(psr_mesh_copy_densities(m, den, nv), PSR_STATUS_OK);
+    CHECK(memcmp(pos, psr_mesh_positions(m), 3 * nv * sizeof(float)) == 0);
+    CHECK(memcmp(tri, psr_mesh_triangles(m), 3 * nt * sizeof(uint32_t)) == 0);
+    CHECK(memcmp(den, psr_mesh_densities(m), nv * sizeof(float)) == 0);
+    for (k = 0; k < 3 * nt; k++) same &= tri[k] < nv;
+    CHECK(same);
+    free(pos);
+    free(den);
+    free(tri);
+    psr_mesh_free(m);
+}
+
+struct progress_state {
+    int calls, stop_at;
+};
+
+static bool stop_early(void *user, psr_stage stage, float fraction) {
+    struct progress_state *s = (struct progress_state *)user;
+    (void)stage;
+    (void)fraction;
+    s->calls++;
+    return s->calls < s->stop_at;
+}
+
+static void test_cancel(void) {
+    psr_reconstructor *r = new_with_sphere(1000, 5);
+    psr_mesh *m = NULL;
+    struct progress_state state = {0, 2};
+
+    section("cancellation from the progress callback");
+    CHECK_STATUS(psr_reconstructor_set_progress_callback(r, stop_early, &state), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_CANCELLED);
+    CHECK(m == NULL);
+    CHECK(state.calls == 2);
+    CHECK(contains(psr_reconstructor_last_error(r), "cancelled"));
+    /* Still usable afterwards. */
+    CHECK_STATUS(psr_reconstructor_set_progress_callback(r, NULL, NULL), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    CHECK(psr_mesh_triangle_count(m) > 0);
+    psr_mesh_free(m);
+    psr_reconstructor_free(r);
+}
+
+static void test_panic(void) {
+    section("a forced internal panic");
+#if defined(PSR_TEST_PANIC)
+    {
+        psr_reconstructor *r = new_with_sphere(100, 4);
+        psr_mesh *m = NULL;
+        uint32_t depth = 99;
+        size_t count = 99;
+        CHECK_STATUS(psr_reconstructor_debug_panic_next_solve(r), PSR_STATUS_OK);
+        CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_INTERNAL_ERROR);
+        CHECK(m == NULL);
+        CHECK(contains(psr_reconstructor_last_error(r), "panic"));
+        CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_HANDLE_POISONED);
+        CHECK_STATUS(psr_reconstructor_set_depth(r, 5), PSR_STATUS_HANDLE_POISONED);
+        CHECK_STATUS(psr_reconstructor_get_depth(r, &depth), PSR_STATUS_HANDLE_POISONED);
+        CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_HANDLE_POISONED);
+        CHECK_STATUS(psr_reconstructor_clear_points(r), PSR_STATUS_HANDLE_POISONED);
+        CHECK(depth == 99 && count == 99 && m == NULL);
+        CHECK(contains(psr_reconstructor_last_error(r), "test hook"));
+        psr_reconstructor_free(r);
+    }
+#else
+    printf("SKIP forced panic: this psr was built without -DPSR_TEST_PANIC=ON\n");
+#endif
+}
+
+struct run {
+    size_t points;
+    unsigned threads;
+    size_t nv, nt;
+    float *positions;
+    uint32_t *triangles;
+};
+
+static void *run_once(void *arg) {
+    struct run *run = (struct run *)arg;
+    psr_reconstructor *r = new_with_sphere(run->points, 5);
+    psr_mesh *m = NULL;
+    psr_reconstructor_set_threads(r, run->threads);
+    if (psr_reconstructor_solve(r, &m) == PSR_STATUS_OK) {
+        run->nv = psr_mesh_vertex_count(m);
+        run->nt = psr_mesh_triangle_count(m);
+        run->positions = malloc(3 * run->nv * sizeof(float));
+        run->triangles = malloc(3 * run->nt * sizeof(uint32_t));
+        psr_mesh_copy_positions(m, run->positions, 3 * run->nv);
+        psr_mesh_copy_triangles(m, run->triangles, 3 * run->nt);
+    }
+    psr_mesh_free(m);
+    psr_reconstructor_free(r);
+    return NULL;
+}
+
+static int same_run(const struct run *a, const struct run *b) {
+    return a->nv == b->nv && a->nt == b->nt && a->positions && b->positions &&
+           memcmp(a->positions, b->positions, 3 * a->nv * sizeof(float)) == 0 &&
+           memcmp(a->triangles, b->triangles, 3 * a->nt * sizeof(uint32_t)) == 0;
+}
+
+static void test_threads(void) {
+    struct run seq[2] = {{1200, 1, 0, 0, NULL, NULL}, {700, 2, 0, 0, NULL, NULL}};
+    struct run par[2] = {{1200, 1, 0, 0, NULL, NULL}, {700, 2, 0, 0, NULL, NULL}};
+    pthread_t t[2];
+    int k;
+
+    section("two handles on two threads give the meshes of sequential runs");
+    run_once(&seq[0]);
+    run_once(&seq[1]);
+    for (k = 0; k < 2; k++) pthread_create(&t[k], NULL, run_once, &par[k]);
+    for (k = 0; k < 2; k++) pthread_join(t[k], NULL);
+    CHECK(seq[0].nt > 0 && seq[1].nt > 0);
+    CHECK(same_run(&seq[0], &par[0]));
+    CHECK(same_run(&seq[1], &par[1]));
+    for (k = 0; k < 2; k++) {
+        free(seq[k].positions);
+        free(seq[k].triangles);
+        free(par[k].positions);
+        free(par[k].triangles);
+    }
+}
+
+int main(void) {
+    printf("psr %s C contract test\n", psr_version());
+    test_null_arguments();
+    test_order_and_parameters();
+    test_bad_batches();
+    test_mesh();
+    test_cancel();
+    test_panic();
+    test_threads();
+    printf("%d passed, %d failed\n", passed, failed);
+    return failed == 0 ? 0 : 1;
+}

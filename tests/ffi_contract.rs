@@ -1,0 +1,1191 @@
+//! Contract tests of the C API, calling the exported functions directly as a C program would.
+//!
+//! Tests that need the reconstruction core to produce meshes go through [`solve_or_skip`]: while
+//! `src/pipeline.rs` is still the placeholder that answers "pipeline being written", they print
+//! a visible SKIP line instead of failing. Once the core lands the placeholder text is gone and
+//! they run in full.
+
+use psr::ffi::*;
+use std::ffi::{c_void, CStr};
+use std::ptr;
+
+// ------------------------------------------------------------------------------------------------
+// Helpers
+// ------------------------------------------------------------------------------------------------
+
+/// A dangling but non-NULL, aligned pointer for arguments that must never be read.
+fn sentinel_ptr<T>() -> *mut T {
+    ptr::NonNull::dangling().as_ptr()
+}
+
+fn new_handle() -> *mut psr_reconstructor {
+    let mut r = ptr::null_mut();
+    assert_eq!(unsafe { psr_reconstructor_new(&mut r) }, psr_status::Ok);
+    assert!(!r.is_null());
+    r
+}
+
+fn last_error(r: *const psr_reconstructor) -> String {
+    let p = unsafe { psr_reconstructor_last_error(r) };
+    assert!(!p.is_null(), "last_error never returns NULL");
+    unsafe { CStr::from_ptr(p) }.to_str().unwrap().to_owned()
+}
+
+fn point_count(r: *const psr_reconstructor) -> usize {
+    let mut n = usize::MAX;
+    assert_eq!(
+        unsafe { psr_reconstructor_point_count(r, &mut n) },
+        psr_status::Ok
+    );
+    n
+}
+
+/// `n` points on a sphere (Fibonacci lattice) with outward unit normals, flattened.
+fn sphere(n: usize, centre: [f32; 3], radius: f32) -> (Vec<f32>, Vec<f32>) {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let (mut p, mut nrm) = (Vec::with_capacity(3 * n), Vec::with_capacity(3 * n));
+    for i in 0..n {
+        let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let ring = (1.0 - y * y).sqrt();
+        let phi = golden * i as f64;
+        let d = [ring * phi.cos(), y, ring * phi.sin()];
+        for k in 0..3 {
+            p.push(centre[k] + radius * d[k] as f32);
+            nrm.push(d[k] as f32);
+        }
+    }
+    (p, nrm)
+}
+
+fn add_sphere(r: *mut psr_reconstructor, n: usize) {
+    let (p, nrm) = sphere(n, [0.1, -0.2, 0.3], 1.0);
+    assert_eq!(
+        unsafe { psr_reconstructor_add_points(r, p.as_ptr(), 0, nrm.as_ptr(), 0, n) },
+        psr_status::Ok,
+        "{}",
+        last_error(r)
+    );
+}
+
+/// Message of the placeholder pipeline that stands in until the core lands.
+const PLACEHOLDER: &str = "pipeline being written";
+
+/// Solves `r`; `None` (after a visible SKIP line) while the core is the placeholder.
+fn solve_or_skip(r: *mut psr_reconstructor, test: &str) -> Option<*mut psr_mesh> {
+    let mut mesh = ptr::null_mut();
+    let status = unsafe { psr_reconstructor_solve(r, &mut mesh) };
+    if status == psr_status::InternalError && last_error(r).contains(PLACEHOLDER) {
+        eprintln!("SKIP {test}: the reconstruction core is not in yet ({PLACEHOLDER})");
+        return None;
+    }
+    assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+    assert!(!mesh.is_null());
+    Some(mesh)
+}
+
+/// A small known mesh (a tetrahedron) wrapped as a C handle, for the mesh functions.
+fn tetrahedron() -> *mut psr_mesh {
+    let mesh = psr::Mesh {
+        positions: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ],
+        triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        densities: vec![1.0, 2.0, 3.0, 4.0],
+        stats: psr::Stats {
+            isovalue: 0.5,
+            ..Default::default()
+        },
+    };
+    debug_mesh_new(mesh)
+}
+
+// ------------------------------------------------------------------------------------------------
+// Arguments, NULL and lifetimes
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn free_null_is_a_no_op() {
+    unsafe {
+        psr_reconstructor_free(ptr::null_mut());
+        psr_mesh_free(ptr::null_mut());
+    }
+}
+
+#[test]
+fn null_for_every_pointer_argument() {
+    use psr_status::NullArgument as NULL;
+    let null_r: *mut psr_reconstructor = ptr::null_mut();
+    let null_m: *mut psr_mesh = ptr::null_mut();
+    let r = new_handle();
+    let p = [0.0f32; 3];
+    let n = [0.0f32, 0.0, 1.0];
+    unsafe {
+        assert_eq!(psr_reconstructor_new(ptr::null_mut()), NULL);
+
+        // Setters with a NULL handle.
+        assert_eq!(psr_reconstructor_set_depth(null_r, 6), NULL);
+        assert_eq!(psr_reconstructor_set_full_depth(null_r, 3), NULL);
+        assert_eq!(psr_reconstructor_set_kernel_depth(null_r, 3), NULL);
+        assert_eq!(psr_reconstructor_set_samples_per_node(null_r, 2.0), NULL);
+        assert_eq!(psr_reconstructor_set_scale(null_r, 1.2), NULL);
+        assert_eq!(psr_reconstructor_set_point_weight(null_r, 2.0), NULL);
+        assert_eq!(psr_reconstructor_set_threads(null_r, 1), NULL);
+        assert_eq!(
+            psr_reconstructor_set_max_solver_iterations(null_r, 10),
+            NULL
+        );
+        assert_eq!(psr_reconstructor_set_solver_tolerance(null_r, 1e-4), NULL);
+
+        // Getters: NULL handle, then NULL out; out-params untouched either way.
+        let mut u = 77u32;
+        let mut i = 77i32;
+        let mut f = 77.0f32;
+        let mut d = 77.0f64;
+        let mut z = 77usize;
+        assert_eq!(psr_reconstructor_get_depth(null_r, &mut u), NULL);
+        assert_eq!(psr_reconstructor_get_full_depth(null_r, &mut u), NULL);
+        assert_eq!(psr_reconstructor_get_kernel_depth(null_r, &mut i), NULL);
+        assert_eq!(psr_reconstructor_get_samples_per_node(null_r, &mut f), NULL);
+        assert_eq!(psr_reconstructor_get_scale(null_r, &mut f), NULL);
+        assert_eq!(psr_reconstructor_get_point_weight(null_r, &mut f), NULL);
+        assert_eq!(psr_reconstructor_get_threads(null_r, &mut u), NULL);
+        assert_eq!(
+            psr_reconstructor_get_max_solver_iterations(null_r, &mut u),
+            NULL
+        );
+        assert_eq!(psr_reconstructor_get_solver_tolerance(null_r, &mut d), NULL);
+        assert_eq!(psr_reconstructor_point_count(null_r, &mut z), NULL);
+        assert_eq!((u, i, f, d, z), (77, 77, 77.0, 77.0, 77));
+
+        assert_eq!(psr_reconstructor_get_depth(r, ptr::null_mut()), NULL);
+        assert!(last_error(r).contains("out is NULL"), "{}", last_error(r));
+        assert_eq!(psr_reconstructor_get_full_depth(r, ptr::null_mut()), NULL);
+        assert_eq!(psr_reconstructor_get_kernel_depth(r, ptr::null_mut()), NULL);
+        assert_eq!(
+            psr_reconstructor_get_samples_per_node(r, ptr::null_mut()),
+            NULL
+        );
+        assert_eq!(psr_reconstructor_get_scale(r, ptr::null_mut()), NULL);
+        assert_eq!(psr_reconstructor_get_point_weight(r, ptr::null_mut()), NULL);
+        assert_eq!(psr_reconstructor_get_threads(r, ptr::null_mut()), NULL);
+        assert_eq!(
+            psr_reconstructor_get_max_solver_iterations(r, ptr::null_mut()),
+            NULL
+        );
+        assert_eq!(
+            psr_reconstructor_get_solver_tolerance(r, ptr::null_mut()),
+            NULL
+        );
+        assert_eq!(psr_reconstructor_point_count(r, ptr::null_mut()), NULL);
+
+        // Points.
+        assert_eq!(
+            psr_reconstructor_add_points(null_r, p.as_ptr(), 0, n.as_ptr(), 0, 1),
+            NULL
+        );
+        assert_eq!(
+            psr_reconstructor_add_points(r, ptr::null(), 0, n.as_ptr(), 0, 1),
+            NULL
+        );
+        assert!(last_error(r).contains("positions"), "{}", last_error(r));
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, ptr::null(), 0, 1),
+            NULL
+        );
+        assert!(last_error(r).contains("normals"), "{}", last_error(r));
+        // NULL arrays are fine with a zero count.
+        assert_eq!(
+            psr_reconstructor_add_points(r, ptr::null(), 0, ptr::null(), 0, 0),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 0);
+        assert_eq!(psr_reconstructor_clear_points(null_r), NULL);
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(null_r, None, ptr::null_mut()),
+            NULL
+        );
+
+        // Solve.
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        assert_eq!(psr_reconstructor_solve(null_r, &mut mesh), NULL);
+        assert_eq!(mesh, sentinel_ptr());
+        assert_eq!(psr_reconstructor_solve(r, ptr::null_mut()), NULL);
+        assert!(last_error(r).contains("out is NULL"), "{}", last_error(r));
+
+        // last_error on NULL is a static message, never NULL.
+        assert!(last_error(null_r).contains("NULL"));
+
+        // Mesh functions on NULL.
+        assert_eq!(psr_mesh_vertex_count(null_m), 0);
+        assert_eq!(psr_mesh_triangle_count(null_m), 0);
+        assert!(psr_mesh_positions(null_m).is_null());
+        assert!(psr_mesh_triangles(null_m).is_null());
+        assert!(psr_mesh_densities(null_m).is_null());
+        assert!(psr_mesh_isovalue(null_m).is_nan());
+        let mut fbuf = [0.0f32; 16];
+        let mut ubuf = [0u32; 16];
+        assert_eq!(psr_mesh_copy_positions(null_m, fbuf.as_mut_ptr(), 16), NULL);
+        assert_eq!(psr_mesh_copy_triangles(null_m, ubuf.as_mut_ptr(), 16), NULL);
+        assert_eq!(psr_mesh_copy_densities(null_m, fbuf.as_mut_ptr(), 16), NULL);
+        let m = tetrahedron();
+        assert_eq!(psr_mesh_copy_positions(m, ptr::null_mut(), 16), NULL);
+        assert_eq!(psr_mesh_copy_triangles(m, ptr::null_mut(), 16), NULL);
+        assert_eq!(psr_mesh_copy_densities(m, ptr::null_mut(), 16), NULL);
+        psr_mesh_free(m);
+
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn new_handle_has_the_documented_defaults() {
+    let r = new_handle();
+    let defaults = psr::Params::default();
+    unsafe {
+        let (mut u, mut i, mut f, mut d) = (0u32, 0i32, 0f32, 0f64);
+        assert_eq!(psr_reconstructor_get_depth(r, &mut u), psr_status::Ok);
+        assert_eq!(u, defaults.depth);
+        assert_eq!(psr_reconstructor_get_full_depth(r, &mut u), psr_status::Ok);
+        assert_eq!(u, defaults.full_depth);
+        assert_eq!(
+            psr_reconstructor_get_kernel_depth(r, &mut i),
+            psr_status::Ok
+        );
+        assert_eq!(i, -1);
+        assert_eq!(
+            psr_reconstructor_get_samples_per_node(r, &mut f),
+            psr_status::Ok
+        );
+        assert_eq!(f, defaults.samples_per_node);
+        assert_eq!(psr_reconstructor_get_scale(r, &mut f), psr_status::Ok);
+        assert_eq!(f, defaults.scale);
+        assert_eq!(
+            psr_reconstructor_get_point_weight(r, &mut f),
+            psr_status::Ok
+        );
+        assert_eq!(f, defaults.point_weight);
+        assert_eq!(psr_reconstructor_get_threads(r, &mut u), psr_status::Ok);
+        assert_eq!(u as usize, defaults.threads);
+        assert_eq!(
+            psr_reconstructor_get_max_solver_iterations(r, &mut u),
+            psr_status::Ok
+        );
+        assert_eq!(u, defaults.max_solver_iterations);
+        assert_eq!(
+            psr_reconstructor_get_solver_tolerance(r, &mut d),
+            psr_status::Ok
+        );
+        assert_eq!(d, defaults.solver_tolerance);
+        assert_eq!(point_count(r), 0);
+        assert_eq!(last_error(r), "");
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn setters_round_trip_and_reject_out_of_range_values_by_name() {
+    let r = new_handle();
+    unsafe {
+        let (mut u, mut i, mut f, mut d) = (0u32, 0i32, 0f32, 0f64);
+        assert_eq!(psr_reconstructor_set_depth(r, 6), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_depth(r, &mut u), psr_status::Ok);
+        assert_eq!(u, 6);
+        assert_eq!(psr_reconstructor_set_full_depth(r, 2), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_full_depth(r, &mut u), psr_status::Ok);
+        assert_eq!(u, 2);
+        assert_eq!(psr_reconstructor_set_kernel_depth(r, 4), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_get_kernel_depth(r, &mut i),
+            psr_status::Ok
+        );
+        assert_eq!(i, 4);
+        assert_eq!(psr_reconstructor_set_kernel_depth(r, -7), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_get_kernel_depth(r, &mut i),
+            psr_status::Ok
+        );
+        assert_eq!(i, -1);
+        assert_eq!(
+            psr_reconstructor_set_samples_per_node(r, 3.5),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_samples_per_node(r, &mut f),
+            psr_status::Ok
+        );
+        assert_eq!(f, 3.5);
+        assert_eq!(psr_reconstructor_set_scale(r, 1.25), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_scale(r, &mut f), psr_status::Ok);
+        assert_eq!(f, 1.25);
+        assert_eq!(psr_reconstructor_set_point_weight(r, 0.0), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_get_point_weight(r, &mut f),
+            psr_status::Ok
+        );
+        assert_eq!(f, 0.0);
+        assert_eq!(psr_reconstructor_set_threads(r, 2), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_threads(r, &mut u), psr_status::Ok);
+        assert_eq!(u, 2);
+        assert_eq!(
+            psr_reconstructor_set_max_solver_iterations(r, 25),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_max_solver_iterations(r, &mut u),
+            psr_status::Ok
+        );
+        assert_eq!(u, 25);
+        assert_eq!(
+            psr_reconstructor_set_solver_tolerance(r, 1e-7),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_solver_tolerance(r, &mut d),
+            psr_status::Ok
+        );
+        assert_eq!(d, 1e-7);
+
+        // Each bad value: INVALID_PARAMETER, a message naming the parameter, old value kept.
+        let bad: [(psr_status, &str); 14] = [
+            (psr_reconstructor_set_depth(r, 0), "depth"),
+            (psr_reconstructor_set_depth(r, 17), "depth"),
+            (psr_reconstructor_set_full_depth(r, 17), "full_depth"),
+            (psr_reconstructor_set_kernel_depth(r, 17), "kernel_depth"),
+            (
+                psr_reconstructor_set_samples_per_node(r, 0.5),
+                "samples_per_node",
+            ),
+            (
+                psr_reconstructor_set_samples_per_node(r, f32::NAN),
+                "samples_per_node",
+            ),
+            (psr_reconstructor_set_scale(r, 0.9), "scale"),
+            (psr_reconstructor_set_scale(r, f32::INFINITY), "scale"),
+            (psr_reconstructor_set_point_weight(r, -1.0), "point_weight"),
+            (psr_reconstructor_set_threads(r, 5000), "threads"),
+            (
+                psr_reconstructor_set_max_solver_iterations(r, 0),
+                "max_solver_iterations",
+            ),
+            (
+                psr_reconstructor_set_solver_tolerance(r, 1.0),
+                "solver_tolerance",
+            ),
+            (
+                psr_reconstructor_set_solver_tolerance(r, 0.0),
+                "solver_tolerance",
+            ),
+            (
+                psr_reconstructor_set_solver_tolerance(r, f64::NAN),
+                "solver_tolerance",
+            ),
+        ];
+        // The calls above ran in order; check each status, then the last message.
+        for (status, name) in bad {
+            assert_eq!(status, psr_status::InvalidParameter, "{name}");
+        }
+        assert!(
+            last_error(r).contains("solver_tolerance"),
+            "{}",
+            last_error(r)
+        );
+        assert_eq!(
+            psr_reconstructor_set_depth(r, 99),
+            psr_status::InvalidParameter
+        );
+        let message = last_error(r);
+        assert!(
+            message.contains("psr_reconstructor_set_depth") && message.contains("99"),
+            "{message}"
+        );
+        assert_eq!(psr_reconstructor_get_depth(r, &mut u), psr_status::Ok);
+        assert_eq!(u, 6, "a rejected value leaves the parameter as it was");
+        assert_eq!(
+            psr_reconstructor_get_solver_tolerance(r, &mut d),
+            psr_status::Ok
+        );
+        assert_eq!(d, 1e-7);
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn setters_work_in_any_order_and_solve_checks_that_they_agree() {
+    let r = new_handle();
+    add_sphere(r, 50);
+    unsafe {
+        // kernel_depth 10 is fine on its own even while depth is still the default 8 ...
+        assert_eq!(psr_reconstructor_set_kernel_depth(r, 10), psr_status::Ok);
+        // ... but solve refuses the combination, naming the parameter.
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::InvalidParameter
+        );
+        assert_eq!(mesh, sentinel_ptr(), "out-parameter untouched on failure");
+        assert!(last_error(r).contains("kernel_depth"), "{}", last_error(r));
+        // Raising depth afterwards makes it consistent.
+        assert_eq!(psr_reconstructor_set_depth(r, 12), psr_status::Ok);
+        assert_eq!(last_error(r), "", "a successful call clears the message");
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn solve_before_any_points_is_empty_input() {
+    let r = new_handle();
+    let mut mesh = sentinel_ptr::<psr_mesh>();
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::EmptyInput
+        );
+        assert_eq!(mesh, sentinel_ptr());
+        assert!(
+            last_error(r).contains("no input points"),
+            "{}",
+            last_error(r)
+        );
+        // After clear_points too.
+        add_sphere(r, 10);
+        assert_eq!(psr_reconstructor_clear_points(r), psr_status::Ok);
+        assert_eq!(point_count(r), 0);
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::EmptyInput
+        );
+        assert_eq!(mesh, sentinel_ptr());
+        psr_reconstructor_free(r);
+    }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Points
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn a_bad_point_in_a_second_batch_rejects_that_batch_only_and_names_its_index() {
+    let r = new_handle();
+    add_sphere(r, 3);
+    assert_eq!(point_count(r), 3);
+    let (mut p, mut n) = sphere(5, [0.0; 3], 2.0);
+    unsafe {
+        // NaN position at index 2 of the second batch.
+        p[2 * 3 + 1] = f32::NAN;
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, 5),
+            psr_status::NonFinitePosition
+        );
+        let message = last_error(r);
+        assert!(message.contains("point 2"), "{message}");
+        assert!(
+            message.contains("nothing from this batch was added"),
+            "{message}"
+        );
+        assert_eq!(
+            point_count(r),
+            3,
+            "the first batch is kept, nothing of the second"
+        );
+
+        // Infinite position.
+        p[2 * 3 + 1] = 0.0;
+        p[4 * 3] = f32::NEG_INFINITY;
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, 5),
+            psr_status::NonFinitePosition
+        );
+        assert!(last_error(r).contains("point 4"), "{}", last_error(r));
+        p[4 * 3] = 0.5;
+
+        // Non-finite normal at index 1.
+        n[3 + 2] = f32::INFINITY;
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, 5),
+            psr_status::NonFiniteNormal
+        );
+        assert!(last_error(r).contains("normal 1"), "{}", last_error(r));
+        n[3 + 2] = 1.0;
+
+        // Zero normal at index 3.
+        n[9..12].copy_from_slice(&[0.0, 0.0, 0.0]);
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, 5),
+            psr_status::ZeroNormal
+        );
+        assert!(last_error(r).contains("normal 3"), "{}", last_error(r));
+        assert_eq!(point_count(r), 3);
+
+        // Fixed, the batch goes in whole.
+        n[9..12].copy_from_slice(&[0.0, 0.0, -3.0]);
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, 5),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 8);
+        assert_eq!(last_error(r), "");
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn interleaved_strides_are_read_and_bad_strides_refused() {
+    #[repr(C)]
+    struct Vertex {
+        position: [f32; 3],
+        colour: [u8; 4],
+        normal: [f32; 3],
+    }
+    let vertices: Vec<Vertex> = (0..4)
+        .map(|i| Vertex {
+            position: [i as f32, 0.0, 0.0],
+            colour: [0; 4],
+            normal: [0.0, 0.0, 1.0],
+        })
+        .collect();
+    let stride = std::mem::size_of::<Vertex>();
+    let r = new_handle();
+    unsafe {
+        let base = vertices.as_ptr();
+        let pos = ptr::addr_of!((*base).position).cast::<f32>();
+        let nrm = ptr::addr_of!((*base).normal).cast::<f32>();
+        assert_eq!(
+            psr_reconstructor_add_points(r, pos, stride, nrm, stride, 4),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 4);
+
+        // A NaN in the interleaved array is found at the right index.
+        let mut bad: Vec<Vertex> = (0..4)
+            .map(|i| Vertex {
+                position: [i as f32, 0.0, 0.0],
+                colour: [0; 4],
+                normal: [1.0, 0.0, 0.0],
+            })
+            .collect();
+        bad[3].normal[1] = f32::NAN;
+        let base = bad.as_ptr();
+        let pos = ptr::addr_of!((*base).position).cast::<f32>();
+        let nrm = ptr::addr_of!((*base).normal).cast::<f32>();
+        assert_eq!(
+            psr_reconstructor_add_points(r, pos, stride, nrm, stride, 4),
+            psr_status::NonFiniteNormal
+        );
+        assert!(last_error(r).contains("normal 3"), "{}", last_error(r));
+
+        // Strides shorter than one element.
+        let p = [0.0f32; 12];
+        let n = [1.0f32; 12];
+        for short in [1usize, 4, 8, 11] {
+            assert_eq!(
+                psr_reconstructor_add_points(r, p.as_ptr(), short, n.as_ptr(), 0, 2),
+                psr_status::InvalidArgument
+            );
+            assert!(
+                last_error(r).contains("position_stride_bytes"),
+                "{}",
+                last_error(r)
+            );
+            assert_eq!(
+                psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), short, 2),
+                psr_status::InvalidArgument
+            );
+            assert!(
+                last_error(r).contains("normal_stride_bytes"),
+                "{}",
+                last_error(r)
+            );
+        }
+        assert_eq!(point_count(r), 4);
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn counts_whose_byte_length_overflows_are_refused_before_any_read() {
+    let r = new_handle();
+    // Dangling pointers: reading them would crash, so passing proves nothing is read.
+    let p = sentinel_ptr::<f32>();
+    unsafe {
+        for (count, stride) in [
+            (usize::MAX, 0),
+            (usize::MAX / 8, 12),
+            (usize::MAX / 24 + 2, 24),
+            (3, usize::MAX),
+        ] {
+            assert_eq!(
+                psr_reconstructor_add_points(r, p, stride, p, 0, count),
+                psr_status::InvalidArgument,
+                "count {count} stride {stride}"
+            );
+            assert!(
+                last_error(r).contains("more bytes than memory can hold"),
+                "{}",
+                last_error(r)
+            );
+        }
+        assert_eq!(point_count(r), 0);
+        psr_reconstructor_free(r);
+    }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Mesh functions (on a known mesh; no core needed)
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn mesh_views_and_copies_on_a_known_mesh() {
+    let m = tetrahedron();
+    unsafe {
+        assert_eq!(psr_mesh_vertex_count(m), 4);
+        assert_eq!(psr_mesh_triangle_count(m), 4);
+        assert_eq!(psr_mesh_isovalue(m), 0.5);
+        let pos = std::slice::from_raw_parts(psr_mesh_positions(m), 12);
+        assert_eq!(&pos[3..6], &[1.0, 0.0, 0.0]);
+        let tri = std::slice::from_raw_parts(psr_mesh_triangles(m), 12);
+        assert_eq!(&tri[9..12], &[1, 2, 3]);
+        let den = std::slice::from_raw_parts(psr_mesh_densities(m), 4);
+        assert_eq!(den, &[1.0, 2.0, 3.0, 4.0]);
+
+        let mut fbuf = [0.0f32; 12];
+        let mut ubuf = [0u32; 12];
+        assert_eq!(
+            psr_mesh_copy_positions(m, fbuf.as_mut_ptr(), 12),
+            psr_status::Ok
+        );
+        assert_eq!(&fbuf[..], pos);
+        assert_eq!(
+            psr_mesh_copy_triangles(m, ubuf.as_mut_ptr(), 12),
+            psr_status::Ok
+        );
+        assert_eq!(&ubuf[..], tri);
+        let mut dbuf = [0.0f32; 4];
+        assert_eq!(
+            psr_mesh_copy_densities(m, dbuf.as_mut_ptr(), 4),
+            psr_status::Ok
+        );
+        assert_eq!(&dbuf[..], den);
+        psr_mesh_free(m);
+    }
+}
+
+#[test]
+fn short_copy_out_buffers_are_refused_and_left_untouched() {
+    let m = tetrahedron();
+    unsafe {
+        let mut fbuf = [-7.0f32; 12];
+        let mut ubuf = [777u32; 12];
+        for capacity in [0, 1, 11] {
+            assert_eq!(
+                psr_mesh_copy_positions(m, fbuf.as_mut_ptr(), capacity),
+                psr_status::BufferTooSmall
+            );
+            assert_eq!(
+                psr_mesh_copy_triangles(m, ubuf.as_mut_ptr(), capacity),
+                psr_status::BufferTooSmall
+            );
+        }
+        assert_eq!(
+            psr_mesh_copy_densities(m, fbuf.as_mut_ptr(), 3),
+            psr_status::BufferTooSmall
+        );
+        assert!(
+            fbuf.iter().all(|&v| v == -7.0),
+            "nothing written on BUFFER_TOO_SMALL"
+        );
+        assert!(ubuf.iter().all(|&v| v == 777));
+        // A larger buffer is fine; the tail is not touched.
+        let mut big = [-7.0f32; 20];
+        assert_eq!(
+            psr_mesh_copy_positions(m, big.as_mut_ptr(), 20),
+            psr_status::Ok
+        );
+        assert!(big[12..].iter().all(|&v| v == -7.0));
+        psr_mesh_free(m);
+    }
+}
+
+#[test]
+fn an_empty_mesh_has_null_views_and_accepts_null_destinations() {
+    let m = debug_mesh_new(psr::Mesh::default());
+    unsafe {
+        assert_eq!(psr_mesh_vertex_count(m), 0);
+        assert!(psr_mesh_positions(m).is_null());
+        assert!(psr_mesh_triangles(m).is_null());
+        assert!(psr_mesh_densities(m).is_null());
+        assert_eq!(
+            psr_mesh_copy_positions(m, ptr::null_mut(), 0),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_mesh_copy_triangles(m, ptr::null_mut(), 0),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_mesh_copy_densities(m, ptr::null_mut(), 0),
+            psr_status::Ok
+        );
+        psr_mesh_free(m);
+    }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Panics, statuses, versions
+// ------------------------------------------------------------------------------------------------
+
+#[test]
+fn a_forced_internal_panic_is_internal_error_then_the_handle_is_poisoned() {
+    let r = new_handle();
+    add_sphere(r, 20);
+    unsafe {
+        debug_panic_next_solve(r);
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::InternalError
+        );
+        assert_eq!(mesh, sentinel_ptr(), "out-parameter untouched");
+        let message = last_error(r);
+        assert!(
+            message.contains("panic") && message.contains("test hook"),
+            "{message}"
+        );
+
+        // Everything but last_error and free is refused now.
+        let poisoned = psr_status::HandlePoisoned;
+        let (mut u, mut i, mut f, mut d, mut z) = (5u32, 5i32, 5f32, 5f64, 5usize);
+        let p = [0.0f32, 0.0, 0.0];
+        let n = [0.0f32, 0.0, 1.0];
+        assert_eq!(psr_reconstructor_solve(r, &mut mesh), poisoned);
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, 1),
+            poisoned
+        );
+        assert_eq!(psr_reconstructor_point_count(r, &mut z), poisoned);
+        assert_eq!(psr_reconstructor_clear_points(r), poisoned);
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(r, None, ptr::null_mut()),
+            poisoned
+        );
+        assert_eq!(psr_reconstructor_set_depth(r, 5), poisoned);
+        assert_eq!(psr_reconstructor_get_depth(r, &mut u), poisoned);
+        assert_eq!(psr_reconstructor_set_full_depth(r, 5), poisoned);
+        assert_eq!(psr_reconstructor_get_full_depth(r, &mut u), poisoned);
+        assert_eq!(psr_reconstructor_set_kernel_depth(r, 5), poisoned);
+        assert_eq!(psr_reconstructor_get_kernel_depth(r, &mut i), poisoned);
+        assert_eq!(psr_reconstructor_set_samples_per_node(r, 2.0), poisoned);
+        assert_eq!(psr_reconstructor_get_samples_per_node(r, &mut f), poisoned);
+        assert_eq!(psr_reconstructor_set_scale(r, 2.0), poisoned);
+        assert_eq!(psr_reconstructor_get_scale(r, &mut f), poisoned);
+        assert_eq!(psr_reconstructor_set_point_weight(r, 2.0), poisoned);
+        assert_eq!(psr_reconstructor_get_point_weight(r, &mut f), poisoned);
+        assert_eq!(psr_reconstructor_set_threads(r, 1), poisoned);
+        assert_eq!(psr_reconstructor_get_threads(r, &mut u), poisoned);
+        assert_eq!(psr_reconstructor_set_max_solver_iterations(r, 5), poisoned);
+        assert_eq!(
+            psr_reconstructor_get_max_solver_iterations(r, &mut u),
+            poisoned
+        );
+        assert_eq!(psr_reconstructor_set_solver_tolerance(r, 1e-3), poisoned);
+        assert_eq!(psr_reconstructor_get_solver_tolerance(r, &mut d), poisoned);
+        assert_eq!(
+            (u, i, f, d, z),
+            (5, 5, 5.0, 5.0, 5),
+            "out-parameters untouched"
+        );
+        assert_eq!(mesh, sentinel_ptr());
+        // The message still tells the original cause.
+        let message = last_error(r);
+        assert!(
+            message.contains("refused") && message.contains("test hook"),
+            "{message}"
+        );
+        psr_reconstructor_free(r);
+    }
+    // Other handles are unaffected.
+    let other = new_handle();
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(other, 5), psr_status::Ok);
+        psr_reconstructor_free(other);
+    }
+}
+
+#[test]
+fn status_strings_take_any_int() {
+    let name = |s: i32| {
+        unsafe { CStr::from_ptr(psr_status_string(s)) }
+            .to_str()
+            .unwrap()
+    };
+    assert_eq!(name(0), "PSR_STATUS_OK");
+    assert_eq!(
+        name(psr_status::BufferTooSmall as i32),
+        "PSR_STATUS_BUFFER_TOO_SMALL"
+    );
+    assert_eq!(name(11), "PSR_STATUS_INTERNAL_ERROR");
+    assert_eq!(name(12), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(-1), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
+}
+
+#[test]
+fn status_numbers_are_stable() {
+    // These numbers are ABI: never change or reuse one.
+    let expected = [
+        (psr_status::Ok, 0),
+        (psr_status::NullArgument, 1),
+        (psr_status::InvalidArgument, 2),
+        (psr_status::EmptyInput, 3),
+        (psr_status::NonFinitePosition, 4),
+        (psr_status::NonFiniteNormal, 5),
+        (psr_status::ZeroNormal, 6),
+        (psr_status::InvalidParameter, 7),
+        (psr_status::Cancelled, 8),
+        (psr_status::BufferTooSmall, 9),
+        (psr_status::HandlePoisoned, 10),
+        (psr_status::InternalError, 11),
+    ];
+    for (status, number) in expected {
+        assert_eq!(status as i32, number, "{status:?}");
+    }
+    assert_eq!(
+        std::mem::size_of::<psr_status>(),
+        std::mem::size_of::<std::ffi::c_int>()
+    );
+}
+
+#[test]
+fn version_functions_agree_with_the_crate() {
+    let v = unsafe { CStr::from_ptr(psr_version()) }.to_str().unwrap();
+    assert_eq!(v, env!("CARGO_PKG_VERSION"));
+    assert_eq!(
+        psr_version_major().to_string(),
+        env!("CARGO_PKG_VERSION_MAJOR")
+    );
+    assert_eq!(
+        psr_version_minor().to_string(),
+        env!("CARGO_PKG_VERSION_MINOR")
+    );
+    assert_eq!(
+        psr_version_patch().to_string(),
+        env!("CARGO_PKG_VERSION_PATCH")
+    );
+    assert_eq!(
+        (PSR_VERSION_MAJOR, PSR_VERSION_MINOR, PSR_VERSION_PATCH),
+        (
+            psr_version_major(),
+            psr_version_minor(),
+            psr_version_patch()
+        )
+    );
+}
+
+// ------------------------------------------------------------------------------------------------
+// With the core: real meshes, progress, cancellation, threads
+// ------------------------------------------------------------------------------------------------
+
+#[derive(Default)]
+struct Recorder {
+    calls: usize,
+    stages: Vec<psr_stage>,
+    threads: Vec<std::thread::ThreadId>,
+    bad_fractions: usize,
+    /// Return false on this call (1-based); 0 = never.
+    cancel_on_call: usize,
+    /// Handle to poke from inside the callback (reentrancy check).
+    reenter: *mut psr_reconstructor,
+    reentry_statuses: Vec<psr_status>,
+}
+
+unsafe extern "C" fn record(user: *mut c_void, stage: psr_stage, fraction: f32) -> bool {
+    let rec = &mut *user.cast::<Recorder>();
+    rec.calls += 1;
+    if rec.stages.last() != Some(&stage) {
+        rec.stages.push(stage);
+    }
+    rec.threads.push(std::thread::current().id());
+    if !(0.0..=1.0).contains(&fraction) {
+        rec.bad_fractions += 1;
+    }
+    if !rec.reenter.is_null() {
+        let mut n = 0usize;
+        rec.reentry_statuses
+            .push(psr_reconstructor_point_count(rec.reenter, &mut n));
+        rec.reentry_statuses
+            .push(psr_reconstructor_set_depth(rec.reenter, 3));
+        psr_reconstructor_free(rec.reenter); // must do nothing
+    }
+    rec.cancel_on_call == 0 || rec.calls < rec.cancel_on_call
+}
+
+/// Positions, triangles, densities and the isovalue's bits of a mesh.
+type MeshArrays = (Vec<f32>, Vec<u32>, Vec<f32>, u64);
+
+fn mesh_arrays(m: *const psr_mesh) -> MeshArrays {
+    unsafe {
+        let (nv, nt) = (psr_mesh_vertex_count(m), psr_mesh_triangle_count(m));
+        let mut p = vec![0.0f32; 3 * nv];
+        let mut t = vec![0u32; 3 * nt];
+        let mut d = vec![0.0f32; nv];
+        assert_eq!(
+            psr_mesh_copy_positions(m, p.as_mut_ptr(), p.len()),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_mesh_copy_triangles(m, t.as_mut_ptr(), t.len()),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_mesh_copy_densities(m, d.as_mut_ptr(), d.len()),
+            psr_status::Ok
+        );
+        (p, t, d, psr_mesh_isovalue(m).to_bits())
+    }
+}
+
+#[test]
+fn solve_gives_a_mesh_that_outlives_its_reconstructor() {
+    let r = new_handle();
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 5), psr_status::Ok);
+    }
+    add_sphere(r, 2000);
+    let Some(m) = solve_or_skip(r, "solve_gives_a_mesh_that_outlives_its_reconstructor") else {
+        unsafe { psr_reconstructor_free(r) };
+        return;
+    };
+    unsafe {
+        assert_eq!(last_error(r), "");
+        assert_eq!(point_count(r), 2000, "solve keeps the points");
+        psr_reconstructor_free(r);
+        let (nv, nt) = (psr_mesh_vertex_count(m), psr_mesh_triangle_count(m));
+        assert!(nv > 100 && nt > 100, "{nv} vertices, {nt} triangles");
+        assert!(psr_mesh_isovalue(m).is_finite());
+        // Borrowed views agree with the copies, after the reconstructor is gone.
+        let (p, t, d, _) = mesh_arrays(m);
+        assert_eq!(
+            std::slice::from_raw_parts(psr_mesh_positions(m), 3 * nv),
+            &p[..]
+        );
+        assert_eq!(
+            std::slice::from_raw_parts(psr_mesh_triangles(m), 3 * nt),
+            &t[..]
+        );
+        assert_eq!(
+            std::slice::from_raw_parts(psr_mesh_densities(m), nv),
+            &d[..]
+        );
+        assert!(t.iter().all(|&i| (i as usize) < nv));
+        // Vertices lie near the unit sphere around the centre.
+        for v in p.chunks(3) {
+            let rad = ((v[0] - 0.1).powi(2) + (v[1] + 0.2).powi(2) + (v[2] - 0.3).powi(2)).sqrt();
+            assert!((rad - 1.0).abs() < 0.15, "vertex at radius {rad}");
+        }
+        // Short buffers on a real mesh.
+        let mut short = vec![0.0f32; 3 * nv - 1];
+        assert_eq!(
+            psr_mesh_copy_positions(m, short.as_mut_ptr(), short.len()),
+            psr_status::BufferTooSmall
+        );
+        assert!(short.iter().all(|&v| v == 0.0));
+        let mut short_t = vec![0u32; 3 * nt - 1];
+        assert_eq!(
+            psr_mesh_copy_triangles(m, short_t.as_mut_ptr(), short_t.len()),
+            psr_status::BufferTooSmall
+        );
+        let mut short_d = vec![0.0f32; nv - 1];
+        assert_eq!(
+            psr_mesh_copy_densities(m, short_d.as_mut_ptr(), short_d.len()),
+            psr_status::BufferTooSmall
+        );
+        psr_mesh_free(m);
+    }
+}
+
+#[test]
+fn progress_runs_on_the_calling_thread_through_the_stages_in_order() {
+    let r = new_handle();
+    let mut rec = Recorder::default();
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 5), psr_status::Ok);
+        assert_eq!(psr_reconstructor_set_threads(r, 2), psr_status::Ok);
+        let user = ptr::addr_of_mut!(rec).cast::<c_void>();
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(r, Some(record), user),
+            psr_status::Ok
+        );
+    }
+    add_sphere(r, 1000);
+    let Some(m) = solve_or_skip(
+        r,
+        "progress_runs_on_the_calling_thread_through_the_stages_in_order",
+    ) else {
+        unsafe { psr_reconstructor_free(r) };
+        return;
+    };
+    unsafe {
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+    }
+    assert!(rec.calls > 0, "the callback was called");
+    let me = std::thread::current().id();
+    assert!(
+        rec.threads.iter().all(|&t| t == me),
+        "every call on the thread that called solve"
+    );
+    assert_eq!(rec.bad_fractions, 0, "fractions within [0, 1]");
+    // Each stage is reported in one stretch (the pipeline never goes back to a stage), from
+    // PSR_STAGE_POINTS to PSR_STAGE_MESH. (The core may order some stages differently from the
+    // enum's numbering, e.g. density before octree.)
+    let mut seen = rec.stages.clone();
+    seen.sort_by_key(|&s| s as u32);
+    seen.dedup();
+    assert_eq!(
+        seen.len(),
+        rec.stages.len(),
+        "a stage was reported in two stretches: {:?}",
+        rec.stages
+    );
+    assert_eq!(
+        rec.stages.first(),
+        Some(&psr_stage::Points),
+        "{:?}",
+        rec.stages
+    );
+    assert_eq!(
+        rec.stages.last(),
+        Some(&psr_stage::Mesh),
+        "{:?}",
+        rec.stages
+    );
+}
+
+#[test]
+fn returning_false_from_the_callback_cancels() {
+    for cancel_on_call in [1, 3] {
+        let r = new_handle();
+        let mut rec = Recorder {
+            cancel_on_call,
+            ..Default::default()
+        };
+        unsafe {
+            assert_eq!(psr_reconstructor_set_depth(r, 5), psr_status::Ok);
+            let user = ptr::addr_of_mut!(rec).cast::<c_void>();
+            assert_eq!(
+                psr_reconstructor_set_progress_callback(r, Some(record), user),
+                psr_status::Ok
+            );
+        }
+        add_sphere(r, 1000);
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        let status = unsafe { psr_reconstructor_solve(r, &mut mesh) };
+        if status == psr_status::InternalError && last_error(r).contains(PLACEHOLDER) {
+            eprintln!("SKIP returning_false_from_the_callback_cancels: the reconstruction core is not in yet");
+            unsafe { psr_reconstructor_free(r) };
+            return;
+        }
+        assert_eq!(status, psr_status::Cancelled, "{}", last_error(r));
+        assert_eq!(mesh, sentinel_ptr(), "no mesh on cancellation");
+        assert_eq!(
+            rec.calls, cancel_on_call,
+            "no callback after the one that said stop"
+        );
+        assert!(last_error(r).contains("cancelled"), "{}", last_error(r));
+        // The handle is still usable: without the callback the same solve succeeds.
+        unsafe {
+            assert_eq!(
+                psr_reconstructor_set_progress_callback(r, None, ptr::null_mut()),
+                psr_status::Ok
+            );
+            assert_eq!(
+                psr_reconstructor_solve(r, &mut mesh),
+                psr_status::Ok,
+                "{}",
+                last_error(r)
+            );
+            psr_mesh_free(mesh);
+            psr_reconstructor_free(r);
+        }
+    }
+}
+
+#[test]
+fn calls_on_the_same_handle_from_inside_its_callback_are_refused() {
+    let r = new_handle();
+    let mut rec = Recorder {
+        reenter: r,
+        ..Default::default()
+    };
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 4), psr_status::Ok);
+        let user = ptr::addr_of_mut!(rec).cast::<c_void>();
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(r, Some(record), user),
+            psr_status::Ok
+        );
+    }
+    add_sphere(r, 500);
+    let Some(m) = solve_or_skip(
+        r,
+        "calls_on_the_same_handle_from_inside_its_callback_are_refused",
+    ) else {
+        unsafe { psr_reconstructor_free(r) };
+        return;
+    };
+    assert!(!rec.reentry_statuses.is_empty());
+    assert!(
+        rec.reentry_statuses
+            .iter()
+            .all(|&s| s == psr_status::InvalidArgument),
+        "{:?}",
+        rec.reentry_statuses
+    );
+    unsafe {
+        let mut depth = 0;
+        assert_eq!(psr_reconstructor_get_depth(r, &mut depth), psr_status::Ok);
+        assert_eq!(depth, 4, "the refused set_depth changed nothing");
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+    }
+}
+
+/// One complete run on its own handle, as a thread of a host application would do it.
+fn run_once(points: usize, depth: u32, threads: u32) -> Option<MeshArrays> {
+    let r = new_handle();
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, depth), psr_status::Ok);
+        assert_eq!(psr_reconstructor_set_threads(r, threads), psr_status::Ok);
+    }
+    add_sphere(r, points);
+    let out = solve_or_skip(r, "two_handles_on_two_threads_match_sequential_runs").map(|m| {
+        let arrays = mesh_arrays(m);
+        unsafe { psr_mesh_free(m) };
+        arrays
+    });
+    unsafe { psr_reconstructor_free(r) };
+    out
+}
+
+#[test]
+fn two_handles_on_two_threads_match_sequential_runs() {
+    let Some(first) = run_once(1500, 5, 1) else {
+        return;
+    };
+    let Some(second) = run_once(800, 5, 2) else {
+        return;
+    };
+    let a = std::thread::spawn(|| run_once(1500, 5, 1));
+    let b = std::thread::spawn(|| run_once(800, 5, 2));
+    let (a, b) = (a.join().unwrap().unwrap(), b.join().unwrap().unwrap());
+    assert!(
+        a == first,
+        "handle 1 on its own thread differs from the sequential run"
+    );
+    assert!(
+        b == second,
+        "handle 2 on its own thread differs from the sequential run"
+    );
+}
