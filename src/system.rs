@@ -425,3 +425,152 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::octree::Octree;
+
+    /// A complete 16³ grid with free boundaries: its halo reaches two nodes beyond the cube, so
+    /// every core node sees its whole 5³ neighbourhood.
+    fn grid() -> Octree {
+        Octree::build(vec![Vec::new(); 5], 4, false)
+    }
+
+    /// Coefficients on K of the polynomial f in node units (t = p/h = i + ½ at node centres).
+    /// Quadratic B-splines reproduce quadratics: Σ_i b(t − t_i)·(t_i² − ¼) = t², Σ_i b(t − t_i)·t_i = t.
+    fn coefficients(level: &Level, f: impl Fn([f64; 3]) -> f64) -> Vec<f64> {
+        (0..level.len() as u32)
+            .map(|i| f(level.coord(i).map(|c| c as f64 + 0.5)))
+            .collect()
+    }
+
+    #[test]
+    fn laplacian_of_quadratics_matches_integration_by_parts() {
+        let tree = grid();
+        let level = &tree.levels[4];
+        let h = level.width();
+        let proxies = Proxies {
+            of_cell: vec![(0, 0); level.len()],
+            ..Default::default()
+        };
+        let mut op = DepthOperator::new(level, &proxies, 0.0);
+        let mut out = vec![0.0; level.core.len()];
+        // f = x² (unit coordinates) = h²(t² ): coefficients h²(t_i² − ¼). ⟨∇B_o, ∇f⟩ = −∫B_o Δf = −2h³.
+        let x = coefficients(level, |t| h * h * (t[0] * t[0] - 0.25));
+        op.apply(&x, &mut out);
+        for v in &out {
+            assert!(
+                (v + 2.0 * h * h * h).abs() < 1e-12,
+                "{v} vs {}",
+                -2.0 * h * h * h
+            );
+        }
+        // f = x² + y² − 2z² + 3xy is harmonic: ⟨∇B_o, ∇f⟩ = 0.
+        let x = coefficients(level, |t| {
+            h * h
+                * ((t[0] * t[0] - 0.25) + (t[1] * t[1] - 0.25) - 2.0 * (t[2] * t[2] - 0.25)
+                    + 3.0 * t[0] * t[1])
+        });
+        op.apply(&x, &mut out);
+        assert!(out.iter().all(|v| v.abs() < 1e-12));
+    }
+
+    #[test]
+    fn divergence_of_a_linear_field_is_its_constant_divergence() {
+        let tree = grid();
+        let level = &tree.levels[4];
+        let h = level.width();
+        // V = (x, 2y, −z): coefficients of the unit-integral F̃_o = B_o/h³ are h³·V(t_i·h).
+        let v = [
+            coefficients(level, |t| h * h * h * (h * t[0])),
+            coefficients(level, |t| h * h * h * (2.0 * h * t[1])),
+            coefficients(level, |t| h * h * h * (-h * t[2])),
+        ];
+        let div = divergence(level, &v);
+        // ⟨∇B_o, V⟩ = −∫B_o ∇·V = −(1 + 2 − 1)·h³ at every core node.
+        for &c in &level.core {
+            let got = div[c as usize];
+            assert!((got + 2.0 * h * h * h).abs() < 1e-12, "{got}");
+        }
+    }
+
+    #[test]
+    fn prolongation_reproduces_coarse_quadratics_and_restriction_is_its_transpose() {
+        let tree = grid();
+        let (coarse, fine) = (&tree.levels[3], &tree.levels[4]);
+        let f = |p: [f64; 3]| p[0] * p[0] + 0.5 * p[1] * p[2] - p[2];
+        // Coefficients of f in each depth's basis (unit coordinates p = t·h).
+        let at = |level: &Level| {
+            let h = level.width();
+            coefficients(level, |t| {
+                let p = t.map(|v| v * h);
+                f(p) - 0.25 * h * h // the −¼ correction of the x² term
+            })
+        };
+        let got = prolong(coarse, fine, &at(coarse), 1.0);
+        let want = at(fine);
+        for &c in &fine.core {
+            assert!((got[c as usize] - want[c as usize]).abs() < 1e-12);
+        }
+        // ⟨R u, v⟩ = ⟨u, P v⟩ on vectors supported on the cores.
+        let u: Vec<f64> = (0..fine.len())
+            .map(|i| {
+                if fine.flags[i] & crate::octree::CORE != 0 {
+                    (i % 7) as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let v: Vec<f64> = (0..coarse.len())
+            .map(|i| {
+                if coarse.flags[i] & crate::octree::CORE != 0 {
+                    (i % 5) as f64 - 2.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut ru = vec![0.0; coarse.len()];
+        restrict_into(coarse, fine, &u, &mut ru);
+        let pv = prolong(coarse, fine, &v, 1.0);
+        let lhs: f64 = ru.iter().zip(&v).map(|(a, b)| a * b).sum();
+        let rhs: f64 = u.iter().zip(&pv).map(|(a, b)| a * b).sum();
+        assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0));
+    }
+
+    #[test]
+    fn neumann_mirrors_make_constants_harmonic_up_to_the_faces() {
+        // With reflected (even) node functions the constant 1 is in the space and has zero
+        // gradient everywhere in the cube, so L·1 vanishes at every node, the face nodes too;
+        // with free boundaries the node functions simply stop and the face nodes feel it.
+        for neumann in [true, false] {
+            let tree = Octree::build(vec![Vec::new(); 4], 3, neumann);
+            let level = &tree.levels[3];
+            let proxies = Proxies {
+                of_cell: vec![(0, 0); level.len()],
+                ..Default::default()
+            };
+            let mut op = DepthOperator::new(level, &proxies, 0.0);
+            let mut x: Vec<f64> = (0..level.len())
+                .map(|i| {
+                    if level.flags[i] & crate::octree::CORE != 0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            fill_mirrors(level, &mut x);
+            let mut out = vec![0.0; level.core.len()];
+            op.apply(&x, &mut out);
+            let worst = out.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            if neumann {
+                assert!(worst < 1e-14, "{worst}");
+            } else {
+                assert!(worst > 1e-3);
+            }
+        }
+    }
+}
