@@ -557,8 +557,8 @@ psr_status psr_reconstructor_set_progress_callback(psr_reconstructor *r, psr_pro
  * r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
  * PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
  * PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
- * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback) or
- * PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
+ * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, or all points coincide)
+ * or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
  * left untouched.
  *
  * # Safety

@@ -25,6 +25,10 @@ pub enum Error {
     ZeroNormal { index: usize },
     /// A per-point confidence weight is negative, NaN or infinite.
     InvalidWeight { index: usize },
+    /// Every confidence weight is 0, so no point counts.
+    NoPositiveWeight,
+    /// All points coincide: there is no extent in which to place a surface.
+    DegenerateInput { points: usize },
     /// A parameter is outside its documented range.
     InvalidParameter {
         name: &'static str,
@@ -58,6 +62,13 @@ impl fmt::Display for Error {
             Error::InvalidWeight { index } => write!(
                 f,
                 "confidence weight {index} is negative, NaN or infinite: weights must be finite and >= 0"
+            ),
+            Error::NoPositiveWeight => {
+                write!(f, "every confidence weight is 0: at least one point needs a positive weight")
+            }
+            Error::DegenerateInput { points } => write!(
+                f,
+                "all {points} points coincide: a surface needs points spread in space (at least two distinct positions)"
             ),
             Error::InvalidParameter { name, value, expected } => {
                 write!(f, "parameter {name} = {value} is out of range: expected {expected}")

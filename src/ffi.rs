@@ -255,6 +255,8 @@ impl Failure {
             Error::ZeroNormal { .. } => psr_status::ZeroNormal,
             // Weights are not exposed to C yet; when they are, this gets a status of its own.
             Error::InvalidWeight { .. } => psr_status::InvalidArgument,
+            Error::NoPositiveWeight => psr_status::InvalidArgument,
+            Error::DegenerateInput { .. } => psr_status::InvalidArgument,
             Error::InvalidParameter { .. } => psr_status::InvalidParameter,
             Error::Cancelled => psr_status::Cancelled,
             Error::Internal(_) => psr_status::InternalError,
@@ -1060,8 +1062,8 @@ pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
 /// r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
 /// PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
 /// PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
-/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback) or
-/// PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
+/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, or all points coincide)
+/// or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
 /// left untouched.
 ///
 /// # Safety

@@ -85,7 +85,13 @@ pub(crate) fn run(
         },
     });
     if samples.confidence.iter().all(|&c| c == 0.0) {
-        return Err(Error::InvalidWeight { index: 0 });
+        return Err(Error::NoPositiveWeight);
+    }
+    let first = points.positions()[0];
+    if points.positions().iter().all(|p| *p == first) {
+        return Err(Error::DegenerateInput {
+            points: points.len(),
+        });
     }
     clock.done(Stage::Points)?;
 
