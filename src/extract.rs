@@ -12,12 +12,14 @@
 //! the same face values, decide the same way, and so produce the same segments: the mesh is
 //! closed. Each crossed grid edge carries exactly one vertex, shared by the four cells around it,
 //! and each cell's polygons are disjoint loops through those vertices, so every vertex has one
-//! fan and every edge two triangles: the mesh is a 2-manifold (away from the cube's faces). Loops
+//! fan and every edge two triangles: the mesh is a 2-manifold. Loops
 //! are triangulated so that no diagonal joins two vertices on one cube face (a neighbour could
 //! produce the same diagonal); when no such fan exists a centre vertex is added.
 //!
 //! Corners are classed "outside" when χ ≥ γ. Triangles are oriented so that their normals point
-//! towards larger χ, which is outside (V points along the outward normals).
+//! towards larger χ, which is outside (V points along the outward normals). Grid corners beyond
+//! the cube count as outside, so where the surface meets the cube (sparse or open scans) it is
+//! closed by a cap lying on the cube's face: the mesh is always closed.
 
 use crate::evaluate::Indicator;
 use crate::octree::KeyMap;
@@ -145,15 +147,19 @@ fn cell_loops(values: &[f64; 8], faces: &[[usize; 4]; 6]) -> Vec<Vec<usize>> {
     loops
 }
 
-/// Packs a grid corner (coordinates < 2^20) and an axis into an edge key.
+/// Packs a grid corner (coordinates in −1..=2^16 + 1, shifted by one) and an axis into an edge
+/// key.
 #[inline]
 fn edge_key(corner: [i64; 3], axis: usize) -> u64 {
-    corner[0] as u64 | (corner[1] as u64) << 20 | (corner[2] as u64) << 40 | (axis as u64) << 60
+    let [x, y, z] = corner.map(|v| (v + 1) as u64);
+    x | y << 20 | z << 40 | (axis as u64) << 60
 }
 
+/// Packs a grid corner or cell (coordinates in −1..=2^16 + 1, shifted by one) into a key.
 #[inline]
 fn corner_key(c: [i64; 3]) -> u64 {
-    c[0] as u64 | (c[1] as u64) << 21 | (c[2] as u64) << 42
+    let [x, y, z] = c.map(|v| (v + 1) as u64);
+    x | y << 21 | z << 42
 }
 
 #[inline]
@@ -181,7 +187,9 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 
     let mut visited: KeyMap<()> = KeyMap::default();
     let mut mesh = RawMesh::default();
 
-    let inside_grid = |c: &[i64; 3]| c.iter().all(|&v| (0..n).contains(&v));
+    // Cells one layer beyond the cube on every side take part, with their outer corners
+    // outside, so the mesh is closed even where the surface reaches the cube's faces.
+    let inside_grid = |c: &[i64; 3]| c.iter().all(|&v| (-1..=n).contains(&v));
     let mut frontier: Vec<[i64; 3]> = seeds.into_iter().filter(inside_grid).collect();
     frontier.sort_unstable_by_key(morton_order);
     frontier.dedup();
@@ -202,7 +210,16 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 
         needed.dedup();
         let values: Vec<f64> = needed
             .par_iter()
-            .map(|g| chi.value(DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64) * h) - isovalue)
+            .map(|g| {
+                if g.iter().all(|&v| (0..=n).contains(&v)) {
+                    chi.value(DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64) * h) - isovalue
+                } else {
+                    // Beyond the cube everything is outside: the surface is closed along the
+                    // cube's faces where it meets them (vertices on such edges land at t → 0,
+                    // i.e. on the face).
+                    f64::INFINITY
+                }
+            })
             .collect();
         for (g, v) in needed.iter().zip(values) {
             corner_values.insert(corner_key(*g), v);
@@ -247,7 +264,14 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 
                             // Linear interpolation, kept off the corners so that no two
                             // vertices coincide. (Refining the root on χ itself was measured:
                             // no gain in accuracy on spheres.)
-                            let t = (va / (va - vb)).clamp(1e-3, 1.0 - 1e-3);
+                            let t = if va.is_infinite() {
+                                1.0 // the cap: on the face, at b
+                            } else if vb.is_infinite() {
+                                0.0 // the cap: on the face, at a
+                            } else {
+                                va / (va - vb)
+                            }
+                            .clamp(1e-3, 1.0 - 1e-3);
                             let mut p = DVec3::new(ga[0] as f64, ga[1] as f64, ga[2] as f64);
                             p[axis] += t;
                             mesh.vertices.push(p * h);

@@ -414,7 +414,6 @@ const NONUNIFORM_SPARSE_CAP_BOUND: f64 = 9.46e-5;
 /// points and more: closed). With `Boundary::Free` the same
 /// inputs give closed spheres. Run with `cargo test --release -- --ignored`.
 #[test]
-#[ignore = "known failure: sparse inputs give sheets open at the cube faces with Neumann boundaries"]
 fn sparse_sphere_is_closed() {
     let (positions, normals) = sample_sphere(200, 1.0, [0.0; 3], 9);
     let points = point_set(&positions, &normals);
