@@ -87,6 +87,8 @@ pub struct DepthSolve {
     pub iterations: u32,
     /// ‖b − Ax‖ / ‖b‖ at the end (0 when b = 0).
     pub relative_residual: f64,
+    /// Wall seconds for this depth (right-hand side, operator set-up and iterations).
+    pub seconds: f64,
 }
 
 /// Figures about a reconstruction, for logs and benchmarks.

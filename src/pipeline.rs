@@ -216,6 +216,7 @@ pub(crate) fn run(
     let mut coarse_field: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let depths = max_depth + 1;
     for d in 0..=max_depth as usize {
+        let depth_started = Instant::now();
         let level = &tree.levels[d];
         let (y, rhs_halo, this_field) = pool.install(|| {
             let mut y = if d == 0 {
@@ -302,6 +303,7 @@ pub(crate) fn run(
             unknowns: level.core.len(),
             iterations: outcome.iterations,
             relative_residual: outcome.relative_residual,
+            seconds: depth_started.elapsed().as_secs_f64(),
         });
     }
     drop(rho);

@@ -3,7 +3,7 @@
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
-//!     [--tolerance 1e-5] [--confidence] [--no-density] [--quiet] [--verbose]
+//!     [--tolerance 1e-3] [--confidence] [--no-density] [--quiet] [--verbose]
 //! ```
 //!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
@@ -262,16 +262,16 @@ fn print_details(mesh: &Mesh) {
             .max()
             .unwrap_or(0),
     );
-    let mut out = String::from("psr: depth      nodes   unknowns  iterations  rel. residual\n");
+    let mut out = String::from("psr: depth   unknowns  iterations  rel. residual  seconds\n");
     for depth in 0..depths {
         let nodes = stats.nodes_per_depth.get(depth).copied().unwrap_or(0);
         out.push_str(&format!("psr: {depth:>5} {nodes:>10}"));
         match stats.solves.iter().find(|s| s.depth as usize == depth) {
             Some(s) => out.push_str(&format!(
-                " {:>10} {:>11} {:>14.3e}\n",
-                s.unknowns, s.iterations, s.relative_residual
+                " {:>11} {:>14.3e} {:>8.3}\n",
+                s.iterations, s.relative_residual, s.seconds
             )),
-            None => out.push_str(&format!(" {:>10} {:>11} {:>14}\n", "-", "-", "-")),
+            None => out.push_str(&format!(" {:>11} {:>14} {:>8}\n", "-", "-", "-")),
         }
     }
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
