@@ -43,7 +43,7 @@ impl Clock<'_, '_> {
     }
 }
 
-/// One sample in unit-cube coordinates with everything the stages derive for it.
+/// The samples in unit-cube coordinates.
 struct Samples {
     positions: Vec<DVec3>,
     normals: Vec<DVec3>,
@@ -95,7 +95,7 @@ pub(crate) fn run(
     }
     clock.done(Stage::Points)?;
 
-    // 3. Density (before the octree: the sample depths decide which nodes the tree needs).
+    // 2. Density (before the octree: the sample depths decide which nodes the tree needs).
     let kernel_depth = params.effective_kernel_depth();
     let field = DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
     let sample_density = pool.install(|| {
@@ -108,7 +108,7 @@ pub(crate) fn run(
     });
     clock.done(Stage::Density)?;
 
-    // 2. Octree: the nodes each sample splats into, at its one or two depths.
+    // 3. Octree: the nodes each sample splats into, at its one or two depths.
     let neumann = params.boundary == Boundary::Neumann;
     let mut requested: Vec<Vec<u64>> = vec![Vec::new(); max_depth as usize + 1];
     for (s, &p) in samples.positions.iter().enumerate() {
@@ -270,16 +270,9 @@ pub(crate) fn run(
             .map(|(&c, a)| rhs_halo[c as usize] - a)
             .collect();
         let base = d as f32 / depths as f32;
-        let mut cancelled_at = None;
         let (x, outcome) = {
             let progress = &mut clock.progress;
-            let mut keep_going = |f: f32| {
-                let go = (progress)(Stage::Solve, base + f / depths as f32);
-                if !go {
-                    cancelled_at = Some(d);
-                }
-                go
-            };
+            let mut keep_going = |f: f32| (progress)(Stage::Solve, base + f / depths as f32);
             conjugate_gradients(
                 pool,
                 &mut op,
@@ -289,7 +282,7 @@ pub(crate) fn run(
                 &mut keep_going,
             )
         };
-        if outcome.cancelled || cancelled_at.is_some() {
+        if outcome.cancelled {
             return Err(Error::Cancelled);
         }
         let mut z = y;
