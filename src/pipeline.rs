@@ -121,7 +121,17 @@ pub(crate) fn run(
             }
         }
     }
+    // When the density puts no sample at the deepest depths (sparse scans at a high --depth),
+    // those depths would hold no unknowns and only multiply the extraction grid: the tree, the
+    // screening scale and the extraction stop at the finest depth that has samples.
+    let finest = (0..=max_depth as usize)
+        .rev()
+        .find(|&d| !requested[d].is_empty())
+        .unwrap_or(0)
+        .max(params.effective_full_depth() as usize);
+    requested.truncate(finest + 1);
     let tree = pool.install(|| Octree::build(requested, params.effective_full_depth(), neumann));
+    let max_depth = tree.max_depth();
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 
