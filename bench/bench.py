@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import hashlib
 import json
 import os
 import platform
@@ -57,6 +58,7 @@ class Run:
     error: str = ""
     wall: float | None = None  # seconds, from /usr/bin/time
     rss_mib: float | None = None  # peak resident set size
+    cpu: float | None = None  # user + system CPU seconds, from /usr/bin/time (less load-sensitive than wall)
     compute: float | None = None  # in-process reconstruction seconds, when the tool reports it
     vertices: int | None = None
     triangles: int | None = None
@@ -85,9 +87,9 @@ def int_list(text: str) -> list[int]:
         raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}")
 
 
-def parse_time_v(text: str) -> tuple[float | None, float | None, int | None]:
-    """(wall seconds, max RSS in MiB, exit status) from GNU time -v output."""
-    wall = rss = status = None
+def parse_time_v(text: str) -> tuple[float | None, float | None, int | None, float | None]:
+    """(wall seconds, max RSS in MiB, exit status, user + system CPU seconds) from GNU time -v output."""
+    wall = rss = status = cpu = None
     m = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\):\s*([\d:.]+)", text)
     if m:
         seconds = 0.0
@@ -100,7 +102,11 @@ def parse_time_v(text: str) -> tuple[float | None, float | None, int | None]:
     m = re.search(r"Exit status:\s*(\d+)", text)
     if m:
         status = int(m.group(1))
-    return wall, rss, status
+    user = re.search(r"User time \(seconds\):\s*([\d.]+)", text)
+    system = re.search(r"System time \(seconds\):\s*([\d.]+)", text)
+    if user and system:
+        cpu = float(user.group(1)) + float(system.group(1))
+    return wall, rss, status, cpu
 
 
 def ply_counts(path: Path) -> tuple[int | None, int | None]:
@@ -135,8 +141,8 @@ def timed(cmd: list[str], workdir: Path, tag: str, timeout: float) -> tuple[Run,
         return run, "", ""
     (workdir / f"{tag}.stdout").write_text(proc.stdout)
     (workdir / f"{tag}.stderr").write_text(proc.stderr)
-    wall, rss, status = parse_time_v(time_file.read_text() if time_file.exists() else "")
-    run.wall, run.rss_mib = wall, rss
+    wall, rss, status, cpu = parse_time_v(time_file.read_text() if time_file.exists() else "")
+    run.wall, run.rss_mib, run.cpu = wall, rss, cpu
     if proc.returncode != 0 or status not in (0, None):
         tail = (proc.stderr.strip().splitlines() or ["(no stderr)"])[-1]
         run.error = f"exit {proc.returncode}: {tail}"
@@ -248,8 +254,10 @@ def uptime() -> str:
 def git_revision() -> str:
     try:
         rev = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True).stdout.strip()
-        return rev + (" (with uncommitted changes)" if dirty else "") if rev else "unknown"
+        # Only what goes into the binary counts (editing bench/ or docs/ does not change psr).
+        built_from = ["src", "Cargo.toml", "Cargo.lock", "build.rs"]
+        dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no", "--"] + built_from, capture_output=True, text=True).stdout.strip()
+        return rev + (" (with uncommitted changes to src/ or Cargo files)" if dirty else "") if rev else "unknown"
     except OSError:
         return "unknown"
 
@@ -264,7 +272,7 @@ def table(rows: list[tuple], skip_psr: bool, skip_open3d: bool) -> str:
         head = [
             "input", "points", "depth", "threads", "psr wall s", "psr peak MiB", "Open3D wall s", "Open3D peak MiB",
             "time ratio psr/Open3D", "memory ratio psr/Open3D", "psr reconstruct s", "Open3D poisson s",
-            "compute ratio", "psr V / T", "Open3D V / T", "load",
+            "compute ratio", "psr CPU s", "Open3D CPU s", "psr V / T", "Open3D V / T", "load",
         ]
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" if i < 1 else "---:" for i in range(len(head))) + "|"]
     for name, points, depth, threads, p, o in rows:
@@ -280,7 +288,8 @@ def table(rows: list[tuple], skip_psr: bool, skip_open3d: bool) -> str:
             cells = [
                 cell_time(p), fmt(p.rss_mib if p.ok else None, ".0f"), cell_time(o), fmt(o.rss_mib if o.ok else None, ".0f"),
                 ratio(pw, ow), ratio(p.rss_mib if p.ok else None, o.rss_mib if o.ok else None),
-                fmt(p.compute, ".2f"), fmt(o.compute, ".2f"), ratio(p.compute, o.compute), counts(p), counts(o),
+                fmt(p.compute, ".2f"), fmt(o.compute, ".2f"), ratio(p.compute, o.compute),
+                fmt(p.cpu if p.ok else None, ".1f"), fmt(o.cpu if o.ok else None, ".1f"), counts(p), counts(o),
             ]
         lines.append("| " + " | ".join(base + cells + [fmt(load, ".2f")]) + " |")
     return "\n".join(lines)
@@ -337,6 +346,18 @@ def main() -> int:
         workdir_ctx = tempfile.TemporaryDirectory(prefix="psr-bench-")
         workdir = Path(workdir_ctx.name)
 
+    # Time a private copy of the psr binary: on a shared checkout a concurrent `cargo build
+    # --release` replaces target/release/psr, and a run would then mix two builds.
+    psr_sha = None
+    psr_git = git_revision()  # of the checkout when the binary is copied
+    if not args.skip_psr:
+        snapshot = workdir / "psr-under-test"
+        shutil.copy2(args.psr, snapshot)
+        psr_sha = hashlib.sha256(snapshot.read_bytes()).hexdigest()[:16]
+        psr_bin = snapshot
+    else:
+        psr_bin = args.psr
+
     started = _dt.datetime.now(_dt.timezone.utc).astimezone()
     uptime_before = uptime()
     baseline = None if args.skip_open3d else open3d_baseline(workdir, args.timeout)
@@ -349,7 +370,7 @@ def main() -> int:
                 for k in range(args.repeat):
                     tag = f"{name}_d{depth}_t{threads}_r{k}"
                     if not args.skip_psr:
-                        r = run_psr(args.psr, cloud, depth, threads, workdir, "psr_" + tag, args.timeout, shlex.split(args.psr_args))
+                        r = run_psr(psr_bin, cloud, depth, threads, workdir, "psr_" + tag, args.timeout, shlex.split(args.psr_args))
                         p_runs.append(r)
                         print(f"psr     {tag}: {'ok' if r.ok else r.error} wall {fmt(r.wall, '.2f')} s, {fmt(r.rss_mib, '.0f')} MiB, load {r.load1:.2f}", file=sys.stderr)
                     if not args.skip_open3d:
@@ -378,7 +399,7 @@ def main() -> int:
             f"- machine: {m['cpu']}, {m['cpus']} CPUs, {fmt(m['ram_gib'], '.1f')} GiB RAM, {platform.system()} {platform.release()}",
             f"- load before: `{uptime_before}`",
             f"- load after: `{uptime_after}`",
-            f"- psr: {'not run' if args.skip_psr else f'`{args.psr}` {args.psr_args}'.rstrip() + f', git {git_revision()}'}",
+            f"- psr: {'not run' if args.skip_psr else f'`{args.psr}` {args.psr_args}'.rstrip() + f', git {psr_git}, binary sha256 {psr_sha}… (copied before the first run)'}",
         ]
         if baseline is not None:
             version = baseline.extra.get("open3d", "?")
@@ -401,6 +422,10 @@ def main() -> int:
             notes.append("- Open3D poisson s: the in-process time of the `create_from_point_cloud_poisson` call alone.")
         if not args.skip_psr and not args.skip_open3d:
             notes.append("- compute ratio: psr reconstruct s / Open3D poisson s.")
+            notes.append(
+                "- CPU s: user + system CPU seconds of the whole process (`/usr/bin/time -v`), of the same run;"
+                " less inflated by other load than wall time."
+            )
         notes += [
             "- V / T: vertices / triangles of the output mesh. load: 1-minute load average just before the run"
             " (the machine is shared; loads near or above the core count inflate wall times).",
