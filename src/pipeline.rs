@@ -217,11 +217,13 @@ pub(crate) fn run(
     clock.done(Stage::System)?;
 
     // 6. Solve, coarse to fine.
-    // Screening weight α·2^D at every depth: the finest depth's balance between the Laplacian and
-    // the screening term (SPSR), kept at coarser depths, where it is then relatively stronger.
-    // The cascade never revisits a coarse depth, so a coarse solution that ignores the samples
-    // would leave an offset the thin finer bands cannot take out.
-    let screening = params.point_weight as f64 * (max_depth as f64).exp2();
+    // Screening weight α·2^D at every depth, D the requested depth: the finest depth's balance
+    // between the Laplacian and the screening term (SPSR), kept at coarser depths, where it is then
+    // relatively stronger. The cascade never revisits a coarse depth, so a coarse solution that
+    // ignores the samples would leave an offset the thin finer bands cannot take out. (When the
+    // tree stops short of D, keeping D's weight was measured to avoid a 76-vertex bubble beside
+    // the oni's horn that the finest used depth's weight produced.)
+    let screening = params.point_weight as f64 * (params.depth as f64).exp2();
     let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
     let mut coarse_field: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
     let depths = max_depth + 1;
