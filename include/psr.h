@@ -224,6 +224,8 @@ typedef struct psr_reconstructor psr_reconstructor;
  */
 typedef bool (*psr_progress_fn)(void *user, psr_stage stage, float fraction);
 
+
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus

@@ -12,5 +12,7 @@ if ! command -v cbindgen >/dev/null || [ "$(cbindgen --version)" != "cbindgen $C
     echo "  cargo install cbindgen --version $CBINDGEN_VERSION --locked" >&2
     exit 1
 fi
-# Only src/ffi.rs is read, so the core's public items never leak into the C header.
-cbindgen --quiet --config "$root/cbindgen.toml" --output "$out" "$root/src/ffi.rs"
+# The whole crate is read (as `cbindgen --crate psr` does, and the before-stop hook with it);
+# cbindgen.toml's [export] include/exclude lists keep the core's public items out of the header.
+cd "$root"
+cbindgen --quiet --config "$root/cbindgen.toml" --crate psr --output "$out"
