@@ -868,6 +868,145 @@ pub unsafe extern "C" fn psr_reconstructor_get_solver_tolerance(
     })
 }
 
+/// Boundary conditions at the bounding cube, for psr_reconstructor_set_boundary.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum psr_boundary {
+    /// Zero normal derivative on the cube's faces (the default; PoissonRecon --bType 3, Open3D).
+    Neumann = 0,
+    /// The 2006 paper: node functions simply end beyond the cube (PoissonRecon --bType 1).
+    Free = 1,
+}
+
+/// Splatting weights, for psr_reconstructor_set_splatting.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum psr_splatting {
+    /// The node functions' own B-spline weights over 3x3x3 nodes (the default; smoother and
+    /// more accurate, about 1.6x the time).
+    Bspline = 0,
+    /// The 2006 paper's trilinear weights over the 8 nearest nodes.
+    Trilinear = 1,
+}
+
+/// Sets a parameter that takes one of a few named values, given as an integer (never trusted
+/// as a Rust enum).
+///
+/// # Safety
+/// As for [`handle_mut`].
+unsafe fn set_choice<T: Copy>(
+    function: &'static str,
+    r: *mut psr_reconstructor,
+    name: &'static str,
+    expected: &'static str,
+    value: i32,
+    choices: &[T],
+    apply: impl Fn(&mut Params, T),
+) -> psr_status {
+    guard(function, r, || {
+        let handle = handle_mut(function, r)?;
+        let choice = usize::try_from(value)
+            .ok()
+            .and_then(|i| choices.get(i).copied())
+            .ok_or_else(|| {
+                Failure::from_error(
+                    function,
+                    Error::InvalidParameter {
+                        name,
+                        value: value.to_string(),
+                        expected,
+                    },
+                )
+            })?;
+        apply(&mut handle.params, choice);
+        Ok(())
+    })
+}
+
+/// Sets the boundary condition: PSR_BOUNDARY_NEUMANN (0, the default) or PSR_BOUNDARY_FREE (1).
+/// PoissonRecon --bType.
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+/// (PSR_STATUS_INVALID_PARAMETER for any other value).
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_boundary(
+    r: *mut psr_reconstructor,
+    boundary: i32,
+) -> psr_status {
+    set_choice(
+        "psr_reconstructor_set_boundary",
+        r,
+        "boundary",
+        "PSR_BOUNDARY_NEUMANN (0) or PSR_BOUNDARY_FREE (1)",
+        boundary,
+        &[crate::Boundary::Neumann, crate::Boundary::Free],
+        |p, b| p.boundary = b,
+    )
+}
+
+/// Writes the boundary condition (a psr_boundary value) to *out. r and out must not be NULL.
+/// Returns the statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_boundary(
+    r: *const psr_reconstructor,
+    out: *mut i32,
+) -> psr_status {
+    get_param("psr_reconstructor_get_boundary", r, out, |p| {
+        match p.boundary {
+            crate::Boundary::Neumann => psr_boundary::Neumann as i32,
+            crate::Boundary::Free => psr_boundary::Free as i32,
+        }
+    })
+}
+
+/// Sets the splatting weights: PSR_SPLATTING_BSPLINE (0, the default) or
+/// PSR_SPLATTING_TRILINEAR (1, the 2006 paper's).
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+/// (PSR_STATUS_INVALID_PARAMETER for any other value).
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_splatting(
+    r: *mut psr_reconstructor,
+    splatting: i32,
+) -> psr_status {
+    set_choice(
+        "psr_reconstructor_set_splatting",
+        r,
+        "splatting",
+        "PSR_SPLATTING_BSPLINE (0) or PSR_SPLATTING_TRILINEAR (1)",
+        splatting,
+        &[crate::Splatting::BSpline, crate::Splatting::Trilinear],
+        |p, v| p.splatting = v,
+    )
+}
+
+/// Writes the splatting weights (a psr_splatting value) to *out. r and out must not be NULL.
+/// Returns the statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_splatting(
+    r: *const psr_reconstructor,
+    out: *mut i32,
+) -> psr_status {
+    get_param("psr_reconstructor_get_splatting", r, out, |p| {
+        match p.splatting {
+            crate::Splatting::BSpline => psr_splatting::Bspline as i32,
+            crate::Splatting::Trilinear => psr_splatting::Trilinear as i32,
+        }
+    })
+}
+
 // ---------------------------------------------------------------------------------------------
 // Points
 // ---------------------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ pub mod splat;
 pub mod system;
 
 pub use error::{Error, Result};
-pub use params::{Boundary, Params};
+pub use params::{Boundary, Params, Splatting};
 pub use points::PointSet;
 
 /// The stages of a reconstruction, in order, as reported to progress callbacks.

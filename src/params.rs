@@ -21,6 +21,19 @@ pub enum Boundary {
     Neumann,
 }
 
+/// How a sample's weighted normal is spread over the nodes of its depth (§4.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Splatting {
+    /// Weights b(t) of the node functions themselves, 3 nodes per axis: the vector field's
+    /// kernel is then b∗b, smoother than the paper's. Measured at depth 8 on a 100k-point random
+    /// sphere: mean vertex error 7.9e-5 vs 1.2e-4 trilinear (max 6e-4 vs 1.5e-3); on the bunny
+    /// scans reference→mesh mean 4.88e-5 m vs 5.18e-5 m. Costs about 1.6× the time (a wider
+    /// core band).
+    BSpline,
+    /// The 2006 paper: trilinear weights over the 8 nearest nodes.
+    Trilinear,
+}
+
 /// Parameters of one reconstruction. `Params::default()` works; every field documents its
 /// default, its range and the equivalent option of the incumbents.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,6 +70,8 @@ pub struct Params {
     /// change neither the sphere nor the bunny reconstructions while costing 40% more time),
     /// range [1e-12, 1). PoissonRecon `--cgAccuracy` (coarsest level only).
     pub solver_tolerance: f64,
+    /// Splatting weights. Default [`Splatting::BSpline`]; [`Splatting::Trilinear`] is the paper's.
+    pub splatting: Splatting,
     /// Boundary condition at the bounding cube. Default [`Boundary::Neumann`] (PoissonRecon
     /// `--bType 3`, Open3D's only choice).
     pub boundary: Boundary,
@@ -74,6 +89,7 @@ impl Default for Params {
             threads: 0,
             max_solver_iterations: 60,
             solver_tolerance: 1e-3,
+            splatting: Splatting::BSpline,
             boundary: Boundary::Neumann,
         }
     }

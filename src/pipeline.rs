@@ -10,6 +10,7 @@ use crate::solve::conjugate_gradients;
 use crate::system::{
     divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator, Proxies,
 };
+use crate::Splatting;
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
 };
@@ -115,7 +116,7 @@ pub(crate) fn run(
         for (d, w) in depth_split(sample_density.depth[s]) {
             if w > 0.0 {
                 let inv_h = (d as f64).exp2();
-                for (c, _) in trilinear(p, inv_h) {
+                for (c, _) in splat_weights(params.splatting, p, inv_h) {
                     requested[d as usize].push(morton(splat_node(c, d, neumann)));
                 }
             }
@@ -135,7 +136,8 @@ pub(crate) fn run(
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 
-    // 4. Splat: V = Σ_s A_s c_s n_s Σ_o α_o,s F̃_o at the sample's depth(s) (§4.2, §4.5); the
+    // 4. Splat: V = Σ_s A_s c_s n_s Σ_o α_o,s F̃_o at the sample's depth(s) (§4.2, §4.5, with
+    // trilinear or B-spline weights α); the
     // coefficients are those of the unit-integral F̃_o = B_o/h³.
     let mut field_v: Vec<[Vec<f64>; 3]> = tree
         .levels
@@ -156,7 +158,7 @@ pub(crate) fn run(
             let level = &tree.levels[d as usize];
             let inv_h = (d as f64).exp2();
             let scale = w * mass;
-            for (c, a) in trilinear(p, inv_h) {
+            for (c, a) in splat_weights(params.splatting, p, inv_h) {
                 let i = level
                     .find(splat_node(c, d, neumann))
                     .ok_or_else(|| Error::Internal("splat node missing from the octree".into()))?;
@@ -394,6 +396,31 @@ fn splat_node(c: [i32; 3], depth: u32, neumann: bool) -> [i32; 3] {
 /// spheres than grouping at d, and as accurate as using every sample).
 fn proxy_depth(d: u32, max_depth: u32) -> u32 {
     (d + 2).min(max_depth)
+}
+
+/// The nodes a sample at `p` splats into at the depth of inverse width `inv_h`, with weights
+/// summing to one (8 trilinear, or the 27 node-function values b(t) around its cell).
+fn splat_weights(splatting: Splatting, p: DVec3, inv_h: f64) -> Vec<([i32; 3], f64)> {
+    match splatting {
+        Splatting::Trilinear => trilinear(p, inv_h).to_vec(),
+        Splatting::BSpline => {
+            let (c, w) = crate::density::stencil27(p, inv_h);
+            let mut out = Vec::with_capacity(27);
+            for (k, wz) in w[2].iter().enumerate() {
+                for (j, wy) in w[1].iter().enumerate() {
+                    for (i, wx) in w[0].iter().enumerate() {
+                        let node = [
+                            c[0] - 1 + i as i32,
+                            c[1] - 1 + j as i32,
+                            c[2] - 1 + k as i32,
+                        ];
+                        out.push((node, wx * wy * wz));
+                    }
+                }
+            }
+            out
+        }
+    }
 }
 
 /// A fractional depth δ splats into ⌊δ⌋ with weight 1 − frac(δ) and ⌊δ⌋ + 1 with frac(δ).

@@ -1189,3 +1189,53 @@ fn two_handles_on_two_threads_match_sequential_runs() {
         "handle 2 on its own thread differs from the sequential run"
     );
 }
+
+/// Proves: the boundary and splatting choices are set and read back as integers, default to
+/// Neumann and B-spline, and any other integer is refused with INVALID_PARAMETER naming the
+/// parameter, leaving the value as it was.
+#[test]
+fn boundary_and_splatting_choices_round_trip_and_reject_unknown_values() {
+    let r = new_handle();
+    unsafe {
+        let mut v = -7i32;
+        assert_eq!(psr_reconstructor_get_boundary(r, &mut v), psr_status::Ok);
+        assert_eq!(v, psr_boundary::Neumann as i32);
+        assert_eq!(psr_reconstructor_get_splatting(r, &mut v), psr_status::Ok);
+        assert_eq!(v, psr_splatting::Bspline as i32);
+        assert_eq!(
+            psr_reconstructor_set_boundary(r, psr_boundary::Free as i32),
+            psr_status::Ok
+        );
+        assert_eq!(psr_reconstructor_get_boundary(r, &mut v), psr_status::Ok);
+        assert_eq!(v, psr_boundary::Free as i32);
+        assert_eq!(
+            psr_reconstructor_set_splatting(r, psr_splatting::Trilinear as i32),
+            psr_status::Ok
+        );
+        assert_eq!(psr_reconstructor_get_splatting(r, &mut v), psr_status::Ok);
+        assert_eq!(v, psr_splatting::Trilinear as i32);
+        for bad in [-1, 2, i32::MAX] {
+            assert_eq!(
+                psr_reconstructor_set_boundary(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(last_error(r).contains("boundary"), "{}", last_error(r));
+            assert_eq!(
+                psr_reconstructor_set_splatting(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(last_error(r).contains("splatting"), "{}", last_error(r));
+        }
+        assert_eq!(psr_reconstructor_get_boundary(r, &mut v), psr_status::Ok);
+        assert_eq!(v, psr_boundary::Free as i32);
+        assert_eq!(
+            psr_reconstructor_set_boundary(ptr::null_mut(), 0),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_splatting(r, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        psr_reconstructor_free(r);
+    }
+}

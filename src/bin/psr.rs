@@ -3,7 +3,7 @@
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
-//!     [--tolerance 1e-3] [--confidence] [--no-density] [--quiet] [--verbose]
+//!     [--tolerance 1e-3] [--boundary neumann|free] [--splatting bspline|trilinear] [--confidence] [--no-density] [--quiet] [--verbose]
 //! ```
 //!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
@@ -15,7 +15,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use psr::{ply, Mesh, Params, PointSet, Stage};
+use psr::{ply, Boundary, Mesh, Params, PointSet, Splatting, Stage};
 
 /// Poisson surface reconstruction: turns an oriented point cloud (PLY with x y z nx ny nz)
 /// into a watertight triangle mesh (binary PLY).
@@ -66,6 +66,15 @@ struct Args {
     #[arg(long, value_name = "T", default_value_t = Params::default().solver_tolerance)]
     tolerance: f64,
 
+    /// Boundary condition at the bounding cube: neumann (PoissonRecon's and Open3D's default) or
+    /// free (the 2006 paper).
+    #[arg(long, value_enum, default_value_t = BoundaryArg::Neumann)]
+    boundary: BoundaryArg,
+
+    /// Splatting weights: bspline (smoother, more accurate) or trilinear (the 2006 paper).
+    #[arg(long, value_enum, default_value_t = SplattingArg::Bspline)]
+    splatting: SplattingArg,
+
     /// Weigh each point by the input's `confidence` (or `value`) property.
     #[arg(long)]
     confidence: bool,
@@ -95,9 +104,29 @@ impl Args {
             threads: self.threads,
             max_solver_iterations: self.iters,
             solver_tolerance: self.tolerance,
+            boundary: match self.boundary {
+                BoundaryArg::Neumann => Boundary::Neumann,
+                BoundaryArg::Free => Boundary::Free,
+            },
+            splatting: match self.splatting {
+                SplattingArg::Bspline => Splatting::BSpline,
+                SplattingArg::Trilinear => Splatting::Trilinear,
+            },
             ..Params::default()
         }
     }
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum BoundaryArg {
+    Neumann,
+    Free,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum SplattingArg {
+    Bspline,
+    Trilinear,
 }
 
 /// Why the run failed, which decides the exit status.
