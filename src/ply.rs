@@ -939,8 +939,9 @@ fn capacity(count: usize, size_checked: bool) -> usize {
 // Point clouds
 // ---------------------------------------------------------------------------------------------
 
-/// Reads oriented points from a PLY file (see [`read_point_cloud_from`]).
-pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
+/// Opens a PLY file for reading, with its length when it is a regular file (so element counts
+/// can be checked against it before anything is allocated).
+fn open(path: &Path) -> Result<(BufReader<File>, Option<u64>), PlyError> {
     let file = File::open(path).map_err(|e| {
         PlyError::new(PlyErrorKind::Io {
             action: "open",
@@ -953,8 +954,13 @@ pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
         .ok()
         .filter(|m| m.is_file())
         .map(|m| m.len());
-    read_points(BufReader::with_capacity(1 << 20, file), len)
-        .map_err(|e| PlyError::new(e).with_path(path))
+    Ok((BufReader::with_capacity(1 << 20, file), len))
+}
+
+/// Reads oriented points from a PLY file (see [`read_point_cloud_from`]).
+pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
+    let (reader, len) = open(path)?;
+    read_points(reader, len).map_err(|e| PlyError::new(e).with_path(path))
 }
 
 /// Reads oriented points from PLY data: the `vertex` element's `x y z nx ny nz`, and
@@ -1155,20 +1161,8 @@ pub type MeshData = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
 /// Reads a polygon mesh from a PLY file (see [`read_mesh_from`]).
 pub fn read_mesh(path: &Path) -> Result<MeshData, PlyError> {
-    let file = File::open(path).map_err(|e| {
-        PlyError::new(PlyErrorKind::Io {
-            action: "open",
-            source: e,
-        })
-        .with_path(path)
-    })?;
-    let len = file
-        .metadata()
-        .ok()
-        .filter(|m| m.is_file())
-        .map(|m| m.len());
-    read_mesh_impl(BufReader::with_capacity(1 << 20, file), len)
-        .map_err(|e| PlyError::new(e).with_path(path))
+    let (reader, len) = open(path)?;
+    read_mesh_impl(reader, len).map_err(|e| PlyError::new(e).with_path(path))
 }
 
 /// Reads a polygon mesh from PLY data: the `vertex` element's `x y z` and the `face` element's
