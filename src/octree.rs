@@ -453,10 +453,15 @@ mod tests {
         let requested = vec![vec![], vec![], vec![], vec![morton([5, 2, 7])]];
         let tree = Octree::build(requested, 1, true);
         let finest = &tree.levels[3];
-        assert_eq!(finest.core.len(), 1);
-        assert_eq!(finest.len(), 125);
+        // The core is the requested node widened by one (pad_core), clipped to the 8³ cube:
+        // [4, 6] × [1, 3] × [6, 7]; the halo is that box widened by two.
+        assert_eq!(finest.core.len(), 3 * 3 * 2);
+        assert_eq!(finest.len(), 7 * 7 * 6);
         let i = finest.find([5, 2, 7]).unwrap();
         assert_eq!(finest.flags[i as usize], CORE | NEAR);
+        let corner = finest.find([4, 1, 6]).unwrap();
+        assert_eq!(finest.flags[corner as usize], CORE | NEAR);
+        assert_eq!(finest.flags[finest.find([5, 2, 8]).unwrap() as usize] & CORE, 0);
         assert_eq!(finest.coord(finest.neighbors[i as usize][1]), [6, 2, 7]);
         let p = finest.parent[i as usize];
         assert_eq!(tree.levels[2].coord(p), [2, 1, 3]);
