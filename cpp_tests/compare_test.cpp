@@ -291,14 +291,15 @@ void check_closed_manifold(const Measured &psr, long long euler) {
 //     an isosurface shifted by 0.15 cell changes the area by about 0.5% (sphere: 2 x shift / R).
 //     The issue asks for "a few percent"; 0.5% is tighter and still leaves a 8x margin.
 //   Distance to the exact surface: psr no worse than 1.1 x the better of CGAL and PCL, on the
-//     Chamfer average and on the 95th-percentile Hausdorff distance. MEASURED: psr is within
-//     1.1 x CGAL (at comparable resolution) but about 3 x PCL on both shapes and both measures
-//     (numbers in docs/comparisons.md and issue 4). That gap is asserted as it stands, so that
-//     it cannot widen unnoticed, and printed as a KNOWN GAP in the log: psr <= 1.1 x CGAL, and
-//     psr <= kPclGapBound x PCL instead of 1.1 x. Lower kPclGapBound as psr closes the gap.
+//     Chamfer average and on the 95th-percentile Hausdorff distance. MEASURED: psr is about
+//     0.3-0.4 x CGAL (at comparable resolution) and 1.2-1.3 x PCL on both shapes and both
+//     measures (numbers in docs/comparisons.md and issue 4; Kazhdan's PoissonRecon, as built
+//     into Open3D 0.20, is 1.04 x psr on the same sphere). That gap is asserted as it stands, so
+//     that it cannot widen unnoticed, and printed as a KNOWN GAP in the log: psr <= 1.1 x CGAL,
+//     and psr <= kPclGapBound x PCL instead of 1.1 x. Lower kPclGapBound as psr closes the gap.
 constexpr double kAreaVolumeRelTol = 0.005;
 constexpr double kTarget = 1.1;
-constexpr double kPclGapBound = 4.0; // measured 2.7-3.4 (see above); the target is kTarget
+constexpr double kPclGapBound = 1.5; // measured 1.19-1.29 (see above); the target is kTarget
 
 void check_truth_distance(const char *measure, double psr, double cgal, double pcl) {
     const double best = std::min(cgal, pcl);
