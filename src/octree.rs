@@ -2,16 +2,18 @@
 //!
 //! At each depth d the tree keeps two nested node sets:
 //!
-//! * the **core** C_d: the nodes that carry unknowns. It holds the eight nodes nearest to every
-//!   sample splatted at depth d (§4.2), the parent of every core node of depth d + 1 (so the tree
-//!   is a proper octree), and every node when d ≤ full depth;
+//! * the **core** C_d: the nodes that carry unknowns. It holds every node whose function covers
+//!   a cell holding a sample splatted at depth d (§4.2; the 27 nodes around the cell, which
+//!   include the eight trilinear ones), the parent of every core node of depth d + 1 (so the tree
+//!   is a proper octree), all of that widened by one node (see [`Octree::build`]), and every
+//!   node when d ≤ full depth;
 //! * the **halo** K_d ⊇ C_d: every node within two nodes (Chebyshev distance) of the core. The
 //!   node functions of C_d overlap exactly the nodes of K_d, so every stencil, the prolongation of
 //!   the coarser solution and the evaluation of χ near the core read only nodes of K_d.
 //!
-//! Nodes of one depth are sorted by Morton key; a hash map finds a node from its key, and every
-//! node stores the indices of its six face neighbours and of its parent, so hot loops follow
-//! indices instead of hashing. Node indices can lie just outside [0, 2^d): a node function near
+//! Nodes of one depth are sorted by Morton key; a [`BrickIndex`] finds a node from its key, and
+//! every node stores the indices of its six face neighbours and of its parent, so hot loops
+//! follow indices instead of looking nodes up. Node indices can lie just outside [0, 2^d): a node function near
 //! the cube's face reaches beyond it, and with free boundaries (the paper's) that is where its
 //! neighbours live.
 
@@ -127,7 +129,7 @@ pub struct Level {
     /// With Neumann boundaries: every halo node outside the cube, the node it mirrors (its
     /// reflection across the cube's faces, inside the cube) and a bit per reflected axis.
     pub mirrors: Vec<Mirror>,
-    index: KeyMap<u32>,
+    index: BrickIndex,
 }
 
 impl Level {
@@ -143,7 +145,7 @@ impl Level {
     /// Index of the node with this coordinate, if it is in K_d.
     #[inline]
     pub fn find(&self, c: Coord) -> Option<u32> {
-        self.index.get(&morton(c)).copied()
+        self.index.get(morton(c))
     }
 
     /// The coordinate of node `i`.
@@ -215,42 +217,70 @@ pub struct Octree {
 }
 
 impl Octree {
-    /// Builds the tree from the core node keys requested at each depth (`requested[d]`, any
-    /// order, duplicates allowed). Adds the parents of every core node and the complete grid
-    /// down to `full_depth`, then the halo.
-    /// With `neumann`, the requested keys must lie inside the cube, and every halo node outside
-    /// it is linked to the inside node it mirrors.
-    pub fn build(mut requested: Vec<Vec<u64>>, full_depth: u32, neumann: bool) -> Octree {
-        let max_depth = requested.len() as u32 - 1;
-        // Core sets, finest first so parents can be added on the way up.
-        let mut cores: Vec<Vec<u64>> = vec![Vec::new(); requested.len()];
+    /// Builds the tree from the cells that hold samples splatted at each depth
+    /// (`sample_cells[d]`, any order, duplicates allowed).
+    ///
+    /// The core of depth d is every node whose function covers such a cell (the cell's 3×3×3
+    /// block) plus the parent of every core node of depth d + 1, widened by one node on every
+    /// side; down to `full_depth` it is the complete grid. Then the halo is added.
+    ///
+    /// The widening: a depth's unknowns correct what the coarser depths could not resolve, and
+    /// that correction decays over a few node widths away from the samples; a core that ends
+    /// right at the splatted nodes cuts it off and leaves a ripple on the surface (PoissonRecon's
+    /// graded octree gives the same room). Measured on a 40k-point sphere at depth 7: mesh to
+    /// sphere mean distance −27% (unscreened −60%); bunny scans at depth 8: reference → mesh mean
+    /// 4.70e-5 → 4.45e-5 m; for about 1.7× the unknowns.
+    ///
+    /// With `neumann` the core stays inside the cube (a splat beyond a face lands on the mirrored
+    /// node inside), and every halo node outside it is linked to the inside node it mirrors;
+    /// otherwise the core may reach one node beyond the cube, where functions still overlap it.
+    pub fn build(sample_cells: Vec<Vec<Coord>>, full_depth: u32, neumann: bool) -> Octree {
+        let max_depth = sample_cells.len() as u32 - 1;
+        // Core sets as sorted packed keys, finest first so parents can be added on the way up.
+        let mut cores: Vec<Vec<u64>> = vec![Vec::new(); sample_cells.len()];
         for d in (0..=max_depth).rev() {
-            let mut keys = std::mem::take(&mut requested[d as usize]);
+            let n = 1i32 << d;
+            let (lo, hi) = if neumann { (0, n - 1) } else { (-1, n) };
+            let clip = |keys: Vec<u64>| -> Vec<u64> {
+                keys.into_iter()
+                    .filter(|&k| unpack(k).iter().all(|v| (lo..=hi).contains(v)))
+                    .collect()
+            };
+            let mut cells: Vec<u64> = sample_cells[d as usize]
+                .par_iter()
+                .map(|&c| pack(c))
+                .collect();
+            cells.par_sort_unstable();
+            cells.dedup();
+            let mut keys = clip(dilate(&cells, 1));
             if d < max_depth {
-                keys.extend(cores[d as usize + 1].iter().map(|&k| parent_key(k)));
+                let mut parents: Vec<u64> = cores[d as usize + 1]
+                    .par_iter()
+                    .map(|&k| pack(unpack(k).map(|v| v.div_euclid(2))))
+                    .collect();
+                parents.par_sort_unstable();
+                parents.dedup();
+                keys = merge_unique(&keys, &parents);
             }
             if d <= full_depth {
-                let n = 1i32 << d;
-                keys.reserve((n as usize).pow(3));
+                let mut grid = Vec::with_capacity((n as usize).pow(3));
                 for z in 0..n {
                     for y in 0..n {
                         for x in 0..n {
-                            keys.push(morton([x, y, z]));
+                            grid.push(pack([x, y, z]));
                         }
                     }
                 }
-            }
-            keys.par_sort_unstable();
-            keys.dedup();
-            if d > full_depth {
-                keys = pad_core(&keys, d, neumann);
+                keys = merge_unique(&keys, &grid);
+            } else {
+                keys = clip(dilate(&keys, 1));
             }
             cores[d as usize] = keys;
         }
         let mut levels: Vec<Level> = cores
             .into_iter()
             .enumerate()
-            .map(|(d, core_keys)| Level::with_halo(d as u32, core_keys, neumann))
+            .map(|(d, core)| Level::with_halo(d as u32, &core, neumann))
             .collect();
         for d in 1..levels.len() {
             let (coarse, fine) = levels.split_at_mut(d);
@@ -259,7 +289,7 @@ impl Octree {
             fine.parent = fine
                 .keys
                 .par_iter()
-                .map(|&k| coarse.index.get(&parent_key(k)).copied().unwrap_or(NONE))
+                .map(|&k| coarse.index.get(parent_key(k)).unwrap_or(NONE))
                 .collect();
         }
         levels[0].parent = vec![NONE; levels[0].len()];
@@ -271,29 +301,6 @@ impl Octree {
     }
 }
 
-/// The core of one depth widened by one node on every side (clipped to the nodes a sample may
-/// splat into: inside the cube with Neumann boundaries, one node beyond it without).
-///
-/// A depth's unknowns correct what the coarser depths could not resolve, and that correction
-/// decays over a few node widths away from the samples; a core that ends right at the splatted
-/// nodes cuts it off, leaving a ripple on the surface. PoissonRecon's graded octree gives the
-/// same room. Measured on a 40k-point sphere at depth 7: mesh-to-sphere mean distance −27%
-/// (unscreened: −60%); on the bunny scans at depth 8, reference → mesh mean 4.70e-5 → 4.45e-5 m;
-/// at the cost of about 1.7× the unknowns.
-fn pad_core(keys: &[u64], depth: u32, neumann: bool) -> Vec<u64> {
-    let n = 1i32 << depth;
-    let (lo, hi) = if neumann { (0, n - 1) } else { (-1, n) };
-    let coords: Vec<Coord> = keys.iter().map(|&k| unmorton(k)).collect();
-    let mut out: Vec<u64> = dilate(&coords, 1)
-        .into_iter()
-        .filter(|c| c.iter().all(|&v| (lo..=hi).contains(&v)))
-        .map(morton)
-        .collect();
-    out.par_sort_unstable();
-    out.dedup();
-    out
-}
-
 /// Key of the parent of the node with key `k`.
 #[inline]
 pub fn parent_key(k: u64) -> u64 {
@@ -302,28 +309,30 @@ pub fn parent_key(k: u64) -> u64 {
 }
 
 impl Level {
-    fn with_halo(depth: u32, core_keys: Vec<u64>, neumann: bool) -> Level {
-        let core_coords: Vec<Coord> = core_keys.iter().map(|&k| unmorton(k)).collect();
-        let near = dilate(&core_coords, 1);
+    /// The level whose core is `core` (packed keys, sorted, unique).
+    fn with_halo(depth: u32, core: &[u64], neumann: bool) -> Level {
+        let near = dilate(core, 1);
         let halo = dilate(&near, 1);
-        let mut keys: Vec<u64> = halo.iter().map(|&c| morton(c)).collect();
+        let mut keys: Vec<u64> = halo.par_iter().map(|&k| morton(unpack(k))).collect();
+        drop(halo);
         keys.par_sort_unstable();
-        let mut index: KeyMap<u32> = KeyMap::default();
-        index.reserve(keys.len());
-        for (i, &k) in keys.iter().enumerate() {
-            index.insert(k, i as u32);
-        }
+        let index = BrickIndex::new(&keys);
+        let position = |packed: &[u64]| -> Vec<u32> {
+            packed
+                .par_iter()
+                .map(|&k| index.get(morton(unpack(k))).expect("subset of the halo"))
+                .collect()
+        };
         let mut flags = vec![0u8; keys.len()];
-        for c in &near {
-            flags[index[&morton(*c)] as usize] |= NEAR;
+        for i in position(&near) {
+            flags[i as usize] |= NEAR;
         }
-        let mut core = Vec::with_capacity(core_keys.len());
-        for &k in &core_keys {
-            let i = index[&k];
+        drop(near);
+        let mut core = position(core);
+        for &i in &core {
             flags[i as usize] |= CORE;
-            core.push(i);
         }
-        core.sort_unstable();
+        core.par_sort_unstable();
         let neighbors = keys
             .par_iter()
             .map(|&k| {
@@ -333,7 +342,7 @@ impl Level {
                     for (s, delta) in [-1, 1].into_iter().enumerate() {
                         let mut q = c;
                         q[axis] += delta;
-                        n[axis * 2 + s] = index.get(&morton(q)).copied().unwrap_or(NONE);
+                        n[axis * 2 + s] = index.get(morton(q)).unwrap_or(NONE);
                     }
                 }
                 n
@@ -345,7 +354,7 @@ impl Level {
             for (i, &k) in keys.iter().enumerate() {
                 if let Some((inside, flips)) = reflect(unmorton(k), n) {
                     // The reflection of a halo node is within two nodes of the same core nodes.
-                    if let Some(&inside) = index.get(&morton(inside)) {
+                    if let Some(inside) = index.get(morton(inside)) {
                         mirrors.push(Mirror {
                             outside: i as u32,
                             inside,
@@ -368,45 +377,133 @@ impl Level {
     }
 }
 
-/// All coordinates within Chebyshev distance `r` of the given ones (sorted, unique), computed one
-/// axis at a time by merging runs along that axis, so no 5³ blow-up is ever materialised.
-pub fn dilate(coords: &[Coord], r: i32) -> Vec<Coord> {
-    let mut current: Vec<Coord> = coords.to_vec();
-    for axis in 0..3 {
-        let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
-        // Sort so that runs along `axis` are consecutive.
-        current.par_sort_unstable_by_key(|c| (c[b], c[a], c[axis]));
-        current.dedup();
-        let mut out = Vec::with_capacity(current.len() * 2);
-        let mut i = 0;
-        while i < current.len() {
-            let row = (current[i][a], current[i][b]);
-            let mut lo = current[i][axis] - r;
-            let mut hi = current[i][axis] + r;
-            i += 1;
-            while i < current.len() && (current[i][a], current[i][b]) == row {
-                let v = current[i][axis];
-                if v - r > hi + 1 {
-                    push_run(&mut out, current[i - 1], axis, lo, hi);
-                    lo = v - r;
-                }
-                hi = v + r;
-                i += 1;
-            }
-            push_run(&mut out, current[i - 1], axis, lo, hi);
-        }
-        current = out;
-    }
-    current.par_sort_unstable();
-    current
+/// Finds a node's index from its Morton key without a per-node hash table.
+///
+/// The eight-bit-aligned blocks of Morton keys are 8×8×8 "bricks", and since the nodes of a
+/// depth are sorted by key, each brick's nodes are contiguous. The index keeps, per brick that
+/// has nodes, the index of its first node and a 512-bit occupancy mask; a node's index is that
+/// first index plus the number of occupied positions before it. The brick table is small
+/// (about a hundredth of the nodes near a surface), so lookups stay in cache, and building it
+/// is one pass over the sorted keys.
+#[derive(Debug, Default)]
+pub struct BrickIndex {
+    slot: KeyMap<u32>,
+    first: Vec<u32>,
+    occupied: Vec<[u64; 8]>,
 }
 
-fn push_run(out: &mut Vec<Coord>, template: Coord, axis: usize, lo: i32, hi: i32) {
-    for v in lo..=hi {
-        let mut c = template;
-        c[axis] = v;
-        out.push(c);
+impl BrickIndex {
+    const BRICK_BITS: u32 = 9;
+
+    /// `keys` sorted ascending, unique.
+    fn new(keys: &[u64]) -> BrickIndex {
+        let mut index = BrickIndex::default();
+        let mut current = u64::MAX;
+        for (i, &k) in keys.iter().enumerate() {
+            let brick = k >> Self::BRICK_BITS;
+            if brick != current {
+                current = brick;
+                index.slot.insert(brick, index.first.len() as u32);
+                index.first.push(i as u32);
+                index.occupied.push([0; 8]);
+            }
+            let position = (k & 511) as usize;
+            index.occupied.last_mut().expect("pushed above")[position >> 6] |= 1 << (position & 63);
+        }
+        index
     }
+
+    /// The index of the node with Morton key `k`, if present.
+    #[inline]
+    pub fn get(&self, k: u64) -> Option<u32> {
+        let b = *self.slot.get(&(k >> Self::BRICK_BITS))? as usize;
+        let position = (k & 511) as usize;
+        let (word, bit) = (position >> 6, position & 63);
+        let mask = &self.occupied[b];
+        if mask[word] >> bit & 1 == 0 {
+            return None;
+        }
+        let before: u32 = mask[..word].iter().map(|w| w.count_ones()).sum::<u32>()
+            + (mask[word] & ((1u64 << bit) - 1)).count_ones();
+        Some(self.first[b] + before)
+    }
+}
+
+/// Packs a node coordinate with z most significant, then y, then x (21 bits each after the
+/// offset), so that sorting packed keys sorts coordinates by (z, y, x) and a shift along one
+/// axis is an addition that keeps any sorted list sorted.
+#[inline]
+pub fn pack(c: Coord) -> u64 {
+    ((c[2] + OFFSET) as u64) << (2 * BITS)
+        | ((c[1] + OFFSET) as u64) << BITS
+        | (c[0] + OFFSET) as u64
+}
+
+/// Inverse of [`pack`].
+#[inline]
+pub fn unpack(k: u64) -> Coord {
+    let mask = (1u64 << BITS) - 1;
+    [
+        (k & mask) as i32 - OFFSET,
+        ((k >> BITS) & mask) as i32 - OFFSET,
+        (k >> (2 * BITS)) as i32 - OFFSET,
+    ]
+}
+
+/// The sorted union of two sorted, unique key lists.
+fn merge_unique(a: &[u64], b: &[u64]) -> Vec<u64> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        let (x, y) = (a[i], b[j]);
+        out.push(x.min(y));
+        i += (x <= y) as usize;
+        j += (y <= x) as usize;
+    }
+    out.extend_from_slice(&a[i..]);
+    out.extend_from_slice(&b[j..]);
+    out
+}
+
+/// All keys within Chebyshev distance `r` of the given packed keys (sorted, unique), sorted and
+/// unique. One axis at a time, never sorting: along x the sorted keys form runs that are
+/// widened and merged in one pass; along y and z the union of the list shifted by −r..=r is a
+/// merge of sorted lists (a shift along an axis keeps a (z, y, x)-sorted list sorted). No
+/// coordinate may leave −OFFSET..2^21 − OFFSET.
+pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
+    let mut along_x = Vec::with_capacity(keys.len() * 2);
+    let row_of = |k: u64| k >> BITS;
+    let mut i = 0;
+    while i < keys.len() {
+        let row = row_of(keys[i]);
+        let mut lo = keys[i] - r as u64;
+        let mut hi = keys[i] + r as u64;
+        i += 1;
+        while i < keys.len() && row_of(keys[i]) == row {
+            let k = keys[i];
+            if k - r as u64 > hi + 1 {
+                along_x.extend(lo..=hi);
+                lo = k - r as u64;
+            }
+            hi = k + r as u64;
+            i += 1;
+        }
+        along_x.extend(lo..=hi);
+    }
+    let along_y = union_of_shifts(&along_x, 1 << BITS, r);
+    drop(along_x);
+    union_of_shifts(&along_y, 1 << (2 * BITS), r)
+}
+
+/// ∪_{k = −r..=r} (keys + k·step), for sorted unique keys.
+fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
+    let mut out = keys.to_vec();
+    for k in 1..=r as u64 {
+        let up: Vec<u64> = keys.iter().map(|&v| v + k * step).collect();
+        let down: Vec<u64> = keys.iter().map(|&v| v - k * step).collect();
+        out = merge_unique(&merge_unique(&out, &up), &down);
+    }
+    out
 }
 
 #[cfg(test)]
@@ -431,37 +528,83 @@ mod tests {
 
     #[test]
     fn dilation_matches_brute_force() {
-        let pts = vec![[0, 0, 0], [5, 0, 0], [2, 3, 1], [9, 9, 9], [6, 0, 0]];
-        let got = dilate(&pts, 2);
-        let mut want = Vec::new();
-        for p in &pts {
-            for dz in -2..=2 {
-                for dy in -2..=2 {
-                    for dx in -2..=2 {
-                        want.push([p[0] + dx, p[1] + dy, p[2] + dz]);
+        let pts = vec![
+            [0, 0, 0],
+            [5, 0, 0],
+            [2, 3, 1],
+            [9, 9, 9],
+            [6, 0, 0],
+            [-1, 4, 4],
+        ];
+        for r in 1..=2 {
+            let mut keys: Vec<u64> = pts.iter().map(|&c| pack(c)).collect();
+            keys.sort_unstable();
+            let got = dilate(&keys, r);
+            let mut want = Vec::new();
+            for p in &pts {
+                for dz in -r..=r {
+                    for dy in -r..=r {
+                        for dx in -r..=r {
+                            want.push(pack([p[0] + dx, p[1] + dy, p[2] + dz]));
+                        }
                     }
                 }
             }
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(got, want, "r = {r}");
         }
-        want.sort_unstable();
-        want.dedup();
-        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn pack_round_trips_and_sorts_by_z_then_y_then_x() {
+        for c in [[0, 0, 0], [-2, 5, 7], [65537, -8, 3], [123, 456, 789]] {
+            assert_eq!(unpack(pack(c)), c);
+        }
+        assert!(pack([9, 9, 0]) < pack([0, 0, 1]));
+        assert!(pack([9, 0, 1]) < pack([0, 1, 1]));
+        assert_eq!(pack([3, 4, 5]) + (1 << BITS), pack([3, 5, 5]));
+    }
+
+    #[test]
+    fn brick_index_finds_exactly_the_stored_keys() {
+        let coords: Vec<Coord> = (0..2000)
+            .map(|i| [(i * 7) % 37 - 3, (i * 13) % 29, (i * 5) % 41 - 2])
+            .collect();
+        let mut keys: Vec<u64> = coords.iter().map(|&c| morton(c)).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        let index = BrickIndex::new(&keys);
+        for (i, &k) in keys.iter().enumerate() {
+            assert_eq!(index.get(k), Some(i as u32));
+        }
+        for c in [[100, 0, 0], [-5, -5, -5], [36, 30, 0]] {
+            assert_eq!(index.get(morton(c)), None);
+        }
     }
 
     #[test]
     fn tree_is_proper_with_halo_and_links() {
-        let requested = vec![vec![], vec![], vec![], vec![morton([5, 2, 7])]];
-        let tree = Octree::build(requested, 1, true);
+        let sample_cells = vec![vec![], vec![], vec![], vec![[5, 2, 7]]];
+        let tree = Octree::build(sample_cells, 1, true);
         let finest = &tree.levels[3];
-        // The core is the requested node widened by one (pad_core), clipped to the 8³ cube:
-        // [4, 6] × [1, 3] × [6, 7]; the halo is that box widened by two.
-        assert_eq!(finest.core.len(), 3 * 3 * 2);
-        assert_eq!(finest.len(), 7 * 7 * 6);
+        // The nodes covering cell (5, 2, 7) are [4, 6] × [1, 3] × [6, 8]; widened by one and
+        // clipped to the 8³ cube the core is [3, 7] × [0, 4] × [5, 7]; the halo is that box
+        // widened by two.
+        assert_eq!(finest.core.len(), 5 * 5 * 3);
+        assert_eq!(finest.len(), 9 * 9 * 7);
         let i = finest.find([5, 2, 7]).unwrap();
         assert_eq!(finest.flags[i as usize], CORE | NEAR);
-        let corner = finest.find([4, 1, 6]).unwrap();
+        let corner = finest.find([3, 0, 5]).unwrap();
         assert_eq!(finest.flags[corner as usize], CORE | NEAR);
-        assert_eq!(finest.flags[finest.find([5, 2, 8]).unwrap() as usize] & CORE, 0);
+        assert_eq!(
+            finest.flags[finest.find([5, 2, 8]).unwrap() as usize] & CORE,
+            0
+        );
+        assert_eq!(
+            finest.flags[finest.find([5, 2, 8]).unwrap() as usize] & NEAR,
+            NEAR
+        );
         assert_eq!(finest.coord(finest.neighbors[i as usize][1]), [6, 2, 7]);
         let p = finest.parent[i as usize];
         assert_eq!(tree.levels[2].coord(p), [2, 1, 3]);

@@ -4,7 +4,7 @@
 
 use crate::density::{self, trilinear, DensityField};
 use crate::evaluate::Indicator;
-use crate::octree::{morton, Octree};
+use crate::octree::Octree;
 use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::system::{
@@ -109,16 +109,13 @@ pub(crate) fn run(
     });
     clock.done(Stage::Density)?;
 
-    // 3. Octree: the nodes each sample splats into, at its one or two depths.
+    // 3. Octree: around the cells of each sample at its one or two depths.
     let neumann = params.boundary == Boundary::Neumann;
-    let mut requested: Vec<Vec<u64>> = vec![Vec::new(); max_depth as usize + 1];
+    let mut sample_cells: Vec<Vec<[i32; 3]>> = vec![Vec::new(); max_depth as usize + 1];
     for (s, &p) in samples.positions.iter().enumerate() {
         for (d, w) in depth_split(sample_density.depth[s]) {
             if w > 0.0 {
-                let inv_h = (d as f64).exp2();
-                for (c, _) in splat_weights(params.splatting, p, inv_h) {
-                    requested[d as usize].push(morton(splat_node(c, d, neumann)));
-                }
+                sample_cells[d as usize].push(crate::system::cell_of(p, (d as f64).exp2()));
             }
         }
     }
@@ -127,11 +124,11 @@ pub(crate) fn run(
     // screening scale and the extraction stop at the finest depth that has samples.
     let finest = (0..=max_depth as usize)
         .rev()
-        .find(|&d| !requested[d].is_empty())
+        .find(|&d| !sample_cells[d].is_empty())
         .unwrap_or(0)
         .max(params.effective_full_depth() as usize);
-    requested.truncate(finest + 1);
-    let tree = pool.install(|| Octree::build(requested, params.effective_full_depth(), neumann));
+    sample_cells.truncate(finest + 1);
+    let tree = pool.install(|| Octree::build(sample_cells, params.effective_full_depth(), neumann));
     let max_depth = tree.max_depth();
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
