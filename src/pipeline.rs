@@ -187,6 +187,8 @@ pub(crate) fn run(
         )?;
     }
     rho.reverse();
+    // The finest depth's V is in ρ now; nothing finer will prolong it.
+    field_v[max_depth as usize] = [Vec::new(), Vec::new(), Vec::new()];
     // Screening weights: SPSR's α·Area/Σw·Σ w χ², with the area from the density estimate.
     let total_area: f64 = sample_density
         .area
@@ -229,38 +231,43 @@ pub(crate) fn run(
     for d in 0..=max_depth as usize {
         let depth_started = Instant::now();
         let level = &tree.levels[d];
-        let (y, rhs_halo, this_field) = pool.install(|| {
+        // This depth's share of the inputs is used once: take it, so it is freed as soon as
+        // possible (the finest depth's arrays are the largest, and its solve is the memory peak).
+        let own_field = std::mem::take(&mut field_v[d]);
+        let own_rho = std::mem::take(&mut rho[d]);
+        let is_finest = d == max_depth as usize;
+        let (y, rhs_halo, next_field) = pool.install(|| {
             let mut y = if d == 0 {
                 vec![0.0; level.len()]
             } else {
                 prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0)
             };
             fill_mirrors(level, &mut y);
-            // V from coarser depths, represented at this depth (F̃ halves in width: ×1/8).
-            let mut prolonged: [Vec<f64>; 3] = if d == 0 {
-                [
-                    vec![0.0; level.len()],
-                    vec![0.0; level.len()],
-                    vec![0.0; level.len()],
-                ]
-            } else {
-                std::array::from_fn(|a| {
-                    prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125)
-                })
-            };
-            fill_mirrors_field(level, &mut prolonged);
-            let coarse_div = divergence(level, &prolonged);
-            let rhs_halo: Vec<f64> = rho[d].iter().zip(&coarse_div).map(|(a, b)| a + b).collect();
-            let this_field: [Vec<f64>; 3] = std::array::from_fn(|a| {
-                prolonged[a]
-                    .iter()
-                    .zip(&field_v[d][a])
-                    .map(|(p, v)| p + v)
-                    .collect()
+            let mut rhs_halo = own_rho;
+            if d == 0 {
+                return (y, rhs_halo, own_field);
+            }
+            // V from coarser depths, represented at this depth (F̃ halves in width: ×1/8); its
+            // divergence joins this depth's right-hand side.
+            let mut field: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125)
             });
-            (y, rhs_halo, this_field)
+            fill_mirrors_field(level, &mut field);
+            for (r, c) in rhs_halo.iter_mut().zip(divergence(level, &field)) {
+                *r += c;
+            }
+            if is_finest {
+                return (y, rhs_halo, [Vec::new(), Vec::new(), Vec::new()]);
+            }
+            // Plus this depth's own V: everything the next depth prolongs.
+            for (f, own) in field.iter_mut().zip(&own_field) {
+                for (f, v) in f.iter_mut().zip(own) {
+                    *f += v;
+                }
+            }
+            (y, rhs_halo, field)
         });
-        coarse_field = this_field;
+        coarse_field = next_field;
         fill_mirrors_field(level, &mut coarse_field);
         let proxies = pool.install(|| {
             Proxies::build(
@@ -280,6 +287,8 @@ pub(crate) fn run(
             .zip(&applied)
             .map(|(&c, a)| rhs_halo[c as usize] - a)
             .collect();
+        drop(applied);
+        drop(rhs_halo);
         let base = d as f32 / depths as f32;
         let (x, outcome) = {
             let progress = &mut clock.progress;
