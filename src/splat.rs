@@ -1,1 +1,177 @@
-//! (being written)
+//! Stage 4 — splatting the oriented samples into the vector field V (§4.2, §4.5).
+//!
+//! V = Σ_s m_s n_s Σ_o α_o(s) F̃_o, where m_s is the sample's mass at a depth (its area times its
+//! confidence times its share of that depth, see [`crate::density`]), F̃_o = B_o/h³ the
+//! unit-integral node function and α_o(s) the splatting weights, which sum to one over o: the
+//! node functions' own values b(t) over the 3×3×3 nodes around the sample's cell (B-spline), or
+//! the paper's trilinear weights over the eight nearest node centres. Both are products of one
+//! weight per axis, and both reach at most one node beyond the sample's cell on each axis.
+//!
+//! The sum is gathered rather than scattered: every core node adds up what the samples in the
+//! 27 cells around it give it, with those samples in a fixed order, so nodes are independent
+//! (parallel, no atomics) and the result is the same for any number of threads.
+//!
+//! With Neumann boundaries a weight that would go to a node just outside the cube goes to the
+//! node it mirrors inside: along each axis, the first and last node also collect the weight of
+//! their reflection.
+
+use crate::octree::{Level, NONE};
+use crate::system::cell_of;
+use crate::Splatting;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// One sample's contribution at one depth.
+#[derive(Debug, Clone, Copy)]
+pub struct DepthSample {
+    /// The sample's index (the position and normal it refers to).
+    pub sample: u32,
+    /// Its mass at this depth.
+    pub mass: f64,
+}
+
+/// The coefficients of V at one depth (x, y and z, one value per node of the level; zero
+/// outside the core), for the samples `at_depth` (any order).
+pub fn splat_depth(
+    level: &Level,
+    positions: &[DVec3],
+    normals: &[DVec3],
+    at_depth: &[DepthSample],
+    splatting: Splatting,
+    neumann: bool,
+) -> [Vec<f64>; 3] {
+    let inv_h = (level.depth as f64).exp2();
+    let n = 1i32 << level.depth;
+    // Samples grouped by the level index of their cell, in sample order within a cell.
+    let mut by_cell: Vec<(u32, DepthSample)> = at_depth
+        .par_iter()
+        .filter(|s| s.mass != 0.0)
+        .map(|s| {
+            let cell = cell_of(positions[s.sample as usize], inv_h);
+            let index = level
+                .find(cell)
+                .expect("the octree holds the cell of every splatted sample");
+            (index, *s)
+        })
+        .collect();
+    by_cell.par_sort_unstable_by_key(|(cell, s)| (*cell, s.sample));
+    let mut ranges = vec![(0u32, 0u32); level.len()];
+    let mut start = 0;
+    while start < by_cell.len() {
+        let cell = by_cell[start].0;
+        let mut end = start + 1;
+        while end < by_cell.len() && by_cell[end].0 == cell {
+            end += 1;
+        }
+        ranges[cell as usize] = (start as u32, end as u32);
+        start = end;
+    }
+
+    let gathered: Vec<DVec3> = level
+        .core
+        .par_iter()
+        .map(|&node| {
+            let o = level.coord(node);
+            let mut sum = DVec3::ZERO;
+            for (slot, &cell) in level.block27(node).iter().enumerate() {
+                if cell == NONE {
+                    continue;
+                }
+                let (first, last) = ranges[cell as usize];
+                for &(_, s) in &by_cell[first as usize..last as usize] {
+                    let p = positions[s.sample as usize];
+                    let t = p * inv_h;
+                    let cell_coord = [
+                        o[0] + (slot % 3) as i32 - 1,
+                        o[1] + ((slot / 3) % 3) as i32 - 1,
+                        o[2] + (slot / 9) as i32 - 1,
+                    ];
+                    let mut weight = 1.0;
+                    for axis in 0..3 {
+                        weight *=
+                            axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, neumann);
+                    }
+                    sum += normals[s.sample as usize] * (s.mass * weight);
+                }
+            }
+            sum
+        })
+        .collect();
+    let mut field = [
+        vec![0.0; level.len()],
+        vec![0.0; level.len()],
+        vec![0.0; level.len()],
+    ];
+    for (&node, v) in level.core.iter().zip(&gathered) {
+        for axis in 0..3 {
+            field[axis][node as usize] = v[axis];
+        }
+    }
+    field
+}
+
+/// Along one axis: the weight node `i` receives from a sample at `t` (in node widths) in cell
+/// `c`, folding in the weight of its mirror image when `neumann` and `i` is the first or last
+/// of the `n` nodes inside the cube.
+#[inline]
+fn axis_weight(splatting: Splatting, t: f64, c: i32, i: i32, n: i32, neumann: bool) -> f64 {
+    let direct = node_weight(splatting, t, c, i);
+    if !neumann {
+        direct
+    } else if i == 0 {
+        direct + node_weight(splatting, t, c, -1)
+    } else if i == n - 1 {
+        direct + node_weight(splatting, t, c, n)
+    } else {
+        direct
+    }
+}
+
+/// The weight node `i` (centre i + ½) receives from a sample at `t` in cell `c` (zero beyond one
+/// node of the cell).
+#[inline]
+fn node_weight(splatting: Splatting, t: f64, c: i32, i: i32) -> f64 {
+    if (i - c).abs() > 1 {
+        return 0.0;
+    }
+    let offset = t - (i as f64 + 0.5);
+    match splatting {
+        Splatting::BSpline => crate::bspline::value(offset),
+        Splatting::Trilinear => (1.0 - offset.abs()).max(0.0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_along_an_axis_sum_to_one_and_fold_at_the_faces() {
+        let n = 8;
+        for splatting in [Splatting::BSpline, Splatting::Trilinear] {
+            for k in 0..=80 {
+                let t = k as f64 / 10.0 * 0.999; // inside [0, 8)
+                let c = t.floor() as i32;
+                // Inside the cube with Neumann folding, or over all nodes without.
+                let folded: f64 = (0..n)
+                    .map(|i| axis_weight(splatting, t, c, i, n, true))
+                    .sum();
+                let free: f64 = (-1..=n)
+                    .map(|i| axis_weight(splatting, t, c, i, n, false))
+                    .sum();
+                assert!(
+                    (folded - 1.0).abs() < 1e-12,
+                    "{splatting:?} t {t}: {folded}"
+                );
+                assert!((free - 1.0).abs() < 1e-12, "{splatting:?} t {t}: {free}");
+            }
+        }
+    }
+
+    #[test]
+    fn trilinear_weights_are_the_eight_nearest_centres() {
+        // t = 3.3: centres 2.5 and 3.5 get 0.2 and 0.8; centre 4.5 gets nothing.
+        let w = |i| node_weight(Splatting::Trilinear, 3.3, 3, i);
+        assert!((w(2) - 0.2).abs() < 1e-12 && (w(3) - 0.8).abs() < 1e-12 && w(4) == 0.0);
+    }
+}
