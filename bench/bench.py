@@ -161,6 +161,10 @@ def run_psr(psr: Path, cloud: Path, depth: int, threads: int, workdir: Path, tag
         m = re.search(r"total ([\d.]+)s", stderr)
         if m:
             run.compute = float(m.group(1))
+        # "...; points 0.01s density 0.05s ... mesh 0.03s total ...": the per-stage seconds.
+        summary = re.search(r"triangles; (.*?) total", stderr)
+        if summary:
+            run.extra["stages"] = {k: float(v) for k, v in re.findall(r"([a-z]+) ([\d.]+)s", summary.group(1))}
         if run.vertices is None:
             m = re.search(r"(\d+) vertices, (\d+) triangles", stderr)
             if m:
@@ -295,6 +299,58 @@ def table(rows: list[tuple], skip_psr: bool, skip_open3d: bool) -> str:
     return "\n".join(lines)
 
 
+def stage_table(rows: list[tuple]) -> str:
+    """psr's per-stage seconds (from its summary line) for every configuration that ran."""
+    stages: list[str] = []
+    for row in rows:
+        p = row[4]
+        if p is not None and p.ok:
+            for k in p.extra.get("stages", {}):
+                if k not in stages:
+                    stages.append(k)
+    if not stages:
+        return ""
+    head = ["input", "depth", "threads"] + stages + ["total"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" if i < 1 else "---:" for i in range(len(head))) + "|"]
+    for name, _points, depth, threads, p, _o in rows:
+        if p is None or not p.ok or "stages" not in p.extra:
+            continue
+        st = p.extra["stages"]
+        cells = [fmt(st.get(k), ".2f") for k in stages] + [fmt(p.compute, ".2f")]
+        lines.append("| " + " | ".join([name, str(depth), str(threads)] + cells) + " |")
+    return "\n".join(lines)
+
+
+def growth_table(rows: list[tuple]) -> str:
+    """Cost per depth: each configuration's wall time and output size over the previous depth's."""
+    by_key = {(r[0], r[2], r[3]): r for r in rows}
+    head = ["input", "threads", "depth", "psr wall ×", "psr peak ×", "Open3D wall ×", "triangles ×"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" if i < 1 else "---:" for i in range(len(head))) + "|"]
+    for (name, depth, threads), (_n, _pts, _d, _t, p, o) in sorted(by_key.items()):
+        prev = by_key.get((name, depth - 1, threads))
+        if prev is None:
+            continue
+        pp, po = prev[4], prev[5]
+        grow = lambda a, b, attr: ratio(getattr(a, attr) if a is not None and a.ok else None, getattr(b, attr) if b is not None and b.ok else None)
+        tri = ratio(p.triangles if p is not None and p.ok else None, pp.triangles if pp is not None and pp.ok else None)
+        lines.append("| " + " | ".join([name, str(threads), f"{depth - 1} → {depth}", grow(p, pp, "wall"), grow(p, pp, "rss_mib"), grow(o, po, "wall"), tri]) + " |")
+    return "\n".join(lines) if len(lines) > 2 else ""
+
+
+def thread_table(rows: list[tuple]) -> str:
+    """Speed-up from 1 to 2 threads: wall time with 1 thread over wall time with 2."""
+    by_key = {(r[0], r[2], r[3]): r for r in rows}
+    head = ["input", "depth", "psr 1 thread / 2 threads", "Open3D 1 thread / 2 threads"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join("---" if i < 1 else "---:" for i in range(len(head))) + "|"]
+    for (name, depth, threads), row in sorted(by_key.items()):
+        if threads != 1 or (name, depth, 2) not in by_key:
+            continue
+        two = by_key[(name, depth, 2)]
+        wall = lambda r: r.wall if r is not None and r.ok else None
+        lines.append("| " + " | ".join([name, str(depth), ratio(wall(row[4]), wall(two[4])), ratio(wall(row[5]), wall(two[5]))]) + " |")
+    return "\n".join(lines) if len(lines) > 2 else ""
+
+
 def write_section(path: Path, name: str, body: str) -> None:
     begin, end = f"<!-- bench:begin {name} -->", f"<!-- bench:end {name} -->"
     block = f"{begin}\n{body.rstrip()}\n{end}\n"
@@ -384,6 +440,17 @@ def main() -> int:
     uptime_after = uptime()
 
     md = table(rows, args.skip_psr, args.skip_open3d)
+    extras = []
+    if not args.skip_psr:
+        for title, body in [
+            ("psr per stage (seconds, from its summary line; `psr --verbose` prints the same)", stage_table(rows)),
+            ("Growth per depth (this depth over the previous one)", growth_table(rows)),
+            ("Threads", thread_table(rows)),
+        ]:
+            if body:
+                extras += ["", f"### {title}", "", body]
+    if extras:
+        md += "\n" + "\n".join(extras)
     print(md)
 
     if args.out:
