@@ -197,16 +197,15 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 
 
     while !frontier.is_empty() {
         // Evaluate the corners this wave needs, in parallel (a pure function of the position).
-        let mut needed: Vec<[i64; 3]> = Vec::new();
-        for c in &frontier {
-            for k in 0..8 {
-                let g = corner_of(c, k);
-                if !corner_values.contains_key(&corner_key(g)) {
-                    needed.push(g);
-                }
-            }
-        }
-        needed.sort_unstable_by_key(|g| corner_key(*g));
+        let mut needed: Vec<[i64; 3]> = frontier
+            .par_iter()
+            .flat_map_iter(|c| {
+                (0..8)
+                    .map(move |k| corner_of(c, k))
+                    .filter(|g| !corner_values.contains_key(&corner_key(*g)))
+            })
+            .collect();
+        needed.par_sort_unstable_by_key(|g| corner_key(*g));
         needed.dedup();
         let values: Vec<f64> = needed
             .par_iter()
@@ -229,14 +228,21 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, depth: u32, seeds: Vec<[i64; 
         let mut next_frontier = Vec::new();
         let mut wave_loops: Vec<([i64; 3], Vec<usize>)> = Vec::new();
         let mut new_edges: Vec<([i64; 3], usize, f64, f64)> = Vec::new();
-        for c in &frontier {
-            let vals: [f64; 8] =
-                std::array::from_fn(|k| corner_values[&corner_key(corner_of(c, k))]);
-            let first = vals[0] >= 0.0;
-            if vals.iter().all(|&v| (v >= 0.0) == first) {
-                continue;
-            }
-            let loops = cell_loops(&vals, &faces);
+        // The surface's loops in each cell of the wave (independent: in parallel).
+        let crossed: Vec<([i64; 3], [f64; 8], Vec<Vec<usize>>)> = frontier
+            .par_iter()
+            .filter_map(|c| {
+                let vals: [f64; 8] =
+                    std::array::from_fn(|k| corner_values[&corner_key(corner_of(c, k))]);
+                let first = vals[0] >= 0.0;
+                if vals.iter().all(|&v| (v >= 0.0) == first) {
+                    return None;
+                }
+                Some((*c, vals, cell_loops(&vals, &faces)))
+            })
+            .collect();
+        for (c, vals, loops) in crossed {
+            let c = &c;
             for lp in &loops {
                 for &e in lp {
                     let (a, b) = edge_corners(e);
