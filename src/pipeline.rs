@@ -10,6 +10,7 @@ use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
 use crate::system::{
     divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator, Proxies,
+    Support,
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
@@ -278,9 +279,9 @@ pub(crate) fn run(
                 proxy_depth(d as u32, max_depth),
             )
         });
-        let mut op = DepthOperator::new(level, &proxies, screening);
+        let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
         let mut applied = vec![0.0; level.core.len()];
-        pool.install(|| op.apply(&y, &mut applied));
+        pool.install(|| op.apply(&y, Support::Halo, &mut applied));
         let rhs: Vec<f64> = level
             .core
             .iter()

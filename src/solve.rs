@@ -9,7 +9,7 @@
 //! Reductions are computed in fixed chunks whose partial sums are added in order, so the result
 //! is the same bit for bit whatever the number of threads.
 
-use crate::system::{DepthOperator, CHUNK};
+use crate::system::{DepthOperator, Support, CHUNK};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -81,7 +81,7 @@ pub fn conjugate_gradients(
             for (&c, &v) in core.iter().zip(&p) {
                 p_halo[c as usize] = v;
             }
-            op.apply(&p_halo, &mut ap);
+            op.apply(&p_halo, Support::Core, &mut ap);
         });
         let pap = pool.install(|| dot(&p, &ap));
         if !(pap > 0.0) {

@@ -177,13 +177,123 @@ pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
     [t.x as i32, t.y as i32, t.z as i32]
 }
 
+/// Where the input of [`DepthOperator::apply`] can be non-zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Support {
+    /// Anywhere on K_d (e.g. the prolonged coarser solution).
+    Halo,
+    /// Only on the core C_d (the conjugate-gradient directions): the z-pass then only has to run
+    /// within two nodes (along z) of the core, everything else it would produce is zero.
+    Core,
+}
+
+/// The nodes at which each 1-D pass of the Laplacian has to be computed so that the last pass
+/// (along x) is exact on the core: a pass over all of K_d also computes values no later pass
+/// reads.
+struct PassRows {
+    /// Nodes whose y-pass value the x-pass reads: the core widened by two nodes along x.
+    y: Vec<u32>,
+    /// Nodes whose z-pass value the y-pass reads (`y` widened by two nodes along y), within two
+    /// nodes along z of a core node: the only ones where a core-supported input is felt.
+    z_near_core: Vec<u32>,
+    /// The other nodes the y-pass reads, only non-zero for inputs beyond the core.
+    z_beyond_core: Vec<u32>,
+}
+
+impl PassRows {
+    fn new(level: &Level) -> PassRows {
+        let line_has = |axis: usize, i: u32, marked: &dyn Fn(u32) -> bool| {
+            line5(level, axis, i)
+                .iter()
+                .any(|&n| n != NONE && marked(n))
+        };
+        let is_core = |n: u32| level.flags[n as usize] & crate::octree::CORE != 0;
+        let nodes = 0..level.len() as u32;
+        let in_y: Vec<bool> = nodes
+            .clone()
+            .into_par_iter()
+            .map(|i| line_has(0, i, &is_core))
+            .collect();
+        let (z_near_core, z_beyond_core): (Vec<u32>, Vec<u32>) = nodes
+            .clone()
+            .into_par_iter()
+            .filter(|&i| line_has(1, i, &|n| in_y[n as usize]))
+            .partition(|&i| line_has(2, i, &is_core));
+        let y = nodes
+            .into_par_iter()
+            .filter(|&i| in_y[i as usize])
+            .collect();
+        PassRows {
+            y,
+            z_near_core,
+            z_beyond_core,
+        }
+    }
+}
+
+/// The five nodes on the line through node `i` along `axis`, at offsets −2..=2 (`NONE` where
+/// outside K_d).
+#[inline]
+fn line5(level: &Level, axis: usize, i: u32) -> [u32; 5] {
+    let nb = &level.neighbors;
+    let step = |n: u32, dir: usize| {
+        if n == NONE {
+            NONE
+        } else {
+            nb[n as usize][dir]
+        }
+    };
+    let m1 = step(i, 2 * axis);
+    let p1 = step(i, 2 * axis + 1);
+    [step(m1, 2 * axis), m1, i, p1, step(p1, 2 * axis + 1)]
+}
+
+/// Σ_δ taps[δ+2] · value(node at δ) along the line (summed in the order of [`tap_sum`]).
+#[inline]
+fn line_sum(line: &[u32; 5], taps: &[f64; 5], value: impl Fn(usize) -> f64) -> f64 {
+    let mut sum = taps[2] * value(line[2] as usize);
+    for slot in [1, 0, 3, 4] {
+        if line[slot] != NONE {
+            sum += taps[slot] * value(line[slot] as usize);
+        }
+    }
+    sum
+}
+
+/// Sets `out[i] = value(i)` for every node `i` of `rows` (ascending), in parallel over fixed
+/// chunks of rows (each chunk owns the slice of `out` between its first row and the next
+/// chunk's).
+fn for_each_row<T: Send>(rows: &[u32], out: &mut [T], value: impl Fn(u32) -> T + Sync) {
+    let mut pieces = Vec::with_capacity(rows.len().div_ceil(CHUNK));
+    let mut rest = out;
+    let mut base = 0usize;
+    for (c, chunk) in rows.chunks(CHUNK).enumerate() {
+        let end = rows
+            .get((c + 1) * CHUNK)
+            .map_or(base + rest.len(), |&r| r as usize);
+        let (piece, tail) = rest.split_at_mut(end - base);
+        pieces.push((chunk, piece, base));
+        rest = tail;
+        base = end;
+    }
+    pieces.into_par_iter().for_each(|(chunk, piece, base)| {
+        for &i in chunk {
+            piece[i as usize - base] = value(i);
+        }
+    });
+}
+
 /// The operator A_d = L_d + S_d of one depth, with its scratch space.
 pub struct DepthOperator<'a> {
     pub level: &'a Level,
     pub proxies: &'a Proxies,
     /// Weight of the screening term.
     pub screening: f64,
-    scratch: [Vec<f64>; 4],
+    rows: PassRows,
+    /// (M_z·input, D_z·input) on K_d.
+    z_pass: Vec<[f64; 2]>,
+    /// (M_y M_z·input, (D_y M_z + M_y D_z)·input) on K_d.
+    y_pass: Vec<[f64; 2]>,
 }
 
 impl<'a> DepthOperator<'a> {
@@ -194,39 +304,52 @@ impl<'a> DepthOperator<'a> {
             level,
             proxies,
             screening,
-            scratch: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            rows: PassRows::new(level),
+            z_pass: vec![[0.0; 2]; n],
+            y_pass: vec![[0.0; 2]; n],
         }
     }
 
-    /// out[c] = (A · input)(core node c), for `input` given on all of K_d.
-    pub fn apply(&mut self, input: &[f64], out: &mut [f64]) {
+    /// out[c] = (A · input)(core node c), for `input` given on all of K_d and non-zero only
+    /// where `support` says.
+    ///
+    /// The Laplacian h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D) is applied as three fused 1-D passes, z then
+    /// y then x, each computed only where the next one reads it (see [`PassRows`]).
+    pub fn apply(&mut self, input: &[f64], support: Support, out: &mut [f64]) {
         let level = self.level;
         let t = tables();
         let h = level.width();
-        let [a, bz, am, cc] = &mut self.scratch;
-        pass(level, 2, &t.mass, input, a);
-        pass(level, 2, &t.stiffness, input, bz);
-        pass(level, 1, &t.mass, a, am);
-        // cc = Dy·a + My·bz, computed in two passes (bz reused as the second's output buffer
-        // is not possible, so accumulate in place).
-        pass(level, 1, &t.stiffness, a, cc);
-        pass(level, 1, &t.mass, bz, a);
-        cc.par_chunks_mut(CHUNK)
-            .zip(a.par_chunks(CHUNK))
-            .for_each(|(c, x)| {
-                for (c, x) in c.iter_mut().zip(x) {
-                    *c += x;
-                }
-            });
+        let z_value = |i: u32| {
+            let line = line5(level, 2, i);
+            [
+                line_sum(&line, &t.mass, |n| input[n]),
+                line_sum(&line, &t.stiffness, |n| input[n]),
+            ]
+        };
+        for_each_row(&self.rows.z_near_core, &mut self.z_pass, z_value);
+        match support {
+            Support::Halo => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, z_value),
+            Support::Core => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, |_| [0.0; 2]),
+        }
+        let z_pass = &self.z_pass;
+        for_each_row(&self.rows.y, &mut self.y_pass, |i| {
+            let line = line5(level, 1, i);
+            [
+                line_sum(&line, &t.mass, |n| z_pass[n][0]),
+                line_sum(&line, &t.stiffness, |n| z_pass[n][0])
+                    + line_sum(&line, &t.mass, |n| z_pass[n][1]),
+            ]
+        });
         let core = &level.core;
-        let (am, cc) = (&*am, &*cc);
+        let y_pass = &self.y_pass;
         out.par_chunks_mut(CHUNK)
             .zip(core.par_chunks(CHUNK))
             .for_each(|(o, nodes)| {
                 for (o, &n) in o.iter_mut().zip(nodes) {
+                    let line = line5(level, 0, n);
                     *o = h
-                        * (tap_sum(level, 0, &t.stiffness, am, n)
-                            + tap_sum(level, 0, &t.mass, cc, n));
+                        * (line_sum(&line, &t.stiffness, |n| y_pass[n][0])
+                            + line_sum(&line, &t.mass, |n| y_pass[n][1]));
                 }
             });
         if self.screening > 0.0 && !self.proxies.is_empty() {
@@ -458,7 +581,7 @@ mod tests {
         let mut out = vec![0.0; level.core.len()];
         // f = x² (unit coordinates) = h²(t² ): coefficients h²(t_i² − ¼). ⟨∇B_o, ∇f⟩ = −∫B_o Δf = −2h³.
         let x = coefficients(level, |t| h * h * (t[0] * t[0] - 0.25));
-        op.apply(&x, &mut out);
+        op.apply(&x, Support::Halo, &mut out);
         for v in &out {
             assert!(
                 (v + 2.0 * h * h * h).abs() < 1e-12,
@@ -472,7 +595,7 @@ mod tests {
                 * ((t[0] * t[0] - 0.25) + (t[1] * t[1] - 0.25) - 2.0 * (t[2] * t[2] - 0.25)
                     + 3.0 * t[0] * t[1])
         });
-        op.apply(&x, &mut out);
+        op.apply(&x, Support::Halo, &mut out);
         assert!(out.iter().all(|v| v.abs() < 1e-12));
     }
 
@@ -564,7 +687,7 @@ mod tests {
                 .collect();
             fill_mirrors(level, &mut x);
             let mut out = vec![0.0; level.core.len()];
-            op.apply(&x, &mut out);
+            op.apply(&x, Support::Halo, &mut out);
             let worst = out.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             if neumann {
                 assert!(worst < 1e-14, "{worst}");
