@@ -9,8 +9,8 @@ use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
 use crate::system::{
-    divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator, Proxies,
-    Support,
+    divergence, fill_mirrors, fill_mirrors_field, prolong_many, restrict_into, DepthOperator,
+    Proxies, Support,
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
@@ -230,46 +230,6 @@ pub(crate) fn run(
     for d in 0..=max_depth as usize {
         let depth_started = Instant::now();
         let level = &tree.levels[d];
-        // This depth's share of the inputs is used once: take it, so it is freed as soon as
-        // possible (the finest depth's arrays are the largest, and its solve is the memory peak).
-        let own_field = std::mem::take(&mut field_v[d]);
-        let own_rho = std::mem::take(&mut rho[d]);
-        let is_finest = d == max_depth as usize;
-        let (y, rhs_halo, next_field) = pool.install(|| {
-            let mut y = if d == 0 {
-                vec![0.0; level.len()]
-            } else {
-                prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0)
-            };
-            fill_mirrors(level, &mut y);
-            let mut rhs_halo = own_rho;
-            if d == 0 {
-                return (y, rhs_halo, own_field);
-            }
-            // V from coarser depths, represented at this depth (F̃ halves in width: ×1/8); its
-            // divergence joins this depth's right-hand side.
-            let mut field: [Vec<f64>; 3] = std::array::from_fn(|a| {
-                prolong(&tree.levels[d - 1], level, &coarse_field[a], 0.125)
-            });
-            fill_mirrors_field(level, &mut field);
-            for (r, c) in rhs_halo.iter_mut().zip(divergence(level, &field)) {
-                *r += c;
-            }
-            if is_finest {
-                return (y, rhs_halo, [Vec::new(), Vec::new(), Vec::new()]);
-            }
-            // Plus this depth's own V: everything the next depth prolongs.
-            for (f, own) in field.iter_mut().zip(&own_field) {
-                for (f, v) in f.iter_mut().zip(own) {
-                    *f += v;
-                }
-            }
-            (y, rhs_halo, field)
-        });
-        coarse_field = next_field;
-        if !is_finest {
-            fill_mirrors_field(level, &mut coarse_field);
-        }
         let proxies = pool.install(|| {
             Proxies::build(
                 level,
@@ -280,16 +240,57 @@ pub(crate) fn run(
             )
         });
         let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
-        let mut applied = vec![0.0; level.core.len()];
-        pool.install(|| op.apply(&y, Support::Halo, &mut applied));
-        let rhs: Vec<f64> = level
-            .core
-            .iter()
-            .zip(&applied)
-            .map(|(&c, a)| rhs_halo[c as usize] - a)
-            .collect();
-        drop(applied);
-        drop(rhs_halo);
+        // This depth's V and rho are used here for the last time.
+        let is_finest = d == max_depth as usize;
+        let mut field = std::mem::take(&mut field_v[d]);
+        let rho_here = std::mem::take(&mut rho[d]);
+        let (y, rhs) = pool.install(|| {
+            // The coarser solution and V from coarser depths, represented at this depth (F̃
+            // halves in width: ×1/8), prolonged together.
+            let (mut y, mut prolonged) = if d == 0 {
+                (
+                    vec![0.0; level.len()],
+                    std::array::from_fn(|_| vec![0.0; level.len()]),
+                )
+            } else {
+                let [y, px, py, pz] = prolong_many(
+                    &tree.levels[d - 1],
+                    level,
+                    [
+                        &coefficients[d - 1],
+                        &coarse_field[0],
+                        &coarse_field[1],
+                        &coarse_field[2],
+                    ],
+                    [1.0, 0.125, 0.125, 0.125],
+                );
+                (y, [px, py, pz])
+            };
+            fill_mirrors(level, &mut y);
+            fill_mirrors_field(level, &mut prolonged);
+            let coarse_div = op.divergence_on_core(&prolonged);
+            let mut applied = vec![0.0; level.core.len()];
+            op.apply(&y, Support::Halo, &mut applied);
+            let rhs: Vec<f64> = level
+                .core
+                .par_iter()
+                .zip(coarse_div.par_iter().zip(&applied))
+                .map(|(&c, (div, a))| rho_here[c as usize] + div - a)
+                .collect();
+            // V of this depth and all coarser ones, for the next depth (none after the last;
+            // the last depth's own V was dropped after the system stage).
+            if !is_finest {
+                for (f, p) in field.iter_mut().zip(&prolonged) {
+                    f.par_iter_mut().zip(p).for_each(|(f, p)| *f = p + *f);
+                }
+            }
+            (y, rhs)
+        });
+        drop(rho_here);
+        coarse_field = field;
+        if !is_finest {
+            fill_mirrors_field(level, &mut coarse_field);
+        }
         let base = d as f32 / depths as f32;
         let (x, outcome) = {
             let progress = &mut clock.progress;

@@ -260,10 +260,10 @@ fn line_sum(line: &[u32; 5], taps: &[f64; 5], value: impl Fn(usize) -> f64) -> f
     sum
 }
 
-/// Sets `out[i] = value(i)` for every node `i` of `rows` (ascending), in parallel over fixed
-/// chunks of rows (each chunk owns the slice of `out` between its first row and the next
+/// Calls `update(i, &mut out[i])` for every node `i` of `rows` (ascending), in parallel over
+/// fixed chunks of rows (each chunk owns the slice of `out` between its first row and the next
 /// chunk's).
-fn for_each_row<T: Send>(rows: &[u32], out: &mut [T], value: impl Fn(u32) -> T + Sync) {
+fn for_each_row<T: Send>(rows: &[u32], out: &mut [T], update: impl Fn(u32, &mut T) + Sync) {
     let mut pieces = Vec::with_capacity(rows.len().div_ceil(CHUNK));
     let mut rest = out;
     let mut base = 0usize;
@@ -278,7 +278,7 @@ fn for_each_row<T: Send>(rows: &[u32], out: &mut [T], value: impl Fn(u32) -> T +
     }
     pieces.into_par_iter().for_each(|(chunk, piece, base)| {
         for &i in chunk {
-            piece[i as usize - base] = value(i);
+            update(i, &mut piece[i as usize - base]);
         }
     });
 }
@@ -327,22 +327,24 @@ impl<'a> DepthOperator<'a> {
         let level = self.level;
         let t = tables();
         let h = level.width();
-        let z_value = |i: u32| {
+        let z_value = |i: u32, o: &mut [f64; 2]| {
             let line = line5(level, 2, i);
-            [
+            *o = [
                 line_sum(&line, &t.mass, |n| input[n]),
                 line_sum(&line, &t.stiffness, |n| input[n]),
-            ]
+            ];
         };
         for_each_row(&self.rows.z_near_core, &mut self.z_pass, z_value);
         match support {
             Support::Halo => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, z_value),
-            Support::Core => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, |_| [0.0; 2]),
+            Support::Core => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, |_, o| {
+                *o = [0.0; 2]
+            }),
         }
         let z_pass = &self.z_pass;
-        for_each_row(&self.rows.y, &mut self.y_pass, |i| {
+        for_each_row(&self.rows.y, &mut self.y_pass, |i, o| {
             let line = line5(level, 1, i);
-            [
+            *o = [
                 line_sum(&line, &t.mass, |n| z_pass[n][0]),
                 line_sum(&line, &t.stiffness, |n| z_pass[n][0])
                     + line_sum(&line, &t.mass, |n| z_pass[n][1]),
@@ -394,6 +396,55 @@ impl<'a> DepthOperator<'a> {
                 }
             }
         }
+    }
+
+    /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V with coefficients `v` on
+    /// K_d: [`divergence`] restricted to the core, computed with the fused passes as
+    /// (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)).
+    pub fn divergence_on_core(&mut self, v: &[Vec<f64>; 3]) -> Vec<f64> {
+        let level = self.level;
+        let t = tables();
+        let inv_h = 1.0 / level.width();
+        let rows = &self.rows;
+        let z_rows = [&rows.z_near_core, &rows.z_beyond_core];
+        // y_pass[1] = G_y M_z v_y + M_y G_z v_z.
+        for z_rows in z_rows {
+            for_each_row(z_rows, &mut self.z_pass, |i, o| {
+                let line = line5(level, 2, i);
+                *o = [
+                    line_sum(&line, &t.mass, |n| v[1][n]),
+                    line_sum(&line, &t.advection, |n| v[2][n]),
+                ];
+            });
+        }
+        let z_pass = &self.z_pass;
+        for_each_row(&rows.y, &mut self.y_pass, |i, o| {
+            let line = line5(level, 1, i);
+            o[1] = line_sum(&line, &t.advection, |n| z_pass[n][0])
+                + line_sum(&line, &t.mass, |n| z_pass[n][1]);
+        });
+        // y_pass[0] = M_y M_z v_x.
+        for z_rows in z_rows {
+            for_each_row(z_rows, &mut self.z_pass, |i, o| {
+                o[0] = line_sum(&line5(level, 2, i), &t.mass, |n| v[0][n]);
+            });
+        }
+        let z_pass = &self.z_pass;
+        for_each_row(&rows.y, &mut self.y_pass, |i, o| {
+            o[0] = line_sum(&line5(level, 1, i), &t.mass, |n| z_pass[n][0]);
+        });
+        let y_pass = &self.y_pass;
+        level
+            .core
+            .par_iter()
+            .with_min_len(CHUNK)
+            .map(|&n| {
+                let line = line5(level, 0, n);
+                inv_h
+                    * (line_sum(&line, &t.advection, |n| y_pass[n][0])
+                        + line_sum(&line, &t.mass, |n| y_pass[n][1]))
+            })
+            .collect()
     }
 
     /// The diagonal of A on the core (for Jacobi preconditioning).
@@ -631,18 +682,44 @@ fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
 /// Prolongs coarse coefficients (on K_{d−1}) to the fine halo K_d, exactly: the fine
 /// combination represents the same function wherever the coarse one is complete.
 pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Vec<f64> {
-    (0..fine.len() as u32)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map(|i| {
-            refinement_parents(coarse, fine, i)
-                .iter()
-                .filter(|(n, _)| *n != NONE)
-                .map(|&(n, w)| w * x[n as usize])
-                .sum::<f64>()
-                * scale
+    let [out] = prolong_many(coarse, fine, [x], [scale]);
+    out
+}
+
+/// [`prolong`] of several coefficient vectors (each with its scale) in one sweep, so the parents
+/// of every fine node are looked up once.
+pub fn prolong_many<const N: usize>(
+    coarse: &Level,
+    fine: &Level,
+    inputs: [&[f64]; N],
+    scales: [f64; N],
+) -> [Vec<f64>; N] {
+    let mut out: [Vec<f64>; N] = std::array::from_fn(|_| vec![0.0; fine.len()]);
+    let mut columns = out.each_mut().map(|o| o.chunks_mut(CHUNK));
+    let chunks: Vec<[&mut [f64]; N]> = (0..fine.len().div_ceil(CHUNK))
+        .map(|_| {
+            columns
+                .each_mut()
+                .map(|c| c.next().expect("one chunk per column"))
         })
-        .collect()
+        .collect();
+    chunks
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(c, mut outs)| {
+            for j in 0..outs[0].len() {
+                let parents = refinement_parents(coarse, fine, (c * CHUNK + j) as u32);
+                for ((o, x), scale) in outs.iter_mut().zip(inputs).zip(scales) {
+                    o[j] = parents
+                        .iter()
+                        .filter(|(n, _)| *n != NONE)
+                        .map(|&(n, w)| w * x[n as usize])
+                        .sum::<f64>()
+                        * scale;
+                }
+            }
+        });
+    out
 }
 
 /// The transpose of [`prolong`]: adds Σ_children w · fine[child] to every coarse node.
@@ -726,6 +803,31 @@ mod tests {
         for &c in &level.core {
             let got = div[c as usize];
             assert!((got + 2.0 * h * h * h).abs() < 1e-12, "{got}");
+        }
+    }
+
+    #[test]
+    fn divergence_on_core_matches_the_full_divergence() {
+        let tree = grid();
+        let level = &tree.levels[4];
+        let v: [Vec<f64>; 3] = std::array::from_fn(|a| {
+            (0..level.len())
+                .map(|i| ((i * (a + 3)) % 11) as f64 - 5.0)
+                .collect()
+        });
+        let full = divergence(level, &v);
+        let proxies = Proxies {
+            of_cell: vec![(0, 0); level.len()],
+            ..Default::default()
+        };
+        let mut op = DepthOperator::new(level, &proxies, 0.0);
+        let on_core = op.divergence_on_core(&v);
+        for (&c, got) in level.core.iter().zip(&on_core) {
+            let want = full[c as usize];
+            assert!(
+                (got - want).abs() < 1e-12 * want.abs().max(1.0),
+                "{got} vs {want}"
+            );
         }
     }
 
