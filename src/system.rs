@@ -187,21 +187,137 @@ pub enum Support {
     Core,
 }
 
-/// The nodes at which each 1-D pass of the Laplacian has to be computed so that the last pass
-/// (along x) is exact on the core: a pass over all of K_d also computes values no later pass
-/// reads.
-struct PassRows {
-    /// Nodes whose y-pass value the x-pass reads: the core widened by two nodes along x.
-    y: Vec<u32>,
-    /// Nodes whose z-pass value the y-pass reads (`y` widened by two nodes along y), within two
-    /// nodes along z of a core node: the only ones where a core-supported input is felt.
-    z_near_core: Vec<u32>,
-    /// The other nodes the y-pass reads, only non-zero for inputs beyond the core.
-    z_beyond_core: Vec<u32>,
+/// The nodes one 1-D pass visits, line by line along its axis: every maximal run of K_d nodes
+/// within two nodes (along the axis) of a node whose value a later pass reads. Walking a line
+/// with a sliding window reads each input once and needs no neighbour links (chasing two links
+/// per tap, mostly to far-away Morton indices, was the cost of the passes).
+struct PassLines {
+    /// Node indices, line after line, each line followed by [`LINE_END`]; a node whose value is
+    /// read later carries [`NEEDED`], and [`NEEDED_FOR_CORE_INPUT`] if that value can be non-zero
+    /// when the input lives on the core.
+    entries: Vec<u32>,
+    /// Task c walks `entries[task_start[c]..task_start[c + 1]]` (whole lines, a fixed split).
+    task_start: Vec<usize>,
 }
 
-impl PassRows {
-    fn new(level: &Level) -> PassRows {
+const LINE_END: u32 = u32::MAX;
+const NEEDED: u32 = 1 << 31;
+const NEEDED_FOR_CORE_INPUT: u32 = 1 << 30;
+const NODE_BITS: u32 = NEEDED_FOR_CORE_INPUT - 1;
+/// Lines per parallel task of a pass.
+const LINES_PER_TASK: usize = 512;
+
+impl PassLines {
+    /// `needed[i]`: the flags of node i (0 when no later pass reads it).
+    fn new(level: &Level, axis: usize, needed: &[u32]) -> PassLines {
+        assert!(
+            level.len() <= NODE_BITS as usize,
+            "too many nodes for the pass lines"
+        );
+        let in_span: Vec<bool> = (0..level.len() as u32)
+            .into_par_iter()
+            .map(|i| {
+                line5(level, axis, i)
+                    .iter()
+                    .any(|&n| n != NONE && needed[n as usize] != 0)
+            })
+            .collect();
+        let (minus, plus) = (2 * axis, 2 * axis + 1);
+        let starts: Vec<u32> = (0..level.len() as u32)
+            .into_par_iter()
+            .filter(|&i| {
+                let before = level.neighbors[i as usize][minus];
+                in_span[i as usize] && (before == NONE || !in_span[before as usize])
+            })
+            .collect();
+        let tasks: Vec<Vec<u32>> = starts
+            .par_chunks(LINES_PER_TASK)
+            .map(|starts| {
+                let mut entries = Vec::new();
+                for &start in starts {
+                    let mut n = start;
+                    while n != NONE && in_span[n as usize] {
+                        entries.push(n | needed[n as usize]);
+                        n = level.neighbors[n as usize][plus];
+                    }
+                    entries.push(LINE_END);
+                }
+                entries
+            })
+            .collect();
+        let mut task_start = vec![0];
+        for task in &tasks {
+            task_start.push(task_start.last().unwrap() + task.len());
+        }
+        PassLines {
+            entries: tasks.concat(),
+            task_start,
+        }
+    }
+
+    /// For every node the pass must produce, `update(window, &mut out[node])` with the input
+    /// values at offsets −2..=2 along the line (zero where K_d has no node). With
+    /// `core_input`, nodes only needed for inputs beyond the core get an all-zero window.
+    fn run<V, T>(
+        &self,
+        core_input: bool,
+        out: &mut [T],
+        read: impl Fn(usize) -> V + Sync,
+        update: impl Fn([V; 5], &mut T) + Sync,
+    ) where
+        V: Copy + Default,
+        T: Send,
+    {
+        let computed = if core_input {
+            NEEDED_FOR_CORE_INPUT
+        } else {
+            NEEDED
+        };
+        let out = SharedSlice::new(out);
+        self.task_start.par_windows(2).for_each(|task| {
+            let mut values: Vec<V> = Vec::new();
+            for line in self.entries[task[0]..task[1]].split(|&e| e == LINE_END) {
+                if line.is_empty() {
+                    continue;
+                }
+                values.clear();
+                values.extend([V::default(); 2]);
+                values.extend(line.iter().map(|&e| read((e & NODE_BITS) as usize)));
+                values.extend([V::default(); 2]);
+                for (k, &e) in line.iter().enumerate() {
+                    if e & NEEDED == 0 {
+                        continue;
+                    }
+                    let window = if e & computed != 0 {
+                        [
+                            values[k],
+                            values[k + 1],
+                            values[k + 2],
+                            values[k + 3],
+                            values[k + 4],
+                        ]
+                    } else {
+                        [V::default(); 5]
+                    };
+                    // SAFETY: every node lies on one line of this pass only.
+                    update(window, unsafe { out.get_mut((e & NODE_BITS) as usize) });
+                }
+            }
+        });
+    }
+}
+
+/// The lines of the z and y passes of one depth.
+struct PassPlan {
+    /// z-pass: the nodes the y-pass reads (the core widened by two along x, then two along y);
+    /// with a core input only those within two nodes along z of the core can be non-zero.
+    z: PassLines,
+    /// y-pass: the nodes the x-pass reads (the core widened by two along x).
+    y: PassLines,
+}
+
+impl PassPlan {
+    fn new(level: &Level) -> PassPlan {
         let line_has = |axis: usize, i: u32, marked: &dyn Fn(u32) -> bool| {
             line5(level, axis, i)
                 .iter()
@@ -209,26 +325,44 @@ impl PassRows {
         };
         let is_core = |n: u32| level.flags[n as usize] & crate::octree::CORE != 0;
         let nodes = 0..level.len() as u32;
-        let in_y: Vec<bool> = nodes
+        let y_needed: Vec<u32> = nodes
             .clone()
             .into_par_iter()
-            .map(|i| line_has(0, i, &is_core))
+            .map(|i| {
+                if line_has(0, i, &is_core) {
+                    NEEDED | NEEDED_FOR_CORE_INPUT
+                } else {
+                    0
+                }
+            })
             .collect();
-        let (z_near_core, z_beyond_core): (Vec<u32>, Vec<u32>) = nodes
-            .clone()
+        let z_needed: Vec<u32> = nodes
             .into_par_iter()
-            .filter(|&i| line_has(1, i, &|n| in_y[n as usize]))
-            .partition(|&i| line_has(2, i, &is_core));
-        let y = nodes
-            .into_par_iter()
-            .filter(|&i| in_y[i as usize])
+            .map(|i| {
+                if !line_has(1, i, &|n| y_needed[n as usize] != 0) {
+                    0
+                } else if line_has(2, i, &is_core) {
+                    NEEDED | NEEDED_FOR_CORE_INPUT
+                } else {
+                    NEEDED
+                }
+            })
             .collect();
-        PassRows {
-            y,
-            z_near_core,
-            z_beyond_core,
+        PassPlan {
+            z: PassLines::new(level, 2, &z_needed),
+            y: PassLines::new(level, 1, &y_needed),
         }
     }
+}
+
+/// Σ_δ taps[δ+2] · window[δ+2], in the order centre, −1, −2, +1, +2.
+#[inline]
+fn window_sum(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
+    taps[2] * window[2]
+        + taps[1] * window[1]
+        + taps[0] * window[0]
+        + taps[3] * window[3]
+        + taps[4] * window[4]
 }
 
 /// The five nodes on the line through node `i` along `axis`, at offsets −2..=2 (`NONE` where
@@ -260,36 +394,13 @@ fn line_sum(line: &[u32; 5], taps: &[f64; 5], value: impl Fn(usize) -> f64) -> f
     sum
 }
 
-/// Calls `update(i, &mut out[i])` for every node `i` of `rows` (ascending), in parallel over
-/// fixed chunks of rows (each chunk owns the slice of `out` between its first row and the next
-/// chunk's).
-fn for_each_row<T: Send>(rows: &[u32], out: &mut [T], update: impl Fn(u32, &mut T) + Sync) {
-    let mut pieces = Vec::with_capacity(rows.len().div_ceil(CHUNK));
-    let mut rest = out;
-    let mut base = 0usize;
-    for (c, chunk) in rows.chunks(CHUNK).enumerate() {
-        let end = rows
-            .get((c + 1) * CHUNK)
-            .map_or(base + rest.len(), |&r| r as usize);
-        let (piece, tail) = rest.split_at_mut(end - base);
-        pieces.push((chunk, piece, base));
-        rest = tail;
-        base = end;
-    }
-    pieces.into_par_iter().for_each(|(chunk, piece, base)| {
-        for &i in chunk {
-            update(i, &mut piece[i as usize - base]);
-        }
-    });
-}
-
 /// The operator A_d = L_d + S_d of one depth, with its scratch space.
 pub struct DepthOperator<'a> {
     pub level: &'a Level,
     pub proxies: &'a Proxies,
     /// Weight of the screening term.
     pub screening: f64,
-    rows: PassRows,
+    plan: PassPlan,
     /// (M_z·input, D_z·input) on K_d.
     z_pass: Vec<[f64; 2]>,
     /// (M_y M_z·input, (D_y M_z + M_y D_z)·input) on K_d.
@@ -310,7 +421,7 @@ impl<'a> DepthOperator<'a> {
             level,
             proxies,
             screening,
-            rows: PassRows::new(level),
+            plan: PassPlan::new(level),
             z_pass: vec![[0.0; 2]; n],
             y_pass: vec![[0.0; 2]; n],
             screening_cells,
@@ -322,34 +433,30 @@ impl<'a> DepthOperator<'a> {
     /// where `support` says.
     ///
     /// The Laplacian h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D) is applied as three fused 1-D passes, z then
-    /// y then x, each computed only where the next one reads it (see [`PassRows`]).
+    /// y then x, each computed only where the next one reads it (see [`PassPlan`]).
     pub fn apply(&mut self, input: &[f64], support: Support, out: &mut [f64]) {
         let level = self.level;
         let t = tables();
         let h = level.width();
-        let z_value = |i: u32, o: &mut [f64; 2]| {
-            let line = line5(level, 2, i);
-            *o = [
-                line_sum(&line, &t.mass, |n| input[n]),
-                line_sum(&line, &t.stiffness, |n| input[n]),
-            ];
-        };
-        for_each_row(&self.rows.z_near_core, &mut self.z_pass, z_value);
-        match support {
-            Support::Halo => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, z_value),
-            Support::Core => for_each_row(&self.rows.z_beyond_core, &mut self.z_pass, |_, o| {
-                *o = [0.0; 2]
-            }),
-        }
+        self.plan.z.run(
+            support == Support::Core,
+            &mut self.z_pass,
+            |n| input[n],
+            |w, o| *o = [window_sum(&t.mass, &w), window_sum(&t.stiffness, &w)],
+        );
         let z_pass = &self.z_pass;
-        for_each_row(&self.rows.y, &mut self.y_pass, |i, o| {
-            let line = line5(level, 1, i);
-            *o = [
-                line_sum(&line, &t.mass, |n| z_pass[n][0]),
-                line_sum(&line, &t.stiffness, |n| z_pass[n][0])
-                    + line_sum(&line, &t.mass, |n| z_pass[n][1]),
-            ]
-        });
+        self.plan.y.run(
+            false,
+            &mut self.y_pass,
+            |n| z_pass[n],
+            |w, o| {
+                let (a, b) = (w.map(|v| v[0]), w.map(|v| v[1]));
+                *o = [
+                    window_sum(&t.mass, &a),
+                    window_sum(&t.stiffness, &a) + window_sum(&t.mass, &b),
+                ];
+            },
+        );
         let core = &level.core;
         let y_pass = &self.y_pass;
         out.par_chunks_mut(CHUNK)
@@ -405,34 +512,41 @@ impl<'a> DepthOperator<'a> {
         let level = self.level;
         let t = tables();
         let inv_h = 1.0 / level.width();
-        let rows = &self.rows;
-        let z_rows = [&rows.z_near_core, &rows.z_beyond_core];
+        let plan = &self.plan;
         // y_pass[1] = G_y M_z v_y + M_y G_z v_z.
-        for z_rows in z_rows {
-            for_each_row(z_rows, &mut self.z_pass, |i, o| {
-                let line = line5(level, 2, i);
-                *o = [
-                    line_sum(&line, &t.mass, |n| v[1][n]),
-                    line_sum(&line, &t.advection, |n| v[2][n]),
-                ];
-            });
-        }
+        plan.z.run(
+            false,
+            &mut self.z_pass,
+            |n| [v[1][n], v[2][n]],
+            |w, o| {
+                let (a, b) = (w.map(|v| v[0]), w.map(|v| v[1]));
+                *o = [window_sum(&t.mass, &a), window_sum(&t.advection, &b)];
+            },
+        );
         let z_pass = &self.z_pass;
-        for_each_row(&rows.y, &mut self.y_pass, |i, o| {
-            let line = line5(level, 1, i);
-            o[1] = line_sum(&line, &t.advection, |n| z_pass[n][0])
-                + line_sum(&line, &t.mass, |n| z_pass[n][1]);
-        });
+        plan.y.run(
+            false,
+            &mut self.y_pass,
+            |n| z_pass[n],
+            |w, o| {
+                let (a, b) = (w.map(|v| v[0]), w.map(|v| v[1]));
+                o[1] = window_sum(&t.advection, &a) + window_sum(&t.mass, &b);
+            },
+        );
         // y_pass[0] = M_y M_z v_x.
-        for z_rows in z_rows {
-            for_each_row(z_rows, &mut self.z_pass, |i, o| {
-                o[0] = line_sum(&line5(level, 2, i), &t.mass, |n| v[0][n]);
-            });
-        }
+        plan.z.run(
+            false,
+            &mut self.z_pass,
+            |n| v[0][n],
+            |w, o| o[0] = window_sum(&t.mass, &w),
+        );
         let z_pass = &self.z_pass;
-        for_each_row(&rows.y, &mut self.y_pass, |i, o| {
-            o[0] = line_sum(&line5(level, 1, i), &t.mass, |n| z_pass[n][0]);
-        });
+        plan.y.run(
+            false,
+            &mut self.y_pass,
+            |n| z_pass[n][0],
+            |w, o| o[0] = window_sum(&t.mass, &w),
+        );
         let y_pass = &self.y_pass;
         level
             .core
@@ -560,7 +674,7 @@ impl ScreeningCells {
         values: &mut [f64],
         contribute: impl Fn(&[u32; 27], std::ops::Range<usize>, &mut [f64; 27]) + Sync,
     ) {
-        let shared = SharedValues(values.as_mut_ptr(), values.len());
+        let shared = SharedSlice::new(values);
         for parity in &self.slabs {
             parity.par_iter().for_each(|slab| {
                 let blocks = &self.blocks[slab.clone()];
@@ -572,7 +686,7 @@ impl ScreeningCells {
                         if n != NONE {
                             // SAFETY: the blocks of the slabs of one parity are disjoint, so no
                             // other thread touches node n while this parity runs.
-                            unsafe { shared.add(n as usize, *c) };
+                            unsafe { *shared.get_mut(n as usize) += *c };
                         }
                     }
                 }
@@ -581,22 +695,35 @@ impl ScreeningCells {
     }
 }
 
-/// Node values written from several threads at indices known to be disjoint between threads.
-struct SharedValues(*mut f64, usize);
+/// A slice written from several threads at indices known to be disjoint between threads.
+struct SharedSlice<'a, T> {
+    start: *mut T,
+    len: usize,
+    _slice: std::marker::PhantomData<&'a mut [T]>,
+}
 
-// SAFETY: only accessed through `add`, whose callers guarantee that no two threads use the same
-// index at the same time.
-unsafe impl Sync for SharedValues {}
+// SAFETY: elements are only reached through `get_mut`, whose callers guarantee that no two
+// threads use the same index at the same time; T: Send lets them move between threads.
+unsafe impl<T: Send> Sync for SharedSlice<'_, T> {}
 
-impl SharedValues {
-    /// Adds `v` to value `i` (bounds-checked).
+impl<'a, T> SharedSlice<'a, T> {
+    fn new(slice: &'a mut [T]) -> Self {
+        SharedSlice {
+            start: slice.as_mut_ptr(),
+            len: slice.len(),
+            _slice: std::marker::PhantomData,
+        }
+    }
+
+    /// Element `i` (bounds-checked).
     ///
     /// # Safety
-    /// No other thread may access index `i` concurrently.
+    /// No other thread may access element `i` while the returned reference lives.
     #[inline]
-    unsafe fn add(&self, i: usize, v: f64) {
-        assert!(i < self.1);
-        *self.0.add(i) += v;
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn get_mut(&self, i: usize) -> &mut T {
+        assert!(i < self.len);
+        &mut *self.start.add(i)
     }
 }
 
