@@ -9,7 +9,7 @@
 //! Reductions are computed in fixed chunks whose partial sums are added in order, so the result
 //! is the same bit for bit whatever the number of threads.
 
-use crate::system::{DepthOperator, Support, CHUNK};
+use crate::system::{fill_mirrors, DepthOperator, Support, CHUNK};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -81,7 +81,16 @@ pub fn conjugate_gradients(
             for (&c, &v) in core.iter().zip(&p) {
                 p_halo[c as usize] = v;
             }
-            op.apply(&p_halo, Support::Core, &mut ap);
+            // With Neumann boundaries the direction's mirror nodes outside the cube carry the
+            // values they reflect, as every vector the operator is applied to must (the folded
+            // basis); they lie beyond the core, so the operator cannot skip them.
+            let support = if level.mirrors.is_empty() {
+                Support::Core
+            } else {
+                fill_mirrors(level, &mut p_halo);
+                Support::Halo
+            };
+            op.apply(&p_halo, support, &mut ap);
         });
         let pap = pool.install(|| dot(&p, &ap));
         if !(pap > 0.0) {
