@@ -274,15 +274,19 @@ void check_agreement(const char *other, const metrics::Symmetric &d, double cell
 // psr's mesh of a closed object: every edge in two triangles, every vertex one fan, consistent
 // outward orientation (psr promises a closed 2-manifold by construction), in one piece with the
 // object's Euler characteristic.
-void check_closed_manifold(const Measured &psr, long long euler) {
+void check_manifold_only(const Measured &psr) {
     EXPECT_TRUE(psr.topo.closed_manifold())
         << "boundary edges " << psr.topo.boundary_edges << ", non-manifold edges " << psr.topo.nonmanifold_edges
         << ", non-manifold vertices " << psr.topo.nonmanifold_vertices << ", misoriented edges "
         << psr.topo.misoriented_edges << ", degenerate triangles " << psr.topo.degenerate;
     EXPECT_EQ(psr.topo.unreferenced, 0u);
+    EXPECT_GT(psr.volume, 0.0) << "psr's triangles should face outwards";
+}
+
+void check_closed_manifold(const Measured &psr, long long euler) {
+    check_manifold_only(psr);
     EXPECT_EQ(psr.topo.components, 1u);
     EXPECT_EQ(psr.topo.euler, euler);
-    EXPECT_GT(psr.volume, 0.0) << "psr's triangles should face outwards";
 }
 
 // The analytic shapes.
@@ -292,14 +296,16 @@ void check_closed_manifold(const Measured &psr, long long euler) {
 //     The issue asks for "a few percent"; 0.5% is tighter and still leaves a 8x margin.
 //   Distance to the exact surface: psr no worse than 1.1 x the better of CGAL and PCL, on the
 //     Chamfer average and on the 95th-percentile Hausdorff distance. MEASURED: psr is about
-//     0.3-0.4 x CGAL (at comparable resolution) and 1.2-1.3 x PCL on both shapes and both
-//     measures (numbers in docs/comparisons.md and issue 4; Kazhdan's PoissonRecon, as built
-//     into Open3D 0.20, is 1.04 x psr on the same sphere). That gap is asserted as it stands, so
-//     that it cannot widen unnoticed, and printed as a KNOWN GAP in the log: psr <= 1.1 x CGAL,
-//     and psr <= kPclGapBound x PCL instead of 1.1 x. Lower kPclGapBound as psr closes the gap.
+//     0.3-0.4 x CGAL (at comparable resolution); against PCL it is 1.07 x (Chamfer) and 0.98 x
+//     (H95) on the sphere but 1.31 x and 1.23 x on the torus (numbers in docs/comparisons.md and
+//     issue 4): psr's vertices lie on its implicit surface without bias, PCL's about 1e-4 outside
+//     it, which offsets the chords' sag on the torus's tight tube. That gap is asserted as it
+//     stands, so that it cannot widen unnoticed, and printed as a KNOWN GAP in the log:
+//     psr <= 1.1 x CGAL, and psr <= kPclGapBound x PCL instead of 1.1 x. Lower kPclGapBound as
+//     psr closes the gap.
 constexpr double kAreaVolumeRelTol = 0.005;
 constexpr double kTarget = 1.1;
-constexpr double kPclGapBound = 1.5; // measured 1.19-1.29 (see above); the target is kTarget
+constexpr double kPclGapBound = 1.5; // measured 0.98-1.31 (see above); the target is kTarget
 
 void check_truth_distance(const char *measure, double psr, double cgal, double pcl) {
     const double best = std::min(cgal, pcl);
@@ -404,6 +410,11 @@ TEST(Compare, Kitten) {
 // tolerance is twice the scans' (measured 0.20 cell mean). CGAL returns a genus-2 surface well
 // off its own input (mean input-to-mesh distance about 0.8 cell, psr's 0.13): psr-CGAL
 // agreement is not asserted on this input; psr must instead fit the input better than CGAL.
+// One piece is not asserted either: the horn's thin, sparsely sampled tip comes out as a closed
+// piece of its own (66 vertices at depth 7) under Neumann boundaries, as it does in Kazhdan's
+// PoissonRecon (Open3D 0.20: 2-4 pieces at depths 6-10) and in PCL (2 pieces); with free
+// boundaries psr keeps one piece. Asserted: a closed 2-manifold of at most two pieces, each a
+// sphere (Euler characteristic 2 per piece).
 TEST(Compare, Oni) {
     LOAD_OR_SKIP(cloud, "oni_cgal.ply");
     Input in;
@@ -416,7 +427,9 @@ TEST(Compare, Oni) {
               "on the cube's face, PCL leaves it open.";
     in.octree.depth = 7;
     const Comparison c = compare(in);
-    check_closed_manifold(c.psr(), 2);
+    check_manifold_only(c.psr());
+    EXPECT_LE(c.psr().topo.components, 2u);
+    EXPECT_EQ(c.psr().topo.euler, 2 * static_cast<long long>(c.psr().topo.components));
     const double cell = c.cell;
     EXPECT_LE(c.psr_pcl.b_to_a.mean, 2 * kScanAgreement.chamfer_avg_cells * cell)
         << "PCL's surface is " << c.psr_pcl.b_to_a.mean / cell << " cells from psr's on average";
