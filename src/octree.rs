@@ -496,14 +496,40 @@ pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
 }
 
 /// ∪_{k = −r..=r} (keys + k·step), for sorted unique keys.
+///
+/// In parallel: the output is cut at key values taken from `keys` (how many pieces depends only
+/// on the length, so the result does not depend on the thread count), and each piece merges,
+/// from every shifted copy, the keys that land in it.
 fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
-    let mut out = keys.to_vec();
-    for k in 1..=r as u64 {
-        let up: Vec<u64> = keys.iter().map(|&v| v + k * step).collect();
-        let down: Vec<u64> = keys.iter().map(|&v| v - k * step).collect();
-        out = merge_unique(&merge_unique(&out, &up), &down);
-    }
-    out
+    let shifts: Vec<i64> = (-r..=r).map(|k| k as i64 * step as i64).collect();
+    let pieces = (keys.len() >> 15).clamp(1, 256);
+    let bounds: Vec<i64> = (1..pieces)
+        .map(|p| keys[p * keys.len() / pieces] as i64)
+        .collect();
+    let merged: Vec<Vec<u64>> = (0..pieces)
+        .into_par_iter()
+        .map(|p| {
+            let mut out: Vec<u64> = Vec::new();
+            for &s in &shifts {
+                // The keys whose shifted value lies in [bounds[p − 1], bounds[p]).
+                let start = match p {
+                    0 => 0,
+                    _ => keys.partition_point(|&v| v as i64 + s < bounds[p - 1]),
+                };
+                let end = match bounds.get(p) {
+                    Some(&hi) => keys.partition_point(|&v| v as i64 + s < hi),
+                    None => keys.len(),
+                };
+                let shifted: Vec<u64> = keys[start..end]
+                    .iter()
+                    .map(|&v| (v as i64 + s) as u64)
+                    .collect();
+                out = merge_unique(&out, &shifted);
+            }
+            out
+        })
+        .collect();
+    merged.concat()
 }
 
 #[cfg(test)]
@@ -553,6 +579,30 @@ mod tests {
             want.sort_unstable();
             want.dedup();
             assert_eq!(got, want, "r = {r}");
+        }
+    }
+
+    #[test]
+    fn union_of_shifts_in_pieces_matches_sorting() {
+        // Enough keys for many pieces; a sparse pseudo-random band of coordinates.
+        let mut keys: Vec<u64> = (0..200_000u64)
+            .map(|i| {
+                let h = i.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                pack([(h % 300) as i32, ((h / 300) % 300) as i32, (i % 97) as i32])
+            })
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        for (step, r) in [(1u64 << BITS, 1), (1u64 << (2 * BITS), 2)] {
+            let mut want: Vec<u64> = (-r..=r)
+                .flat_map(|k| {
+                    keys.iter()
+                        .map(move |&v| (v as i64 + k as i64 * step as i64) as u64)
+                })
+                .collect();
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(union_of_shifts(&keys, step, r), want);
         }
     }
 
