@@ -389,8 +389,9 @@ pub(crate) fn run(
 }
 
 /// The depth at which the screening samples of depth d are grouped: two depths finer (16× less
-/// sag of a proxy below a curved surface than grouping at d; measured 3% more accurate on
-/// spheres than grouping at d, and as accurate as using every sample).
+/// sag of a proxy below a curved surface than grouping at d). On a 40k-point sphere at depth 7
+/// grouping at d, at d + 2 or not at all (every sample) measured within 1% of each other; d + 2
+/// keeps the proxies on the surface where samples are sparse and coarse cells large.
 fn proxy_depth(d: u32, max_depth: u32) -> u32 {
     (d + 2).min(max_depth)
 }
