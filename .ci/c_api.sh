@@ -19,25 +19,10 @@
 set -euo pipefail
 
 CBINDGEN_VERSION=0.29.4 # also in cbindgen.toml, scripts/gen_header.sh, tests/header_fresh.rs
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
-start=$SECONDS
-steps=0
-step() {
-    steps=$((steps + 1))
-    printf '\n== [%d] %s (%ds)\n' "$steps" "$*" "$((SECONDS - start))"
-}
-die() {
-    echo "c_api.sh: error: $*" >&2
-    exit 1
-}
-
-work="$(mktemp -d /tmp/psr-c-api.XXXXXX)"
-if [ "${KEEP:-0}" = 1 ]; then
-    echo "keeping $work"
-else
-    trap 'rm -rf "$work"' EXIT
-fi
+script=c_api.sh
+work_prefix=psr-c-api
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+make_work
 
 # --- 1. tools ----------------------------------------------------------------------------------
 step "tools"
@@ -50,12 +35,7 @@ command -v pkg-config >/dev/null || missing+=(pkgconf)
 command -v valgrind >/dev/null || missing+=(valgrind)
 command -v python3 >/dev/null || missing+=(python3)
 command -v readelf >/dev/null || missing+=(binutils)
-if [ "${#missing[@]}" -gt 0 ]; then
-    echo "installing: ${missing[*]}"
-    export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq
-    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+[ "${#missing[@]}" -eq 0 ] || apt_install "${missing[@]}"
 command -v cargo >/dev/null || die "cargo not found: install Rust first"
 if [ "$(cbindgen --version 2>/dev/null || true)" != "cbindgen $CBINDGEN_VERSION" ]; then
     echo "installing cbindgen $CBINDGEN_VERSION"

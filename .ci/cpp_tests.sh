@@ -17,25 +17,10 @@
 #   .ci/cpp_tests.sh        (KEEP=1 keeps the temporary directory; JOBS=N compiles N at a time)
 set -euo pipefail
 
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
-start=$SECONDS
-steps=0
-step() {
-    steps=$((steps + 1))
-    printf '\n== [%d] %s (%ds)\n' "$steps" "$*" "$((SECONDS - start))"
-}
-die() {
-    echo "cpp_tests.sh: error: $*" >&2
-    exit 1
-}
-
-work="$(mktemp -d /tmp/psr-cpp-tests.XXXXXX)"
-if [ "${KEEP:-0}" = 1 ]; then
-    echo "keeping $work"
-else
-    trap 'rm -rf "$work"' EXIT
-fi
+script=cpp_tests.sh
+work_prefix=psr-cpp-tests
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+make_work
 
 # --- 1. packages -------------------------------------------------------------------------------
 step "packages"
@@ -44,19 +29,7 @@ missing=()
 for pkg in libcgal-dev libeigen3-dev libpcl-dev libgtest-dev cmake g++ make; do
     installed "$pkg" || missing+=("$pkg")
 done
-if [ "${#missing[@]}" -gt 0 ]; then
-    echo "installing: ${missing[*]}"
-    export DEBIAN_FRONTEND=noninteractive
-    apt_install() { apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null; }
-    apt-get update -qq
-    # A first install of many packages once died in a libsystemd0 upgrade on these machines;
-    # --fix-broken and one retry got past it.
-    if ! apt_install; then
-        echo "apt-get install failed; trying apt-get --fix-broken install and once more"
-        apt-get --fix-broken install -y -qq >/dev/null
-        apt_install
-    fi
-fi
+[ "${#missing[@]}" -eq 0 ] || apt_install "${missing[@]}"
 command -v cargo >/dev/null || die "cargo not found: install Rust first"
 for pkg in libcgal-dev libpcl-dev libgtest-dev; do
     printf '%s %s\n' "$pkg" "$(dpkg-query -W -f='${Version}' "$pkg")"
