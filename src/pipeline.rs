@@ -10,7 +10,7 @@ use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
 use crate::system::{
     divergence, fill_mirrors, fill_mirrors_field, prolong_many, restrict_into, DepthOperator,
-    Proxies, Support,
+    Proxies,
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
@@ -270,7 +270,7 @@ pub(crate) fn run(
             fill_mirrors_field(level, &mut prolonged);
             let coarse_div = op.divergence_on_core(&prolonged);
             let mut applied = vec![0.0; level.core.len()];
-            op.apply(&y, Support::Halo, &mut applied);
+            op.apply(&y, &mut applied);
             let rhs: Vec<f64> = level
                 .core
                 .par_iter()

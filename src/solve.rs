@@ -9,7 +9,7 @@
 //! Reductions are computed in fixed chunks whose partial sums are added in order, so the result
 //! is the same bit for bit whatever the number of threads.
 
-use crate::system::{fill_mirrors, DepthOperator, Support, CHUNK};
+use crate::system::{DepthOperator, CHUNK};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -41,9 +41,7 @@ pub fn conjugate_gradients(
     tolerance: f64,
     keep_going: &mut dyn FnMut(f32) -> bool,
 ) -> (Vec<f64>, CgOutcome) {
-    let level = op.level;
     let n = b.len();
-    let core = &level.core;
     let mut x = vec![0.0; n];
     let b_norm = pool.install(|| dot(b, b)).sqrt();
     if b_norm == 0.0 || n == 0 {
@@ -62,7 +60,6 @@ pub fn conjugate_gradients(
     let mut z: Vec<f64> = r.iter().zip(&inv_diag).map(|(r, d)| r * d).collect();
     let mut p = z.clone();
     let mut rz = pool.install(|| dot(&r, &z));
-    let mut p_halo = vec![0.0; level.len()];
     let mut ap = vec![0.0; n];
     let mut iterations = 0;
     let mut residual = 1.0;
@@ -77,21 +74,7 @@ pub fn conjugate_gradients(
                 },
             );
         }
-        pool.install(|| {
-            for (&c, &v) in core.iter().zip(&p) {
-                p_halo[c as usize] = v;
-            }
-            // With Neumann boundaries the direction's mirror nodes outside the cube carry the
-            // values they reflect, as every vector the operator is applied to must (the folded
-            // basis); they lie beyond the core, so the operator cannot skip them.
-            let support = if level.mirrors.is_empty() {
-                Support::Core
-            } else {
-                fill_mirrors(level, &mut p_halo);
-                Support::Halo
-            };
-            op.apply(&p_halo, support, &mut ap);
-        });
+        pool.install(|| op.apply_core(&p, &mut ap));
         let pap = pool.install(|| dot(&p, &ap));
         if !(pap > 0.0) {
             break;

@@ -177,9 +177,9 @@ pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
     [t.x as i32, t.y as i32, t.z as i32]
 }
 
-/// Where the input of [`DepthOperator::apply`] can be non-zero.
+/// Where the input of [`DepthOperator::apply_on`] can be non-zero.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Support {
+enum Support {
     /// Anywhere on K_d (e.g. the prolonged coarser solution).
     Halo,
     /// Only on the core C_d (the conjugate-gradient directions): the z-pass then only has to run
@@ -409,6 +409,9 @@ pub struct DepthOperator<'a> {
     screening_cells: Option<ScreeningCells>,
     /// Σ_q W_q B_o(q) χ(q) on K_d.
     screened: Vec<f64>,
+    /// A core vector spread over K_d for [`apply_core`](Self::apply_core) (zero elsewhere but
+    /// at the mirror nodes).
+    core_input: Vec<f64>,
 }
 
 impl<'a> DepthOperator<'a> {
@@ -426,7 +429,35 @@ impl<'a> DepthOperator<'a> {
             y_pass: vec![[0.0; 2]; n],
             screening_cells,
             screened: if screens { vec![0.0; n] } else { Vec::new() },
+            core_input: Vec::new(),
         }
+    }
+
+    /// out[c] = (A · input)(core node c), for `input` given on all of K_d (with its mirror
+    /// nodes filled, see [`fill_mirrors`]), e.g. the prolonged coarser solution.
+    pub fn apply(&mut self, input: &[f64], out: &mut [f64]) {
+        self.apply_on(input, Support::Halo, out);
+    }
+
+    /// out = A·x for `x` given on the core only (one value per core node, in core order), e.g.
+    /// a conjugate-gradient direction. With Neumann boundaries the mirror nodes outside the cube
+    /// carry the values they reflect, as in every vector A acts on (the folded basis); they lie
+    /// beyond the core, so then the passes cannot be restricted to the core's neighbourhood.
+    pub fn apply_core(&mut self, x: &[f64], out: &mut [f64]) {
+        let level = self.level;
+        let mut spread = std::mem::take(&mut self.core_input);
+        spread.resize(level.len(), 0.0);
+        for (&c, &v) in level.core.iter().zip(x) {
+            spread[c as usize] = v;
+        }
+        let support = if level.mirrors.is_empty() {
+            Support::Core
+        } else {
+            fill_mirrors(level, &mut spread);
+            Support::Halo
+        };
+        self.apply_on(&spread, support, out);
+        self.core_input = spread;
     }
 
     /// out[c] = (A · input)(core node c), for `input` given on all of K_d and non-zero only
@@ -434,7 +465,7 @@ impl<'a> DepthOperator<'a> {
     ///
     /// The Laplacian h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D) is applied as three fused 1-D passes, z then
     /// y then x, each computed only where the next one reads it (see [`PassPlan`]).
-    pub fn apply(&mut self, input: &[f64], support: Support, out: &mut [f64]) {
+    fn apply_on(&mut self, input: &[f64], support: Support, out: &mut [f64]) {
         let level = self.level;
         let t = tables();
         let h = level.width();
@@ -896,7 +927,7 @@ mod tests {
         let mut out = vec![0.0; level.core.len()];
         // f = x² (unit coordinates) = h²(t² ): coefficients h²(t_i² − ¼). ⟨∇B_o, ∇f⟩ = −∫B_o Δf = −2h³.
         let x = coefficients(level, |t| h * h * (t[0] * t[0] - 0.25));
-        op.apply(&x, Support::Halo, &mut out);
+        op.apply(&x, &mut out);
         for v in &out {
             assert!(
                 (v + 2.0 * h * h * h).abs() < 1e-12,
@@ -910,7 +941,7 @@ mod tests {
                 * ((t[0] * t[0] - 0.25) + (t[1] * t[1] - 0.25) - 2.0 * (t[2] * t[2] - 0.25)
                     + 3.0 * t[0] * t[1])
         });
-        op.apply(&x, Support::Halo, &mut out);
+        op.apply(&x, &mut out);
         assert!(out.iter().all(|v| v.abs() < 1e-12));
     }
 
@@ -1027,7 +1058,7 @@ mod tests {
                 .collect();
             fill_mirrors(level, &mut x);
             let mut out = vec![0.0; level.core.len()];
-            op.apply(&x, Support::Halo, &mut out);
+            op.apply(&x, &mut out);
             let worst = out.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             if neumann {
                 assert!(worst < 1e-14, "{worst}");
