@@ -112,11 +112,15 @@ pub(crate) fn run(
 
     // 3. Octree: around the cells of each sample at its one or two depths.
     let neumann = params.boundary == Boundary::Neumann;
-    let mut sample_cells: Vec<Vec<[i32; 3]>> = vec![Vec::new(); max_depth as usize + 1];
-    for (s, &p) in samples.positions.iter().enumerate() {
+    let mut at_depth: Vec<Vec<DepthSample>> = vec![Vec::new(); max_depth as usize + 1];
+    for s in 0..samples.positions.len() {
+        let mass = sample_density.area[s] * samples.confidence[s];
         for (d, w) in depth_split(sample_density.depth[s]) {
             if w > 0.0 {
-                sample_cells[d as usize].push(crate::system::cell_of(p, (d as f64).exp2()));
+                at_depth[d as usize].push(DepthSample {
+                    sample: s as u32,
+                    mass: w * mass,
+                });
             }
         }
     }
@@ -125,28 +129,26 @@ pub(crate) fn run(
     // screening scale and the extraction stop at the finest depth that has samples.
     let finest = (0..=max_depth as usize)
         .rev()
-        .find(|&d| !sample_cells[d].is_empty())
+        .find(|&d| !at_depth[d].is_empty())
         .unwrap_or(0)
         .max(params.effective_full_depth() as usize);
-    sample_cells.truncate(finest + 1);
+    at_depth.truncate(finest + 1);
+    let sample_cells: Vec<Vec<[i32; 3]>> = at_depth
+        .iter()
+        .enumerate()
+        .map(|(d, at)| {
+            let inv_h = (d as f64).exp2();
+            at.iter()
+                .map(|s| crate::system::cell_of(samples.positions[s.sample as usize], inv_h))
+                .collect()
+        })
+        .collect();
     let tree = pool.install(|| Octree::build(sample_cells, params.effective_full_depth(), neumann));
     let max_depth = tree.max_depth();
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 
     // 4. Splat: V at each sample's one or two depths (§4.2, §4.5).
-    let mut at_depth: Vec<Vec<DepthSample>> = vec![Vec::new(); tree.levels.len()];
-    for s in 0..samples.positions.len() {
-        let mass = sample_density.area[s] * samples.confidence[s];
-        for (d, w) in depth_split(sample_density.depth[s]) {
-            if w > 0.0 && mass > 0.0 {
-                at_depth[d as usize].push(DepthSample {
-                    sample: s as u32,
-                    mass: w * mass,
-                });
-            }
-        }
-    }
     let mut field_v: Vec<[Vec<f64>; 3]> = pool.install(|| {
         tree.levels
             .iter()
