@@ -102,8 +102,6 @@ pub struct Proxies {
     /// b(t − centre) for the three nodes per axis around the proxy's cell (cell − 1, cell,
     /// cell + 1), evaluated at the proxy.
     pub stencil: Vec<[[f64; 3]; 3]>,
-    /// Per K_d node, the range of its proxies (`start..end`; empty when none).
-    pub of_cell: Vec<(u32, u32)>,
 }
 
 impl Proxies {
@@ -118,10 +116,7 @@ impl Proxies {
     ) -> Proxies {
         let inv_h = (level.depth as f64).exp2();
         let inv_proxy_h = (proxy_depth as f64).exp2();
-        let mut proxies = Proxies {
-            of_cell: vec![(0, 0); level.len()],
-            ..Default::default()
-        };
+        let mut proxies = Proxies::default();
         let mut s = 0;
         while s < order.len() {
             let group = cell_of(positions[order[s] as usize], inv_proxy_h);
@@ -146,14 +141,6 @@ impl Proxies {
             }
             let q = sum_p / sum_w;
             let (_, stencil) = crate::density::stencil27(q, inv_h);
-            let at = proxies.cell.len() as u32;
-            let range = &mut proxies.of_cell[idx as usize];
-            if range.0 == range.1 {
-                *range = (at, at + 1);
-            } else {
-                debug_assert_eq!(range.1, at, "proxies of one cell are consecutive");
-                range.1 = at + 1;
-            }
             proxies.cell.push(idx);
             proxies.weight.push(sum_w);
             proxies.stencil.push(stencil);
@@ -677,23 +664,30 @@ const SLAB: i32 = 4;
 impl ScreeningCells {
     fn new(level: &Level, proxies: &Proxies) -> ScreeningCells {
         let slab_of = |cell: u32| level.coord(cell)[2].div_euclid(SLAB);
-        let mut cells: Vec<u32> = proxies.cell.clone();
-        cells.dedup(); // proxies of one cell are consecutive
-        cells.par_sort_unstable_by_key(|&cell| (slab_of(cell), cell));
+        // Each cell with its run of proxies (the proxies of one cell are consecutive; were they
+        // not, a cell would just appear twice in its slab).
+        let mut cells: Vec<(u32, (u32, u32))> = Vec::new();
+        for (q, &cell) in proxies.cell.iter().enumerate() {
+            match cells.last_mut() {
+                Some((last, range)) if *last == cell => range.1 = q as u32 + 1,
+                _ => cells.push((cell, (q as u32, q as u32 + 1))),
+            }
+        }
+        cells.par_sort_unstable_by_key(|&(cell, _)| (slab_of(cell), cell));
         let mut slabs: [Vec<std::ops::Range<usize>>; 2] = [Vec::new(), Vec::new()];
         let mut start = 0;
         while start < cells.len() {
-            let slab = slab_of(cells[start]);
-            let end = start + cells[start..].partition_point(|&c| slab_of(c) == slab);
+            let slab = slab_of(cells[start].0);
+            let end = start + cells[start..].partition_point(|&(c, _)| slab_of(c) == slab);
             slabs[slab.rem_euclid(2) as usize].push(start..end);
             start = end;
         }
         ScreeningCells {
-            blocks: cells.par_iter().map(|&cell| level.block27(cell)).collect(),
-            proxies: cells
-                .iter()
-                .map(|&cell| proxies.of_cell[cell as usize])
+            blocks: cells
+                .par_iter()
+                .map(|&(cell, _)| level.block27(cell))
                 .collect(),
+            proxies: cells.iter().map(|&(_, range)| range).collect(),
             slabs,
         }
     }
@@ -919,10 +913,7 @@ mod tests {
         let tree = grid();
         let level = &tree.levels[4];
         let h = level.width();
-        let proxies = Proxies {
-            of_cell: vec![(0, 0); level.len()],
-            ..Default::default()
-        };
+        let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);
         let mut out = vec![0.0; level.core.len()];
         // f = x² (unit coordinates) = h²(t² ): coefficients h²(t_i² − ¼). ⟨∇B_o, ∇f⟩ = −∫B_o Δf = −2h³.
@@ -974,10 +965,7 @@ mod tests {
                 .collect()
         });
         let full = divergence(level, &v);
-        let proxies = Proxies {
-            of_cell: vec![(0, 0); level.len()],
-            ..Default::default()
-        };
+        let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);
         let on_core = op.divergence_on_core(&v);
         for (&c, got) in level.core.iter().zip(&on_core) {
@@ -1042,10 +1030,7 @@ mod tests {
         for neumann in [true, false] {
             let tree = Octree::build(vec![Vec::new(); 4], 3, neumann);
             let level = &tree.levels[3];
-            let proxies = Proxies {
-                of_cell: vec![(0, 0); level.len()],
-                ..Default::default()
-            };
+            let proxies = Proxies::default();
             let mut op = DepthOperator::new(level, &proxies, 0.0);
             let mut x: Vec<f64> = (0..level.len())
                 .map(|i| {
