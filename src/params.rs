@@ -27,8 +27,8 @@ pub enum Splatting {
     /// Weights b(t) of the node functions themselves, 3 nodes per axis: the vector field's
     /// kernel is then b∗b, smoother than the paper's. Measured at depth 8 on a 100k-point random
     /// sphere: mean vertex error 7.9e-5 vs 1.2e-4 trilinear (max 6e-4 vs 1.5e-3); on the bunny
-    /// scans reference→mesh mean 4.88e-5 m vs 5.18e-5 m. Costs about 1.6× the time (a wider
-    /// core band).
+    /// scans reference→mesh mean 4.88e-5 m vs 5.18e-5 m. Both kinds build the same octree
+    /// (every node whose function covers a sample's cell), so neither is cheaper.
     BSpline,
     /// The 2006 paper: trilinear weights over the 8 nearest nodes.
     Trilinear,
