@@ -110,6 +110,9 @@ pub type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
 pub const CORE: u8 = 1;
 /// Within one node of the core: the node functions of the core cover (part of) this cell.
 pub const NEAR: u8 = 2;
+/// A core node with at least one core child: in the leaf partition the isosurface is extracted
+/// on, its eight children replace it.
+pub const SPLIT: u8 = 4;
 
 /// The nodes of one depth.
 #[derive(Debug, Default)]
@@ -117,7 +120,7 @@ pub struct Level {
     pub depth: u32,
     /// Morton keys of K_d, sorted.
     pub keys: Vec<u64>,
-    /// `CORE` / `NEAR` bits per node.
+    /// `CORE` / `NEAR` / `SPLIT` bits per node.
     pub flags: Vec<u8>,
     /// Face neighbours per node: −x, +x, −y, +y, −z, +z (`NONE` when outside K_d).
     pub neighbors: Vec<[u32; 6]>,
@@ -293,6 +296,14 @@ impl Octree {
                 .collect();
         }
         levels[0].parent = vec![NONE; levels[0].len()];
+        for d in 1..levels.len() {
+            let (coarse, fine) = levels.split_at_mut(d);
+            let (coarse, fine) = (&mut coarse[d - 1], &fine[0]);
+            for &i in &fine.core {
+                // The core of depth d − 1 holds the parents of the core of depth d.
+                coarse.flags[fine.parent[i as usize] as usize] |= SPLIT;
+            }
+        }
         Octree { levels }
     }
 
@@ -645,6 +656,22 @@ mod tests {
         assert_eq!(finest.len(), 9 * 9 * 7);
         let i = finest.find([5, 2, 7]).unwrap();
         assert_eq!(finest.flags[i as usize], CORE | NEAR);
+        // Split: the parents of core nodes, and only they.
+        for d in 0..3 {
+            let level = &tree.levels[d];
+            let finer = &tree.levels[d + 1];
+            for (j, &flags) in level.flags.iter().enumerate() {
+                let has_core_child = (0..8).any(|k| {
+                    let c = level.coord(j as u32);
+                    let child = [0, 1, 2].map(|a| 2 * c[a] + (k >> a & 1));
+                    finer
+                        .find(child)
+                        .is_some_and(|n| finer.flags[n as usize] & CORE != 0)
+                });
+                assert_eq!(flags & SPLIT != 0, has_core_child, "depth {d} node {j}");
+            }
+        }
+        assert_eq!(finest.flags.iter().filter(|&&f| f & SPLIT != 0).count(), 0);
         let corner = finest.find([3, 0, 5]).unwrap();
         assert_eq!(finest.flags[corner as usize], CORE | NEAR);
         assert_eq!(

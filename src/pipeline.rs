@@ -351,7 +351,7 @@ pub(crate) fn run(
     clock.stats.isovalue = isovalue;
     clock.done(Stage::Isovalue)?;
 
-    // 8. Extract, following the surface from the finest cells that hold samples.
+    // 8. Extract on the tree's leaves, following the surface from the leaves that hold samples.
     let inv_h = (max_depth as f64).exp2();
     let seeds: Vec<[i64; 3]> = samples
         .positions
@@ -361,7 +361,7 @@ pub(crate) fn run(
             [c[0] as i64, c[1] as i64, c[2] as i64]
         })
         .collect();
-    let raw = pool.install(|| extract::extract(&chi, isovalue, max_depth, seeds));
+    let raw = pool.install(|| extract::extract(&chi, isovalue, seeds));
     clock.done(Stage::Extract)?;
 
     // 9. Mesh: back to input coordinates, with the sampling density at each vertex.
