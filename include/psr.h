@@ -497,7 +497,7 @@ psr_status psr_reconstructor_set_max_solver_iterations(psr_reconstructor *r, uin
 psr_status psr_reconstructor_get_max_solver_iterations(const psr_reconstructor *r, uint32_t *out);
 
 /**
- * Sets the relative residual |b - Ax| / |b| at which a depth's solve stops. Default 1e-3,
+ * Sets the relative residual |b - Ax| / |b| at which a depth's solve stops. Default 1e-2,
  * range 1e-12 (inclusive) to 1 (exclusive). PoissonRecon --cgAccuracy (coarsest level only).
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.

@@ -836,7 +836,7 @@ pub unsafe extern "C" fn psr_reconstructor_get_max_solver_iterations(
     })
 }
 
-/// Sets the relative residual |b - Ax| / |b| at which a depth's solve stops. Default 1e-3,
+/// Sets the relative residual |b - Ax| / |b| at which a depth's solve stops. Default 1e-2,
 /// range 1e-12 (inclusive) to 1 (exclusive). PoissonRecon --cgAccuracy (coarsest level only).
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.

@@ -3,7 +3,7 @@
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
-//!     [--tolerance 1e-3] [--boundary neumann|free] [--splatting bspline|trilinear] [--confidence] [--no-density] [--quiet] [--verbose]
+//!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear] [--confidence] [--no-density] [--quiet] [--verbose]
 //! ```
 //!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
