@@ -616,10 +616,34 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
             .map(|c| edge_vertex(chi, isovalue, h, c))
             .collect();
         mesh.vertices.extend(placed);
-        for lp in crossed.iter().flatten() {
-            let ids: Vec<u32> = lp.iter().map(|c| vertex_of_edge[&c.key]).collect();
-            let on_faces: Vec<u8> = lp.iter().map(|c| c.faces).collect();
-            triangulate(&ids, &on_faces, &mut mesh);
+        // Triangulate each leaf's loops (in parallel), then append in wave order, numbering the
+        // centre vertices some loops add after this wave's edge vertices.
+        let vertices = &mesh.vertices;
+        let vertex_of_edge = &vertex_of_edge;
+        let fans: Vec<(Vec<[u32; 3]>, Vec<DVec3>)> = crossed
+            .par_iter()
+            .map(|loops| {
+                let (mut triangles, mut centres) = (Vec::new(), Vec::new());
+                for lp in loops {
+                    let ids: Vec<u32> = lp.iter().map(|c| vertex_of_edge[&c.key]).collect();
+                    let on_faces: Vec<u8> = lp.iter().map(|c| c.faces).collect();
+                    triangulate(&ids, &on_faces, vertices, &mut triangles, &mut centres);
+                }
+                (triangles, centres)
+            })
+            .collect();
+        for (triangles, centres) in fans {
+            let base = mesh.vertices.len() as u32;
+            mesh.vertices.extend(centres);
+            mesh.triangles.extend(triangles.into_iter().map(|t| {
+                t.map(|i| {
+                    if i & ADDED_CENTRE != 0 {
+                        base + (i & !ADDED_CENTRE)
+                    } else {
+                        i
+                    }
+                })
+            }));
         }
         frontier = next_frontier;
     }
@@ -720,11 +744,23 @@ fn quadratic_root(v0: f64, vm: f64, v1: f64) -> f64 {
         .unwrap_or(linear)
 }
 
+/// Marks, in a leaf's triangles before they join the mesh, the k-th centre vertex that leaf
+/// adds (as `ADDED_CENTRE | k`); real vertex ids stay below it (a mesh of 2^31 vertices would
+/// need far more memory than any machine psr runs on).
+const ADDED_CENTRE: u32 = 1 << 31;
+
 /// Triangulates one loop (vertex ids `ids`, each with the bit mask of the leaf's faces it lies
 /// on) as a fan from a vertex none of whose diagonals joins two vertices on a common face of the
 /// leaf, choosing among those the fan whose smallest triangle is largest; with no such vertex,
-/// as a fan around an added centre vertex.
-fn triangulate(ids: &[u32], on_faces: &[u8], mesh: &mut RawMesh) {
+/// as a fan around an added centre vertex, which is pushed to `centres` and referred to as
+/// `ADDED_CENTRE | index in centres`.
+fn triangulate(
+    ids: &[u32],
+    on_faces: &[u8],
+    vertices: &[DVec3],
+    triangles: &mut Vec<[u32; 3]>,
+    centres: &mut Vec<DVec3>,
+) {
     let m = ids.len();
     if m < 3 {
         // Two crossings joined on two faces of the leaf (around the midpoint of a cut edge that
@@ -732,10 +768,10 @@ fn triangulate(ids: &[u32], on_faces: &[u8], mesh: &mut RawMesh) {
         return;
     }
     if m == 3 {
-        mesh.triangles.push([ids[0], ids[1], ids[2]]);
+        triangles.push([ids[0], ids[1], ids[2]]);
         return;
     }
-    let pos = |k: usize| mesh.vertices[ids[k % m] as usize];
+    let pos = |k: usize| vertices[ids[k % m] as usize];
     let mut best: Option<(f64, usize)> = None;
     for apex in 0..m {
         let safe = (2..m - 1).all(|j| on_faces[apex] & on_faces[(apex + j) % m] == 0);
@@ -756,20 +792,15 @@ fn triangulate(ids: &[u32], on_faces: &[u8], mesh: &mut RawMesh) {
     match best {
         Some((_, apex)) => {
             for j in 1..m - 1 {
-                mesh.triangles
-                    .push([ids[apex], ids[(apex + j) % m], ids[(apex + j + 1) % m]]);
+                triangles.push([ids[apex], ids[(apex + j) % m], ids[(apex + j + 1) % m]]);
             }
         }
         None => {
-            let centre = ids
-                .iter()
-                .map(|&i| mesh.vertices[i as usize])
-                .sum::<DVec3>()
-                / m as f64;
-            mesh.vertices.push(centre);
-            let c = (mesh.vertices.len() - 1) as u32;
+            let centre = ids.iter().map(|&i| vertices[i as usize]).sum::<DVec3>() / m as f64;
+            let c = ADDED_CENTRE | centres.len() as u32;
+            centres.push(centre);
             for k in 0..m {
-                mesh.triangles.push([c, ids[k], ids[(k + 1) % m]]);
+                triangles.push([c, ids[k], ids[(k + 1) % m]]);
             }
         }
     }
