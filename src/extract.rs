@@ -34,7 +34,8 @@
 //! face of the leaf (a neighbour could produce the same diagonal); when no such fan exists a
 //! centre vertex is added. Every mesh edge is then in exactly two triangles and every vertex has
 //! a single fan: a 2-manifold. The surface is followed from the leaves that hold samples, leaf
-//! to leaf through the leaves around every crossed edge, evaluating χ at each point once.
+//! to leaf through the leaves around every crossed edge, evaluating χ at each corner and edge
+//! midpoint once (and at the centre of the rare ambiguous face with cut edges).
 //!
 //! Corners are classed "outside" when χ ≥ γ. Triangles are oriented so that their normals point
 //! towards larger χ, which is outside (V points along the outward normals). Beyond the cube
@@ -103,6 +104,12 @@ const KEY_OFFSET: i64 = 1 << 19;
 fn pack(p: Point) -> u64 {
     let [x, y, z] = p.map(|v| (v + KEY_OFFSET) as u64);
     x | y << 20 | z << 40
+}
+
+/// Inverse of [`pack`].
+#[inline]
+fn unpack(k: u64) -> Point {
+    [k & 0xF_FFFF, (k >> 20) & 0xF_FFFF, (k >> 40) & 0xF_FFFF].map(|v| v as i64 - KEY_OFFSET)
 }
 
 /// The key of the minimal edge between finest-grid points `a` and `b`: its doubled midpoint and
@@ -648,10 +655,6 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
         frontier = next_frontier;
     }
     mesh
-}
-
-fn unpack(k: u64) -> Point {
-    [k & 0xF_FFFF, (k >> 20) & 0xF_FFFF, (k >> 40) & 0xF_FFFF].map(|v| v as i64 - KEY_OFFSET)
 }
 
 /// The leaves around a crossed minimal edge on the boundary of `leaf` (whose neighbourhood is
