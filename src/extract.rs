@@ -334,15 +334,18 @@ struct MinimalFace {
     face: u8,
 }
 
-/// The minimal faces of a leaf (at most 24: four quarters on each face), and their number.
-fn minimal_faces(block: &Block, cycles: &[[usize; 4]; 6]) -> ([MinimalFace; 24], usize) {
+/// The minimal faces of a leaf (at most 24: four quarters on each face), and their number,
+/// from the slots its points use (see [`leaf_points`]): a cut edge has its midpoint, a face
+/// towards finer leaves its centre.
+fn minimal_faces(used: u32, cycles: &[[usize; 4]; 6]) -> ([MinimalFace; 24], usize) {
+    let in_use = |slot: u8| used >> slot & 1 == 1;
     let mut out = [MinimalFace::default(); 24];
     let mut count = 0;
     for (face, cycle) in cycles.iter().enumerate() {
         let p = cycle.map(|k| k as u8);
         let m: [u8; 4] =
             std::array::from_fn(|k| edge_slot(edge_between(cycle[k], cycle[(k + 1) % 4])));
-        if face_is_split(block, face) {
+        if in_use(centre_slot(face)) {
             // Four quarter faces, each in the same rotational order; their edges are not cut
             // further (the finer leaves across touch this leaf, so nothing finer touches them).
             let centre = centre_slot(face);
@@ -369,8 +372,7 @@ fn minimal_faces(block: &Block, cycles: &[[usize; 4]; 6]) -> ([MinimalFace; 24],
             for k in 0..4 {
                 f.slots[f.len as usize] = p[k];
                 f.len += 1;
-                let e = edge_between(cycle[k], cycle[(k + 1) % 4]);
-                if edge_is_cut(block, edge_corners(e).0, e / 4) {
+                if in_use(m[k]) {
                     f.slots[f.len as usize] = m[k];
                     f.len += 1;
                 }
@@ -552,14 +554,19 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
     frontier.retain(|leaf| visited.insert(leaves.key(leaf), ()).is_none());
 
     while !frontier.is_empty() {
-        // Where each leaf of the wave stands among its neighbours.
-        let blocks: Vec<Block> = frontier.par_iter().map(|leaf| leaves.block(leaf)).collect();
-        // Evaluate the points this wave needs, in parallel (a pure function of the position).
-        let mut needed: Vec<u64> = frontier
+        // Where each leaf of the wave stands among its neighbours, and its points.
+        let plans: Vec<(Block, [Point; SLOTS], u32)> = frontier
             .par_iter()
-            .zip(&blocks)
-            .flat_map_iter(|(leaf, block)| {
-                let (points, used) = leaf_points(leaf, block, finest);
+            .map(|leaf| {
+                let block = leaves.block(leaf);
+                let (points, used) = leaf_points(leaf, &block, finest);
+                (block, points, used)
+            })
+            .collect();
+        // Evaluate the points this wave needs, in parallel (a pure function of the position).
+        let mut needed: Vec<u64> = plans
+            .par_iter()
+            .flat_map_iter(|(_, points, used)| {
                 (0..SLOTS)
                     .filter(move |&i| used >> i & 1 == 1)
                     .map(move |i| pack(points[i]))
@@ -573,11 +580,9 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
 
         // The surface's loops in each leaf of the wave (independent: in parallel). Face
         // centres, needed only by rare ambiguous faces, are evaluated where they are needed.
-        let crossed: Vec<Vec<Vec<Crossing>>> = frontier
+        let crossed: Vec<Vec<Vec<Crossing>>> = plans
             .par_iter()
-            .zip(&blocks)
-            .map(|(leaf, block)| {
-                let (points, used) = leaf_points(leaf, block, finest);
+            .map(|&(_, points, used)| {
                 let mut vals = [0.0; SLOTS];
                 let (mut outside, mut inside) = (false, false);
                 for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
@@ -588,7 +593,7 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
                 if !(outside && inside) {
                     return Vec::new();
                 }
-                let (faces, count) = minimal_faces(block, &cycles);
+                let (faces, count) = minimal_faces(used, &cycles);
                 leaf_loops(&faces[..count], &points, &vals, &evaluate)
             })
             .collect();
@@ -597,7 +602,7 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
         // around each of those edges.
         let mut next_frontier = Vec::new();
         let mut new_edges: Vec<Crossing> = Vec::new();
-        for ((leaf, block), loops) in frontier.iter().zip(&blocks).zip(&crossed) {
+        for ((leaf, (block, _, _)), loops) in frontier.iter().zip(&plans).zip(&crossed) {
             for c in loops.iter().flatten() {
                 let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
                 let mut created = false;
@@ -616,7 +621,7 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
                 }
             }
         }
-        drop(blocks);
+        drop(plans);
         // Place the new vertices (independent of each other: in parallel), then triangulate.
         let placed: Vec<DVec3> = new_edges
             .par_iter()
@@ -864,12 +869,12 @@ mod tests {
     /// every loop has at least two crossings, and that each crossing lies on one or two faces
     /// of the leaf.
     fn assert_loops_cover_crossed_edges(
-        block: &Block,
+        used: u32,
         points: &[Point; SLOTS],
         vals: &[f64; SLOTS],
         centre_value: &impl Fn(Point) -> f64,
     ) -> Vec<Vec<Crossing>> {
-        let (faces, count) = minimal_faces(block, &face_cycles());
+        let (faces, count) = minimal_faces(used, &face_cycles());
         let faces = &faces[..count];
         let loops = leaf_loops(faces, points, vals, centre_value);
         let mut expected: Vec<u64> = Vec::new();
@@ -900,20 +905,20 @@ mod tests {
         loops
     }
 
-    fn unit_leaf() -> (Block, [Point; SLOTS]) {
+    /// The unit cube as a leaf among same-size leaves: its eight corners only.
+    fn unit_leaf() -> (u32, [Point; SLOTS]) {
         let leaf = Leaf {
             depth: 0,
             cell: [0, 0, 0],
         };
-        let block = [Status::Leaf; 27];
-        let (points, used) = leaf_points(&leaf, &block, 0);
+        let (points, used) = leaf_points(&leaf, &[Status::Leaf; 27], 0);
         assert_eq!(used, 0xFF);
-        (block, points)
+        (used, points)
     }
 
     #[test]
     fn every_sign_pattern_gives_closed_loops_over_its_crossed_edges() {
-        let (block, points) = unit_leaf();
+        let (used, points) = unit_leaf();
         for case in 0..256usize {
             for saddle_bias in [0.3, 3.0] {
                 let mut vals = [0.0; SLOTS];
@@ -922,7 +927,7 @@ mod tests {
                     *v = if (case >> c) & 1 == 1 { mag } else { -mag };
                 }
                 let no_centres = |_: Point| -> f64 { unreachable!("plain faces") };
-                assert_loops_cover_crossed_edges(&block, &points, &vals, &no_centres);
+                assert_loops_cover_crossed_edges(used, &points, &vals, &no_centres);
             }
         }
     }
@@ -954,17 +959,17 @@ mod tests {
             for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
                 vals[i] = random(points[i]);
             }
-            assert_loops_cover_crossed_edges(&block, &points, &vals, &random);
+            assert_loops_cover_crossed_edges(used, &points, &vals, &random);
         }
         assert!(split_faces > 1000, "the cases cover split faces");
     }
 
     #[test]
     fn single_outside_corner_is_cut_off_facing_outwards() {
-        let (block, points) = unit_leaf();
+        let (used, points) = unit_leaf();
         let mut vals = [-1.0; SLOTS];
         vals[0] = 1.0;
-        let loops = assert_loops_cover_crossed_edges(&block, &points, &vals, &|_| -1.0);
+        let loops = assert_loops_cover_crossed_edges(used, &points, &vals, &|_| -1.0);
         assert_eq!(loops.len(), 1);
         let lp = &loops[0];
         let point = |c: &Crossing| {
