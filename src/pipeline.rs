@@ -9,8 +9,8 @@ use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
 use crate::system::{
-    divergence, fill_mirrors, fill_mirrors_field, prolong_many, restrict_into, DepthOperator,
-    Proxies,
+    divergence, fill_mirrors, fill_mirrors_field, prolong, prolong_many, restrict_into,
+    DepthOperator, ProlongedField, Proxies,
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
@@ -248,14 +248,25 @@ pub(crate) fn run(
         let rho_here = std::mem::take(&mut rho[d]);
         let (y, rhs) = pool.install(|| {
             // The coarser solution and V from coarser depths, represented at this depth (F̃
-            // halves in width: ×1/8), prolonged together.
-            let (mut y, mut prolonged) = if d == 0 {
-                (
-                    vec![0.0; level.len()],
-                    std::array::from_fn(|_| vec![0.0; level.len()]),
-                )
+            // halves in width: ×1/8). Above the finest depth both are prolonged together and V
+            // is kept for the next depth; at the finest depth V's prolongation is only read by
+            // the divergence, which computes it node by node instead of storing it.
+            let (y, coarse_div) = if d == 0 {
+                (vec![0.0; level.len()], vec![0.0; level.core.len()])
+            } else if is_finest {
+                let coarse = &tree.levels[d - 1];
+                let mut y = prolong(coarse, level, &coefficients[d - 1], 1.0);
+                fill_mirrors(level, &mut y);
+                let prolonged = ProlongedField {
+                    coarse,
+                    fine: level,
+                    field: [&coarse_field[0], &coarse_field[1], &coarse_field[2]],
+                    scale: 0.125,
+                };
+                let coarse_div = op.divergence_on_core(|n| prolonged.at(n as u32));
+                (y, coarse_div)
             } else {
-                let [y, px, py, pz] = prolong_many(
+                let [mut y, px, py, pz] = prolong_many(
                     &tree.levels[d - 1],
                     level,
                     [
@@ -266,11 +277,17 @@ pub(crate) fn run(
                     ],
                     [1.0, 0.125, 0.125, 0.125],
                 );
-                (y, [px, py, pz])
+                fill_mirrors(level, &mut y);
+                let mut prolonged = [px, py, pz];
+                fill_mirrors_field(level, &mut prolonged);
+                let coarse_div =
+                    op.divergence_on_core(|n| [prolonged[0][n], prolonged[1][n], prolonged[2][n]]);
+                // V of this depth and all coarser ones, for the next depth.
+                for (f, p) in field.iter_mut().zip(&prolonged) {
+                    f.par_iter_mut().zip(p).for_each(|(f, p)| *f = p + *f);
+                }
+                (y, coarse_div)
             };
-            fill_mirrors(level, &mut y);
-            fill_mirrors_field(level, &mut prolonged);
-            let coarse_div = op.divergence_on_core(&prolonged);
             let mut applied = vec![0.0; level.core.len()];
             op.apply(&y, &mut applied);
             let rhs: Vec<f64> = level
@@ -279,13 +296,6 @@ pub(crate) fn run(
                 .zip(coarse_div.par_iter().zip(&applied))
                 .map(|(&c, (div, a))| rho_here[c as usize] + div - a)
                 .collect();
-            // V of this depth and all coarser ones, for the next depth (none after the last;
-            // the last depth's own V was dropped after the system stage).
-            if !is_finest {
-                for (f, p) in field.iter_mut().zip(&prolonged) {
-                    f.par_iter_mut().zip(p).for_each(|(f, p)| *f = p + *f);
-                }
-            }
             (y, rhs)
         });
         drop(rho_here);

@@ -9,7 +9,8 @@
 //! Reductions are computed in fixed chunks whose partial sums are added in order, so the result
 //! is the same bit for bit whatever the number of threads.
 
-use crate::system::{DepthOperator, CHUNK};
+use crate::octree::Level;
+use crate::system::{update_on_core, DepthOperator, CHUNK};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -27,6 +28,33 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
         .par_chunks(CHUNK)
         .zip(b.par_chunks(CHUNK))
         .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
+/// Σ r_i·(r_i·w_i), chunked like [`dot`]: rᵀz for the preconditioned residual z = w∘r.
+fn weighted_dot(r: &[f64], w: &[f64]) -> f64 {
+    let partial: Vec<f64> = r
+        .par_chunks(CHUNK)
+        .zip(w.par_chunks(CHUNK))
+        .map(|(r, w)| r.iter().zip(w).map(|(r, w)| r * (r * w)).sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
+/// Σ_i p[core node i]·a_i for `p` on K_d and `a` on the core, chunked like [`dot`].
+fn dot_on_core(level: &Level, p: &[f64], a: &[f64]) -> f64 {
+    let partial: Vec<f64> = level
+        .core
+        .par_chunks(CHUNK)
+        .zip(a.par_chunks(CHUNK))
+        .map(|(nodes, a)| {
+            nodes
+                .iter()
+                .zip(a)
+                .map(|(&n, a)| p[n as usize] * a)
+                .sum::<f64>()
+        })
         .collect();
     partial.iter().sum()
 }
@@ -56,10 +84,16 @@ pub fn conjugate_gradients(
     }
     let inv_diag: Vec<f64> =
         pool.install(|| op.diagonal().into_par_iter().map(|d| 1.0 / d).collect());
+    let level = op.level;
     let mut r = b.to_vec();
-    let mut z: Vec<f64> = r.iter().zip(&inv_diag).map(|(r, d)| r * d).collect();
-    let mut p = z.clone();
-    let mut rz = pool.install(|| dot(&r, &z));
+    // The search direction lives on K_d (zero beyond the core and its mirrors), the layout the
+    // operator reads, so it is never copied there; the preconditioned residual z = r/diag is
+    // not stored but recomputed where it is used.
+    let mut p = vec![0.0; level.len()];
+    let mut rz = pool.install(|| {
+        update_on_core(level, &mut p, |i, _| r[i] * inv_diag[i]);
+        weighted_dot(&r, &inv_diag)
+    });
     let mut ap = vec![0.0; n];
     let mut iterations = 0;
     let mut residual = 1.0;
@@ -75,15 +109,19 @@ pub fn conjugate_gradients(
             );
         }
         pool.install(|| op.apply_core(&p, &mut ap));
-        let pap = pool.install(|| dot(&p, &ap));
+        let pap = pool.install(|| dot_on_core(level, &p, &ap));
         if !(pap > 0.0) {
             break;
         }
         let alpha = rz / pap;
         let rr = pool.install(|| {
             x.par_chunks_mut(CHUNK)
-                .zip(p.par_chunks(CHUNK))
-                .for_each(|(x, p)| x.iter_mut().zip(p).for_each(|(x, p)| *x += alpha * p));
+                .zip(level.core.par_chunks(CHUNK))
+                .for_each(|(x, nodes)| {
+                    x.iter_mut()
+                        .zip(nodes)
+                        .for_each(|(x, &n)| *x += alpha * p[n as usize])
+                });
             r.par_chunks_mut(CHUNK)
                 .zip(ap.par_chunks(CHUNK))
                 .for_each(|(r, a)| r.iter_mut().zip(a).for_each(|(r, a)| *r -= alpha * a));
@@ -94,23 +132,10 @@ pub fn conjugate_gradients(
         if residual <= tolerance {
             break;
         }
-        let rz_new = pool.install(|| {
-            z.par_chunks_mut(CHUNK)
-                .zip(r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)))
-                .for_each(|(z, (r, d))| {
-                    z.iter_mut()
-                        .zip(r.iter().zip(d))
-                        .for_each(|(z, (r, d))| *z = r * d)
-                });
-            dot(&r, &z)
-        });
+        let rz_new = pool.install(|| weighted_dot(&r, &inv_diag));
         let beta = rz_new / rz;
         rz = rz_new;
-        pool.install(|| {
-            p.par_chunks_mut(CHUNK)
-                .zip(z.par_chunks(CHUNK))
-                .for_each(|(p, z)| p.iter_mut().zip(z).for_each(|(p, z)| *p = z + beta * *p));
-        });
+        pool.install(|| update_on_core(level, &mut p, |i, p| r[i] * inv_diag[i] + beta * p));
     }
     (
         x,

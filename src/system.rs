@@ -87,6 +87,24 @@ pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
     }
 }
 
+/// Sets x[core node i] = f(i, x[core node i]) for every core position i (in parallel, in fixed
+/// chunks), then refills the mirror nodes: how a vector that lives on the core is kept on K_d.
+pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f64 + Sync) {
+    let shared = SharedSlice::new(x);
+    level
+        .core
+        .par_chunks(CHUNK)
+        .enumerate()
+        .for_each(|(c, nodes)| {
+            for (j, &n) in nodes.iter().enumerate() {
+                // SAFETY: core indices are distinct, so each element has one writer.
+                let v = unsafe { shared.get_mut(n as usize) };
+                *v = f(c * CHUNK + j, *v);
+            }
+        });
+    fill_mirrors(level, x);
+}
+
 /// The screening samples of one depth: the samples grouped by node cell at a finer "proxy
 /// depth" (weighted mean position, summed weight), kept when their cell at this depth lies
 /// within one node of the core (farther ones touch no core node function). Grouping at a finer
@@ -396,9 +414,6 @@ pub struct DepthOperator<'a> {
     screening_cells: Option<ScreeningCells>,
     /// Σ_q W_q B_o(q) χ(q) on K_d.
     screened: Vec<f64>,
-    /// A core vector spread over K_d for [`apply_core`](Self::apply_core) (zero elsewhere but
-    /// at the mirror nodes).
-    core_input: Vec<f64>,
 }
 
 impl<'a> DepthOperator<'a> {
@@ -416,7 +431,6 @@ impl<'a> DepthOperator<'a> {
             y_pass: vec![[0.0; 2]; n],
             screening_cells,
             screened: if screens { vec![0.0; n] } else { Vec::new() },
-            core_input: Vec::new(),
         }
     }
 
@@ -426,25 +440,18 @@ impl<'a> DepthOperator<'a> {
         self.apply_on(input, Support::Halo, out);
     }
 
-    /// out = A·x for `x` given on the core only (one value per core node, in core order), e.g.
-    /// a conjugate-gradient direction. With Neumann boundaries the mirror nodes outside the cube
-    /// carry the values they reflect, as in every vector A acts on (the folded basis); they lie
-    /// beyond the core, so then the passes cannot be restricted to the core's neighbourhood.
+    /// out = A·x for `x` on K_d that is non-zero only on the core (e.g. a conjugate-gradient
+    /// direction, see [`update_on_core`]) and, with Neumann boundaries, on the mirror nodes
+    /// outside the cube, which carry the values they reflect as in every vector A acts on (the
+    /// folded basis). Without mirrors the passes are restricted to the core's neighbourhood;
+    /// the mirrors lie beyond it, so with them they are not.
     pub fn apply_core(&mut self, x: &[f64], out: &mut [f64]) {
-        let level = self.level;
-        let mut spread = std::mem::take(&mut self.core_input);
-        spread.resize(level.len(), 0.0);
-        for (&c, &v) in level.core.iter().zip(x) {
-            spread[c as usize] = v;
-        }
-        let support = if level.mirrors.is_empty() {
+        let support = if self.level.mirrors.is_empty() {
             Support::Core
         } else {
-            fill_mirrors(level, &mut spread);
             Support::Halo
         };
-        self.apply_on(&spread, support, out);
-        self.core_input = spread;
+        self.apply_on(x, support, out);
     }
 
     /// out[c] = (A · input)(core node c), for `input` given on all of K_d and non-zero only
@@ -523,10 +530,11 @@ impl<'a> DepthOperator<'a> {
         }
     }
 
-    /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V with coefficients `v` on
-    /// K_d: [`divergence`] restricted to the core, computed with the fused passes as
-    /// (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)).
-    pub fn divergence_on_core(&mut self, v: &[Vec<f64>; 3]) -> Vec<f64> {
+    /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V whose coefficients on K_d
+    /// (x, y, z at node n) `v(n)` gives: [`divergence`] restricted to the core, computed with
+    /// the fused passes as (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)). `v` is
+    /// called twice per node the passes visit.
+    pub fn divergence_on_core(&mut self, v: impl Fn(usize) -> [f64; 3] + Sync) -> Vec<f64> {
         let level = self.level;
         let t = tables();
         let inv_h = 1.0 / level.width();
@@ -535,7 +543,10 @@ impl<'a> DepthOperator<'a> {
         plan.z.run(
             false,
             &mut self.z_pass,
-            |n| [v[1][n], v[2][n]],
+            |n| {
+                let v = v(n);
+                [v[1], v[2]]
+            },
             |w, o| {
                 let (a, b) = (w.map(|v| v[0]), w.map(|v| v[1]));
                 *o = [window_sum(&t.mass, &a), window_sum(&t.advection, &b)];
@@ -555,7 +566,7 @@ impl<'a> DepthOperator<'a> {
         plan.z.run(
             false,
             &mut self.z_pass,
-            |n| v[0][n],
+            |n| v(n)[0],
             |w, o| o[0] = window_sum(&t.mass, &w),
         );
         let z_pass = &self.z_pass;
@@ -860,18 +871,69 @@ pub fn prolong_many<const N: usize>(
         .enumerate()
         .for_each(|(c, mut outs)| {
             for j in 0..outs[0].len() {
-                let parents = refinement_parents(coarse, fine, (c * CHUNK + j) as u32);
-                for ((o, x), scale) in outs.iter_mut().zip(inputs).zip(scales) {
-                    o[j] = parents
-                        .iter()
-                        .filter(|(n, _)| *n != NONE)
-                        .map(|&(n, w)| w * x[n as usize])
-                        .sum::<f64>()
-                        * scale;
+                let values = prolonged_at(coarse, fine, inputs, scales, (c * CHUNK + j) as u32);
+                for (o, v) in outs.iter_mut().zip(values) {
+                    o[j] = v;
                 }
             }
         });
     out
+}
+
+/// The prolongation of `inputs` (each times its scale) at fine node `i`.
+#[inline]
+fn prolonged_at<const N: usize>(
+    coarse: &Level,
+    fine: &Level,
+    inputs: [&[f64]; N],
+    scales: [f64; N],
+    i: u32,
+) -> [f64; N] {
+    let parents = refinement_parents(coarse, fine, i);
+    std::array::from_fn(|k| {
+        parents
+            .iter()
+            .filter(|(n, _)| *n != NONE)
+            .map(|&(n, w)| w * inputs[k][n as usize])
+            .sum::<f64>()
+            * scales[k]
+    })
+}
+
+/// A coarser vector field prolonged to a finer halo, evaluated node by node instead of stored:
+/// the value at a fine node is what [`prolong_many`] followed by [`fill_mirrors_field`] would
+/// hold there. Reading it once per node (as a pass does) costs one prolongation sweep and saves
+/// three halo-sized vectors, at the finest depth the largest ones of the solve.
+pub struct ProlongedField<'a> {
+    pub coarse: &'a Level,
+    pub fine: &'a Level,
+    pub field: [&'a [f64]; 3],
+    pub scale: f64,
+}
+
+impl ProlongedField<'_> {
+    /// The three components at fine node `i`.
+    #[inline]
+    pub fn at(&self, i: u32) -> [f64; 3] {
+        let scales = [self.scale; 3];
+        if !self.fine.mirrors.is_empty() {
+            // Neumann: a node outside the cube mirrors its reflection inside, if in K_d.
+            let n = 1i32 << self.fine.depth;
+            if let Some((inside, flips)) = crate::octree::reflect(self.fine.coord(i), n) {
+                if let Some(j) = self.fine.find(inside) {
+                    let v = prolonged_at(self.coarse, self.fine, self.field, scales, j);
+                    return std::array::from_fn(|axis| {
+                        if flips & (1 << axis) != 0 {
+                            -v[axis]
+                        } else {
+                            v[axis]
+                        }
+                    });
+                }
+            }
+        }
+        prolonged_at(self.coarse, self.fine, self.field, scales, i)
+    }
 }
 
 /// The transpose of [`prolong`]: adds Σ_children w · fine[child] to every coarse node.
@@ -967,7 +1029,7 @@ mod tests {
         let full = divergence(level, &v);
         let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);
-        let on_core = op.divergence_on_core(&v);
+        let on_core = op.divergence_on_core(|n| [v[0][n], v[1][n], v[2][n]]);
         for (&c, got) in level.core.iter().zip(&on_core) {
             let want = full[c as usize];
             assert!(
