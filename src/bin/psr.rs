@@ -216,10 +216,19 @@ fn run(args: &Args) -> Result<(), Failure> {
 
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
     let mut progress = ProgressLine::default();
+    let mut peaks: Vec<(Stage, u64)> = Vec::new();
     let start = Instant::now();
     let result = psr::reconstruct_with_progress(&points, &params, &mut |stage, fraction| {
         if show_progress {
             progress.update(stage, fraction);
+        }
+        if args.verbose && fraction >= 1.0 {
+            if let Some(kib) = peak_resident_kib() {
+                match peaks.iter_mut().find(|(s, _)| *s == stage) {
+                    Some(entry) => entry.1 = kib,
+                    None => peaks.push((stage, kib)),
+                }
+            }
         }
         true
     });
@@ -236,6 +245,13 @@ fn run(args: &Args) -> Result<(), Failure> {
 
     if args.verbose {
         print_details(&mesh);
+        if !peaks.is_empty() {
+            let list: Vec<String> = peaks
+                .iter()
+                .map(|(stage, kib)| format!("{} {}", stage.name(), kib / 1024))
+                .collect();
+            eprintln!("psr: peak resident MiB at the end of each stage: {}", list.join(" "));
+        }
     }
     if !args.quiet {
         eprintln!(
@@ -244,6 +260,13 @@ fn run(args: &Args) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// The process's peak resident set so far (Linux: VmHWM in /proc/self/status), in KiB.
+fn peak_resident_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// The command-line option that sets the [`Params`] field `name`.
