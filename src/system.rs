@@ -273,12 +273,50 @@ impl PassLines {
         V: Copy + Default,
         T: Send,
     {
+        let out = SharedSlice::new(out);
+        // SAFETY: every node lies on one line of this pass only, and one task walks each line.
+        self.walk(core_input, read, |n, window| {
+            update(window, unsafe { out.get_mut(n) })
+        });
+    }
+
+    /// [`run`](Self::run) with the input in the output's own elements (`read` picks it from
+    /// one): a line's inputs are all read before its outputs are written, and lines share no
+    /// node, so the pass needs no second buffer.
+    fn run_in_place<V, T>(
+        &self,
+        values: &mut [T],
+        read: impl Fn(&T) -> V + Sync,
+        update: impl Fn([V; 5], &mut T) + Sync,
+    ) where
+        V: Copy + Default,
+        T: Send,
+    {
+        let values = SharedSlice::new(values);
+        // SAFETY: as in `run`; a node is only read by the task of its line, before that task
+        // writes it.
+        self.walk(
+            false,
+            |n| read(unsafe { values.get_mut(n) }),
+            |n, window| update(window, unsafe { values.get_mut(n) }),
+        );
+    }
+
+    /// Walks every line (tasks in parallel): reads its nodes' inputs, then calls
+    /// `write(node, window)` for every node the pass must produce.
+    fn walk<V>(
+        &self,
+        core_input: bool,
+        read: impl Fn(usize) -> V + Sync,
+        write: impl Fn(usize, [V; 5]) + Sync,
+    ) where
+        V: Copy + Default,
+    {
         let computed = if core_input {
             NEEDED_FOR_CORE_INPUT
         } else {
             NEEDED
         };
-        let out = SharedSlice::new(out);
         self.task_start.par_windows(2).for_each(|task| {
             let mut values: Vec<V> = Vec::new();
             for line in self.entries[task[0]..task[1]].split(|&e| e == LINE_END) {
@@ -304,8 +342,7 @@ impl PassLines {
                     } else {
                         [V::default(); 5]
                     };
-                    // SAFETY: every node lies on one line of this pass only.
-                    update(window, unsafe { out.get_mut((e & NODE_BITS) as usize) });
+                    write((e & NODE_BITS) as usize, window);
                 }
             }
         });
@@ -406,10 +443,9 @@ pub struct DepthOperator<'a> {
     /// Weight of the screening term.
     pub screening: f64,
     plan: PassPlan,
-    /// (M_z·input, D_z·input) on K_d.
-    z_pass: Vec<[f64; 2]>,
-    /// (M_y M_z·input, (D_y M_z + M_y D_z)·input) on K_d.
-    y_pass: Vec<[f64; 2]>,
+    /// The passes' values on K_d: the z-pass writes (M_z·input, D_z·input), the y-pass
+    /// replaces them, line by line, with (M_y M_z·input, (D_y M_z + M_y D_z)·input).
+    passes: Vec<[f64; 2]>,
     /// The cells whose proxies screen this depth (`None` without screening).
     screening_cells: Option<ScreeningCells>,
     /// Σ_q W_q B_o(q) χ(q) on K_d.
@@ -427,8 +463,7 @@ impl<'a> DepthOperator<'a> {
             proxies,
             screening,
             plan: PassPlan::new(level),
-            z_pass: vec![[0.0; 2]; n],
-            y_pass: vec![[0.0; 2]; n],
+            passes: vec![[0.0; 2]; n],
             screening_cells,
             screened: if screens { vec![0.0; n] } else { Vec::new() },
         }
@@ -465,15 +500,13 @@ impl<'a> DepthOperator<'a> {
         let h = level.width();
         self.plan.z.run(
             support == Support::Core,
-            &mut self.z_pass,
+            &mut self.passes,
             |n| input[n],
             |w, o| *o = [window_sum(&t.mass, &w), window_sum(&t.stiffness, &w)],
         );
-        let z_pass = &self.z_pass;
-        self.plan.y.run(
-            false,
-            &mut self.y_pass,
-            |n| z_pass[n],
+        self.plan.y.run_in_place(
+            &mut self.passes,
+            |&v| v,
             |w, o| {
                 let (a, b) = (w.map(|v| v[0]), w.map(|v| v[1]));
                 *o = [
@@ -483,7 +516,7 @@ impl<'a> DepthOperator<'a> {
             },
         );
         let core = &level.core;
-        let y_pass = &self.y_pass;
+        let y_pass = &self.passes;
         out.par_chunks_mut(CHUNK)
             .zip(core.par_chunks(CHUNK))
             .for_each(|(o, nodes)| {
@@ -539,10 +572,10 @@ impl<'a> DepthOperator<'a> {
         let t = tables();
         let inv_h = 1.0 / level.width();
         let plan = &self.plan;
-        // y_pass[1] = G_y M_z v_y + M_y G_z v_z.
+        // After the y-pass, passes[·][1] = G_y M_z v_y + M_y G_z v_z ...
         plan.z.run(
             false,
-            &mut self.z_pass,
+            &mut self.passes,
             |n| {
                 let v = v(n);
                 [v[1], v[2]]
@@ -552,31 +585,28 @@ impl<'a> DepthOperator<'a> {
                 *o = [window_sum(&t.mass, &a), window_sum(&t.advection, &b)];
             },
         );
-        let z_pass = &self.z_pass;
-        plan.y.run(
-            false,
-            &mut self.y_pass,
-            |n| z_pass[n],
+        plan.y.run_in_place(
+            &mut self.passes,
+            |&v| v,
             |w, o| {
                 let (a, b) = (w.map(|v| v[0]), w.map(|v| v[1]));
                 o[1] = window_sum(&t.advection, &a) + window_sum(&t.mass, &b);
             },
         );
-        // y_pass[0] = M_y M_z v_x.
+        // ... and then passes[·][0] = M_y M_z v_x (the z-pass writes only [0], which keeps the
+        // [1] the y-pass wrote at the nodes the x-pass reads).
         plan.z.run(
             false,
-            &mut self.z_pass,
+            &mut self.passes,
             |n| v(n)[0],
             |w, o| o[0] = window_sum(&t.mass, &w),
         );
-        let z_pass = &self.z_pass;
-        plan.y.run(
-            false,
-            &mut self.y_pass,
-            |n| z_pass[n][0],
+        plan.y.run_in_place(
+            &mut self.passes,
+            |v| v[0],
             |w, o| o[0] = window_sum(&t.mass, &w),
         );
-        let y_pass = &self.y_pass;
+        let y_pass = &self.passes;
         level
             .core
             .par_iter()
