@@ -304,13 +304,17 @@ pub(crate) fn run(
             fill_mirrors_field(level, &mut coarse_field);
         }
         let base = d as f32 / depths as f32;
-        let (x, outcome) = {
+        // The coefficients of this depth: the prolonged coarser solution plus the correction
+        // the solve adds on the core.
+        let mut z = y;
+        let outcome = {
             let progress = &mut clock.progress;
             let mut keep_going = |f: f32| (progress)(Stage::Solve, base + f / depths as f32);
             conjugate_gradients(
                 pool,
                 &mut op,
-                &rhs,
+                rhs,
+                &mut z,
                 params.max_solver_iterations,
                 params.solver_tolerance,
                 &mut keep_going,
@@ -318,10 +322,6 @@ pub(crate) fn run(
         };
         if outcome.cancelled {
             return Err(Error::Cancelled);
-        }
-        let mut z = y;
-        for (&c, v) in level.core.iter().zip(&x) {
-            z[c as usize] += v;
         }
         fill_mirrors(level, &mut z);
         coefficients.push(z);

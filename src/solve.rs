@@ -10,7 +10,7 @@
 //! is the same bit for bit whatever the number of threads.
 
 use crate::octree::Level;
-use crate::system::{update_on_core, DepthOperator, CHUNK};
+use crate::system::{add_on_core, update_on_core, DepthOperator, CHUNK};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -59,33 +59,32 @@ fn dot_on_core(level: &Level, p: &[f64], a: &[f64]) -> f64 {
     partial.iter().sum()
 }
 
-/// Solves A x = b on the core of `op.level` (x starts at zero). `keep_going` is called once
+/// Solves A x = b on the core of `op.level` (x starts at zero) and adds x to `solution`, a
+/// vector on K_d, at the core nodes (its mirror nodes are left to the caller). `b` becomes the
+/// residual, so the solve holds no copy of it and no separate x. `keep_going` is called once
 /// per iteration with the fraction of the iteration budget used; returning false stops.
 pub fn conjugate_gradients(
     pool: &rayon::ThreadPool,
     op: &mut DepthOperator<'_>,
-    b: &[f64],
+    b: Vec<f64>,
+    solution: &mut [f64],
     max_iterations: u32,
     tolerance: f64,
     keep_going: &mut dyn FnMut(f32) -> bool,
-) -> (Vec<f64>, CgOutcome) {
+) -> CgOutcome {
     let n = b.len();
-    let mut x = vec![0.0; n];
-    let b_norm = pool.install(|| dot(b, b)).sqrt();
+    let b_norm = pool.install(|| dot(&b, &b)).sqrt();
     if b_norm == 0.0 || n == 0 {
-        return (
-            x,
-            CgOutcome {
-                iterations: 0,
-                relative_residual: 0.0,
-                cancelled: false,
-            },
-        );
+        return CgOutcome {
+            iterations: 0,
+            relative_residual: 0.0,
+            cancelled: false,
+        };
     }
     let inv_diag: Vec<f64> =
         pool.install(|| op.diagonal().into_par_iter().map(|d| 1.0 / d).collect());
     let level = op.level;
-    let mut r = b.to_vec();
+    let mut r = b;
     // The search direction lives on K_d (zero beyond the core and its mirrors), the layout the
     // operator reads, so it is never copied there; the preconditioned residual z = r/diag is
     // not stored but recomputed where it is used.
@@ -99,14 +98,11 @@ pub fn conjugate_gradients(
     let mut residual = 1.0;
     while iterations < max_iterations {
         if !keep_going(iterations as f32 / max_iterations as f32) {
-            return (
-                x,
-                CgOutcome {
-                    iterations,
-                    relative_residual: residual,
-                    cancelled: true,
-                },
-            );
+            return CgOutcome {
+                iterations,
+                relative_residual: residual,
+                cancelled: true,
+            };
         }
         pool.install(|| op.apply_core(&p, &mut ap));
         let pap = pool.install(|| dot_on_core(level, &p, &ap));
@@ -115,13 +111,7 @@ pub fn conjugate_gradients(
         }
         let alpha = rz / pap;
         let rr = pool.install(|| {
-            x.par_chunks_mut(CHUNK)
-                .zip(level.core.par_chunks(CHUNK))
-                .for_each(|(x, nodes)| {
-                    x.iter_mut()
-                        .zip(nodes)
-                        .for_each(|(x, &n)| *x += alpha * p[n as usize])
-                });
+            add_on_core(level, solution, alpha, &p);
             r.par_chunks_mut(CHUNK)
                 .zip(ap.par_chunks(CHUNK))
                 .for_each(|(r, a)| r.iter_mut().zip(a).for_each(|(r, a)| *r -= alpha * a));
@@ -137,12 +127,9 @@ pub fn conjugate_gradients(
         rz = rz_new;
         pool.install(|| update_on_core(level, &mut p, |i, p| r[i] * inv_diag[i] + beta * p));
     }
-    (
-        x,
-        CgOutcome {
-            iterations,
-            relative_residual: residual,
-            cancelled: false,
-        },
-    )
+    CgOutcome {
+        iterations,
+        relative_residual: residual,
+        cancelled: false,
+    }
 }

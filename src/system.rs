@@ -105,6 +105,17 @@ pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f6
     fill_mirrors(level, x);
 }
 
+/// x[core node] += alpha · p[core node] for every core node (in parallel; mirrors untouched).
+pub fn add_on_core(level: &Level, x: &mut [f64], alpha: f64, p: &[f64]) {
+    let shared = SharedSlice::new(x);
+    level.core.par_chunks(CHUNK).for_each(|nodes| {
+        for &n in nodes {
+            // SAFETY: core indices are distinct, so each element has one writer.
+            unsafe { *shared.get_mut(n as usize) += alpha * p[n as usize] };
+        }
+    });
+}
+
 /// The screening samples of one depth: the samples grouped by node cell at a finer "proxy
 /// depth" (weighted mean position, summed weight), kept when their cell at this depth lies
 /// within one node of the core (farther ones touch no core node function). Grouping at a finer
@@ -448,8 +459,6 @@ pub struct DepthOperator<'a> {
     passes: Vec<[f64; 2]>,
     /// The cells whose proxies screen this depth (`None` without screening).
     screening_cells: Option<ScreeningCells>,
-    /// Σ_q W_q B_o(q) χ(q) on K_d.
-    screened: Vec<f64>,
 }
 
 impl<'a> DepthOperator<'a> {
@@ -465,7 +474,6 @@ impl<'a> DepthOperator<'a> {
             plan: PassPlan::new(level),
             passes: vec![[0.0; 2]; n],
             screening_cells,
-            screened: if screens { vec![0.0; n] } else { Vec::new() },
         }
     }
 
@@ -530,7 +538,9 @@ impl<'a> DepthOperator<'a> {
         if let Some(cells) = &self.screening_cells {
             let scale = self.screening;
             let proxies = self.proxies;
-            let screened = &mut self.screened;
+            // Σ_q W_q B_o(q) χ(q) on K_d, in the first half of the pass buffer (free again
+            // once the x-pass has read it).
+            let screened = &mut self.passes.as_flattened_mut()[..level.len()];
             screened.par_iter_mut().for_each(|v| *v = 0.0);
             cells.scatter(screened, |block, range, contribution| {
                 let mut x = [0.0; 27];
@@ -630,7 +640,7 @@ impl<'a> DepthOperator<'a> {
         };
         let proxies = self.proxies;
         let scale = self.screening;
-        let screened = &mut self.screened;
+        let screened = &mut self.passes.as_flattened_mut()[..level.len()];
         screened.par_iter_mut().for_each(|v| *v = 0.0);
         cells.scatter(screened, |_, range, contribution| {
             for q in range {

@@ -250,7 +250,10 @@ fn run(args: &Args) -> Result<(), Failure> {
                 .iter()
                 .map(|(stage, kib)| format!("{} {}", stage.name(), kib / 1024))
                 .collect();
-            eprintln!("psr: peak resident MiB at the end of each stage: {}", list.join(" "));
+            eprintln!(
+                "psr: peak resident MiB at the end of each stage: {}",
+                list.join(" ")
+            );
         }
     }
     if !args.quiet {
