@@ -43,21 +43,20 @@ pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mu
 
 #[inline]
 fn tap_sum(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], i: u32) -> f64 {
-    let nb = &level.neighbors;
     let (minus, plus) = (2 * axis, 2 * axis + 1);
     let mut sum = taps[2] * input[i as usize];
-    let m1 = nb[i as usize][minus];
+    let m1 = level.neighbor(i, minus);
     if m1 != NONE {
         sum += taps[1] * input[m1 as usize];
-        let m2 = nb[m1 as usize][minus];
+        let m2 = level.neighbor(m1, minus);
         if m2 != NONE {
             sum += taps[0] * input[m2 as usize];
         }
     }
-    let p1 = nb[i as usize][plus];
+    let p1 = level.neighbor(i, plus);
     if p1 != NONE {
         sum += taps[3] * input[p1 as usize];
-        let p2 = nb[p1 as usize][plus];
+        let p2 = level.neighbor(p1, plus);
         if p2 != NONE {
             sum += taps[4] * input[p2 as usize];
         }
@@ -242,7 +241,7 @@ impl PassLines {
         let starts: Vec<u32> = (0..level.len() as u32)
             .into_par_iter()
             .filter(|&i| {
-                let before = level.neighbors[i as usize][minus];
+                let before = level.neighbor(i, minus);
                 in_span[i as usize] && (before == NONE || !in_span[before as usize])
             })
             .collect();
@@ -254,7 +253,7 @@ impl PassLines {
                     let mut n = start;
                     while n != NONE && in_span[n as usize] {
                         entries.push(n | needed[n as usize]);
-                        n = level.neighbors[n as usize][plus];
+                        n = level.neighbor(n, plus);
                     }
                     entries.push(LINE_END);
                 }
@@ -422,12 +421,11 @@ fn window_sum(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
 /// outside K_d).
 #[inline]
 fn line5(level: &Level, axis: usize, i: u32) -> [u32; 5] {
-    let nb = &level.neighbors;
     let step = |n: u32, dir: usize| {
         if n == NONE {
             NONE
         } else {
-            nb[n as usize][dir]
+            level.neighbor(n, dir)
         }
     };
     let m1 = step(i, 2 * axis);
@@ -870,7 +868,7 @@ fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
         for axis in 0..3 {
             if (k >> axis) & 1 == 1 {
                 if node != NONE {
-                    node = coarse.neighbors[node as usize][partner_dir[axis]];
+                    node = coarse.neighbor(node, partner_dir[axis]);
                 }
                 w *= REFINE[0];
             } else {
