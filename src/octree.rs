@@ -316,11 +316,10 @@ impl Octree {
             let (coarse, fine) = levels.split_at_mut(d);
             let coarse = &coarse[d - 1];
             let fine = &mut fine[0];
-            fine.parent = fine
-                .keys
-                .par_iter()
-                .map(|&k| coarse.index.get(parent_key(k)).unwrap_or(NONE))
-                .collect();
+            // Consecutive fine nodes mostly share their parents' brick: look each brick up once.
+            let mut parent = vec![NONE; fine.len()];
+            coarse_parents(coarse, &fine.keys, &mut parent);
+            fine.parent = parent;
         }
         levels[0].parent = vec![NONE; levels[0].len()];
         for d in 1..levels.len() {
@@ -337,6 +336,33 @@ impl Octree {
     pub fn max_depth(&self) -> u32 {
         self.levels.len() as u32 - 1
     }
+}
+
+/// `out[i]` = the index in `coarse` of the parent of the node with key `keys[i]` (`NONE` if
+/// absent), in parallel chunks, hashing a coarse brick only when the parents' brick changes.
+fn coarse_parents(coarse: &Level, keys: &[u64], out: &mut [u32]) {
+    const NODES_PER_TASK: usize = 4096;
+    let index = &coarse.index;
+    out.par_chunks_mut(NODES_PER_TASK)
+        .zip(keys.par_chunks(NODES_PER_TASK))
+        .for_each(|(out, keys)| {
+            let mut cached: Option<(u64, Option<usize>)> = None;
+            for (o, &k) in out.iter_mut().zip(keys) {
+                let pk = parent_key(k);
+                let brick = pk >> BrickIndex::BRICK_BITS;
+                let slot = match cached {
+                    Some((b, slot)) if b == brick => slot,
+                    _ => {
+                        let slot = index.slot_of(brick);
+                        cached = Some((brick, slot));
+                        slot
+                    }
+                };
+                *o = slot
+                    .and_then(|b| index.in_brick(b, (pk & 511) as usize))
+                    .unwrap_or(NONE);
+            }
+        });
 }
 
 /// Key of the parent of the node with key `k`.
@@ -371,32 +397,33 @@ impl Level {
             flags[i as usize] |= CORE;
         }
         core.par_sort_unstable();
-        let neighbor_offsets = keys
-            .par_iter()
-            .enumerate()
-            .map(|(i, &k)| {
-                let c = unmorton(k);
-                let mut n = [NO_NEIGHBOR; 6];
-                for axis in 0..3 {
-                    for (s, delta) in [-1, 1].into_iter().enumerate() {
-                        let mut q = c;
-                        q[axis] += delta;
-                        n[axis * 2 + s] = match index.get(morton(q)) {
-                            None => NO_NEIGHBOR,
-                            Some(j) => {
-                                let d = j as i64 - i as i64;
-                                if d > FAR_NEIGHBOR as i64 && d <= i16::MAX as i64 {
-                                    d as i16
-                                } else {
-                                    FAR_NEIGHBOR
-                                }
-                            }
-                        };
-                    }
-                }
-                n
-            })
-            .collect();
+        // Face neighbours, brick by brick: inside a brick a neighbour is a rank in its
+        // occupancy; across its faces, in one of the six bricks around (one hash each per brick).
+        let mut neighbor_offsets = vec![[NO_NEIGHBOR; 6]; keys.len()];
+        index.for_each_node(&keys, &mut neighbor_offsets, |walk, i, k, out| {
+            let position = (k & 511) as usize;
+            for (dir, offset) in out.iter_mut().enumerate() {
+                let axis = dir / 2;
+                let v = local_coord(position, axis);
+                let (slot, v) = match (dir % 2, v) {
+                    (0, 0) => (walk_around(&index, walk)[dir], 7),
+                    (1, 7) => (walk_around(&index, walk)[dir], 0),
+                    (0, v) => (Some(walk.slot), v - 1),
+                    (_, v) => (Some(walk.slot), v + 1),
+                };
+                let Some(j) =
+                    slot.and_then(|b| index.in_brick(b, with_local_coord(position, axis, v)))
+                else {
+                    continue;
+                };
+                let d = j as i64 - i as i64;
+                *offset = if d > FAR_NEIGHBOR as i64 && d <= i16::MAX as i64 {
+                    d as i16
+                } else {
+                    FAR_NEIGHBOR
+                };
+            }
+        });
         let mut mirrors = Vec::new();
         if neumann {
             let n = 1i32 << depth;
@@ -437,6 +464,9 @@ impl Level {
 #[derive(Debug, Default)]
 pub struct BrickIndex {
     slot: KeyMap<u32>,
+    /// Per brick, in key order: its key (the node keys' bits above the brick's own nine), the
+    /// index of its first node and its occupancy.
+    bricks: Vec<u64>,
     first: Vec<u32>,
     occupied: Vec<[u64; 8]>,
 }
@@ -453,6 +483,7 @@ impl BrickIndex {
             if brick != current {
                 current = brick;
                 index.slot.insert(brick, index.first.len() as u32);
+                index.bricks.push(brick);
                 index.first.push(i as u32);
                 index.occupied.push([0; 8]);
             }
@@ -465,8 +496,19 @@ impl BrickIndex {
     /// The index of the node with Morton key `k`, if present.
     #[inline]
     pub fn get(&self, k: u64) -> Option<u32> {
-        let b = *self.slot.get(&(k >> Self::BRICK_BITS))? as usize;
-        let position = (k & 511) as usize;
+        let b = self.slot_of(k >> Self::BRICK_BITS)?;
+        self.in_brick(b, (k & 511) as usize)
+    }
+
+    /// The slot of the brick with key `brick`, if it has nodes.
+    #[inline]
+    fn slot_of(&self, brick: u64) -> Option<usize> {
+        self.slot.get(&brick).map(|&b| b as usize)
+    }
+
+    /// The index of the node at `position` (its key's low nine bits) in brick slot `b`.
+    #[inline]
+    fn in_brick(&self, b: usize, position: usize) -> Option<u32> {
         let (word, bit) = (position >> 6, position & 63);
         let mask = &self.occupied[b];
         if mask[word] >> bit & 1 == 0 {
@@ -476,6 +518,87 @@ impl BrickIndex {
             + (mask[word] & ((1u64 << bit) - 1)).count_ones();
         Some(self.first[b] + before)
     }
+
+    /// The slot of the brick holding node `i`.
+    fn slot_of_node(&self, i: u32) -> usize {
+        self.first.partition_point(|&f| f <= i) - 1
+    }
+
+    /// For every node (keys sorted, as given to [`BrickIndex::new`]), `f(node, key, brick
+    /// slot)`, in parallel chunks of nodes; the slot comes from walking the bricks in order,
+    /// not from hashing each key.
+    fn for_each_node<T: Send>(
+        &self,
+        keys: &[u64],
+        out: &mut [T],
+        f: impl Fn(&mut BrickWalk, u32, u64, &mut T) + Sync,
+    ) {
+        const NODES_PER_TASK: usize = 4096;
+        out.par_chunks_mut(NODES_PER_TASK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                let start = (c * NODES_PER_TASK) as u32;
+                let mut walk = BrickWalk {
+                    slot: self.slot_of_node(start),
+                    around: None,
+                };
+                for (j, o) in chunk.iter_mut().enumerate() {
+                    let i = start + j as u32;
+                    let k = keys[i as usize];
+                    while self.bricks[walk.slot] != k >> Self::BRICK_BITS {
+                        walk.slot += 1;
+                        walk.around = None;
+                    }
+                    f(&mut walk, i, k, o);
+                }
+            });
+    }
+
+    /// The slots of the six face-neighbouring bricks of brick slot `b` (−x, +x, −y, +y, −z,
+    /// +z), `None` where no node lies.
+    fn bricks_around(&self, b: usize) -> [Option<usize>; 6] {
+        let brick = self.bricks[b];
+        std::array::from_fn(|dir| {
+            let axis = dir / 2;
+            let c = compact(brick >> axis);
+            let c = if dir % 2 == 0 {
+                c.checked_sub(1)?
+            } else {
+                c + 1
+            };
+            let others = brick & !(spread(u64::MAX) << axis);
+            self.slot_of(others | spread(c) << axis)
+        })
+    }
+}
+
+/// The bricks around the walk's current one, looked up on first use.
+#[inline]
+fn walk_around(index: &BrickIndex, walk: &mut BrickWalk) -> [Option<usize>; 6] {
+    *walk
+        .around
+        .get_or_insert_with(|| index.bricks_around(walk.slot))
+}
+
+/// Where a walk over the nodes in key order is: the current brick's slot and, once asked for,
+/// the slots of the bricks around it.
+struct BrickWalk {
+    slot: usize,
+    around: Option<[Option<usize>; 6]>,
+}
+
+/// A coordinate of a position within a brick (nine bits, x y z interleaved from bit 0).
+#[inline]
+fn local_coord(position: usize, axis: usize) -> usize {
+    let p = position >> axis;
+    (p & 1) | (p >> 2 & 2) | (p >> 4 & 4)
+}
+
+/// `position` with its coordinate along `axis` replaced by `v` (0..8).
+#[inline]
+fn with_local_coord(position: usize, axis: usize, v: usize) -> usize {
+    let spread3 = |v: usize| (v & 1) | (v & 2) << 2 | (v & 4) << 4;
+    (position & !(spread3(7) << axis)) | spread3(v) << axis
 }
 
 /// Packs a node coordinate with z most significant, then y, then x (21 bits each after the
