@@ -9,8 +9,8 @@ use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
 use crate::system::{
-    divergence, fill_mirrors, fill_mirrors_field, prolong, prolong_many, restrict_into,
-    DepthOperator, ProlongedField, Proxies,
+    divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator,
+    ProlongedField, Proxies,
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
@@ -248,12 +248,13 @@ pub(crate) fn run(
         let rho_here = std::mem::take(&mut rho[d]);
         let (y, rhs) = pool.install(|| {
             // The coarser solution and V from coarser depths, represented at this depth (F̃
-            // halves in width: ×1/8). Above the finest depth both are prolonged together and V
-            // is kept for the next depth; at the finest depth V's prolongation is only read by
-            // the divergence, which computes it node by node instead of storing it.
+            // halves in width: ×1/8). The solution's prolongation is stored (it is part of this
+            // depth's coefficients); V's is computed node by node where it is read, by the
+            // divergence and, above the finest depth, by the sweep that adds it to this depth's
+            // V for the next depth, so it never takes three halo vectors.
             let (y, coarse_div) = if d == 0 {
                 (vec![0.0; level.len()], vec![0.0; level.core.len()])
-            } else if is_finest {
+            } else {
                 let coarse = &tree.levels[d - 1];
                 let mut y = prolong(coarse, level, &coefficients[d - 1], 1.0);
                 fill_mirrors(level, &mut y);
@@ -264,27 +265,9 @@ pub(crate) fn run(
                     scale: 0.125,
                 };
                 let coarse_div = op.divergence_on_core(|n| prolonged.at(n as u32));
-                (y, coarse_div)
-            } else {
-                let [mut y, px, py, pz] = prolong_many(
-                    &tree.levels[d - 1],
-                    level,
-                    [
-                        &coefficients[d - 1],
-                        &coarse_field[0],
-                        &coarse_field[1],
-                        &coarse_field[2],
-                    ],
-                    [1.0, 0.125, 0.125, 0.125],
-                );
-                fill_mirrors(level, &mut y);
-                let mut prolonged = [px, py, pz];
-                fill_mirrors_field(level, &mut prolonged);
-                let coarse_div =
-                    op.divergence_on_core(|n| [prolonged[0][n], prolonged[1][n], prolonged[2][n]]);
-                // V of this depth and all coarser ones, for the next depth.
-                for (f, p) in field.iter_mut().zip(&prolonged) {
-                    f.par_iter_mut().zip(p).for_each(|(f, p)| *f = p + *f);
+                if !is_finest {
+                    // V of this depth and all coarser ones, for the next depth.
+                    prolonged.add_to(&mut field);
                 }
                 (y, coarse_div)
             };

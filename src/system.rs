@@ -860,22 +860,32 @@ fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
     if p == NONE {
         return out;
     }
-    let c = fine.coord(i);
-    let partner_dir = [0, 1, 2].map(|axis| 2 * axis + (c[axis].rem_euclid(2) as usize));
-    for (k, slot) in out.iter_mut().enumerate() {
-        let mut node = p;
+    // The parity of each coordinate is the key's bit of that axis (the key's offset is even).
+    let key = fine.keys[i as usize];
+    let partner_dir = [0, 1, 2].map(|axis| 2 * axis + ((key >> axis) & 1) as usize);
+    for k in 0..8 {
+        // Parent k is parent (k without its highest axis bit) stepped along that axis: seven
+        // links in all, each parent reached along x, then y, then z.
+        let node = if k == 0 {
+            p
+        } else {
+            let axis = 7 - (k as u8).leading_zeros() as usize;
+            let from = out[k & !(1 << axis)].0;
+            if from == NONE {
+                NONE
+            } else {
+                coarse.neighbor(from, partner_dir[axis])
+            }
+        };
         let mut w = 1.0;
         for axis in 0..3 {
-            if (k >> axis) & 1 == 1 {
-                if node != NONE {
-                    node = coarse.neighbor(node, partner_dir[axis]);
-                }
-                w *= REFINE[0];
+            w *= if (k >> axis) & 1 == 1 {
+                REFINE[0]
             } else {
-                w *= REFINE[1];
-            }
+                REFINE[1]
+            };
         }
-        *slot = (node, w);
+        out[k] = (node, w);
     }
     out
 }
@@ -941,7 +951,7 @@ fn prolonged_at<const N: usize>(
 /// A coarser vector field prolonged to a finer halo, evaluated node by node instead of stored:
 /// the value at a fine node is what [`prolong_many`] followed by [`fill_mirrors_field`] would
 /// hold there. Reading it once per node (as a pass does) costs one prolongation sweep and saves
-/// three halo-sized vectors, at the finest depth the largest ones of the solve.
+/// three halo-sized vectors.
 pub struct ProlongedField<'a> {
     pub coarse: &'a Level,
     pub fine: &'a Level,
@@ -971,6 +981,22 @@ impl ProlongedField<'_> {
             }
         }
         prolonged_at(self.coarse, self.fine, self.field, scales, i)
+    }
+
+    /// v[axis][i] += the prolonged field at every fine node i.
+    pub fn add_to(&self, v: &mut [Vec<f64>; 3]) {
+        let [vx, vy, vz] = v;
+        vx.par_chunks_mut(CHUNK)
+            .zip(vy.par_chunks_mut(CHUNK).zip(vz.par_chunks_mut(CHUNK)))
+            .enumerate()
+            .for_each(|(c, (x, (y, z)))| {
+                for j in 0..x.len() {
+                    let p = self.at((c * CHUNK + j) as u32);
+                    x[j] = p[0] + x[j];
+                    y[j] = p[1] + y[j];
+                    z[j] = p[2] + z[j];
+                }
+            });
     }
 }
 
