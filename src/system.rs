@@ -134,8 +134,53 @@ pub struct Proxies {
 
 impl Proxies {
     /// Groups samples (in `order`, sorted by Morton key at a depth ≥ `proxy_depth`) into
-    /// proxies at `proxy_depth` ≥ the level's depth.
+    /// proxies at `proxy_depth` ≥ the level's depth. In parallel over pieces of `order` cut
+    /// between groups (a fixed number of samples apart), appended in order.
     pub fn build(
+        level: &Level,
+        positions: &[DVec3],
+        weights: &[f64],
+        order: &[u32],
+        proxy_depth: u32,
+    ) -> Proxies {
+        const SAMPLES_PER_PIECE: usize = 1 << 14;
+        let inv_proxy_h = (proxy_depth as f64).exp2();
+        let group_of = |s: usize| cell_of(positions[order[s] as usize], inv_proxy_h);
+        let mut cuts = vec![0];
+        while let Some(&last) = cuts.last() {
+            let mut cut = last + SAMPLES_PER_PIECE;
+            if cut >= order.len() {
+                break;
+            }
+            while cut < order.len() && group_of(cut) == group_of(cut - 1) {
+                cut += 1;
+            }
+            cuts.push(cut);
+        }
+        cuts.push(order.len());
+        let pieces: Vec<Proxies> = cuts
+            .par_windows(2)
+            .map(|piece| {
+                Self::build_piece(
+                    level,
+                    positions,
+                    weights,
+                    &order[piece[0]..piece[1]],
+                    proxy_depth,
+                )
+            })
+            .collect();
+        let mut proxies = Proxies::default();
+        for piece in pieces {
+            proxies.cell.extend(piece.cell);
+            proxies.weight.extend(piece.weight);
+            proxies.stencil.extend(piece.stencil);
+        }
+        proxies
+    }
+
+    /// [`Proxies::build`] on a run of `order` that starts and ends between groups.
+    fn build_piece(
         level: &Level,
         positions: &[DVec3],
         weights: &[f64],
