@@ -141,6 +141,11 @@ pub struct Level {
 }
 
 impl Level {
+    /// The brick index of K_d (for brick-by-brick traversals).
+    pub fn bricks(&self) -> &BrickIndex {
+        &self.index
+    }
+
     /// Number of nodes in K_d.
     pub fn len(&self) -> usize {
         self.keys.len()
@@ -556,6 +561,37 @@ impl BrickIndex {
 
     /// The slots of the six face-neighbouring bricks of brick slot `b` (−x, +x, −y, +y, −z,
     /// +z), `None` where no node lies.
+    /// Number of bricks that hold nodes.
+    pub fn brick_count(&self) -> usize {
+        self.bricks.len()
+    }
+
+    /// The index of brick `b`'s first node and its 512-bit occupancy (bit p: the node whose key
+    /// ends in the nine bits p, x y z interleaved from bit 0).
+    #[inline]
+    pub fn brick(&self, b: usize) -> (u32, &[u64; 8]) {
+        (self.first[b], &self.occupied[b])
+    }
+
+    /// The slots of the 27 bricks around brick `b` (index (dx+1) + 3(dy+1) + 9(dz+1); brick b
+    /// itself in the middle), `None` where no node lies.
+    pub fn bricks_around27(&self, b: usize) -> [Option<usize>; 27] {
+        let brick = self.bricks[b];
+        let coord = [0, 1, 2].map(|axis| compact(brick >> axis) as i64);
+        std::array::from_fn(|slot| {
+            let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| o as i64 - 1);
+            let mut key = 0;
+            for axis in 0..3 {
+                let c = coord[axis] + offset[axis];
+                if c < 0 {
+                    return None;
+                }
+                key |= spread(c as u64) << axis;
+            }
+            self.slot_of(key)
+        })
+    }
+
     fn bricks_around(&self, b: usize) -> [Option<usize>; 6] {
         let brick = self.bricks[b];
         std::array::from_fn(|dir| {

@@ -104,7 +104,7 @@ pub fn conjugate_gradients(
                 cancelled: true,
             };
         }
-        pool.install(|| op.apply_core(&p, &mut ap));
+        pool.install(|| op.apply(&p, &mut ap));
         let pap = pool.install(|| dot_on_core(level, &p, &ap));
         if !(pap > 0.0) {
             break;
