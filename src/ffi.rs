@@ -6,7 +6,7 @@
 //! comments below are the C documentation: they speak C.
 //!
 //! Invariants the code below keeps:
-//! - No panic crosses the boundary: every exported function runs its body through [`guard`],
+//! - No panic crosses the boundary: every exported function runs its body through `guard`,
 //!   the one `catch_unwind` of this module. A panic in a call on a reconstructor poisons it.
 //! - Out-parameters are written only on success, as the very last step.
 //! - No global state: each handle carries its parameters, points, callback and last message, and

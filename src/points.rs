@@ -2,7 +2,7 @@
 //!
 //! Positions must be finite; normals finite and non-zero (they are stored normalised, so a
 //! normal's length never weighs a sample); confidence weights, when given, finite and ≥ 0. The
-//! bounding box of the positions, enlarged by `scale` about its centre, is mapped onto [0,1]³
+//! bounding box of the positions, enlarged by `scale` about its centre, is mapped onto `[0,1]³`
 //! by a uniform scale, and the inverse map takes mesh vertices back to input coordinates.
 
 use crate::error::{Error, Result};

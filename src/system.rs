@@ -16,7 +16,7 @@
 //! applied as three 1-D passes (5 taps each) instead of 125-entry rows:
 //! `⟨∇B_o, ∇B_o′⟩ = h (D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)` and `⟨∇B_o, F̃_o′⟩·v = (1/h)(G⊗M⊗M vx + …)`.
 //! For the core (the operator in the solve) the passes run brick by brick on dense 12³ windows
-//! gathered from the halo ([`CoreBricks`]); for the whole halo (the right-hand side's
+//! gathered from the halo (`CoreBricks`); for the whole halo (the right-hand side's
 //! divergence, restricted to coarser depths) along the neighbour links. Both are exact wherever
 //! the input is supported on K_d (see [`crate::octree`]): every node a core node's stencil
 //! reaches is in the halo.
@@ -33,7 +33,7 @@ use rayon::prelude::*;
 /// Rows per parallel task: fixed, so results never depend on the thread count.
 pub const CHUNK: usize = 4096;
 
-/// out[i] = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d.
+/// `out[i]` = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d.
 pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mut [f64]) {
     out.par_chunks_mut(CHUNK)
         .enumerate()
@@ -596,13 +596,13 @@ impl<'a> DepthOperator<'a> {
         }
     }
 
-    /// out[c] = (A · input)(core node c), for `input` given on all of K_d with its mirror
+    /// `out[c]` = (A · input)(core node c), for `input` given on all of K_d with its mirror
     /// nodes filled (see [`fill_mirrors`]): the prolonged coarser solution, or a
     /// conjugate-gradient direction (zero beyond the core but at the mirrors, see
     /// [`update_on_core`]).
     ///
     /// The Laplacian h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D) is applied brick by brick (see
-    /// [`CoreBricks`]), the screening term by scattering over the proxy cells.
+    /// `CoreBricks`), the screening term by scattering over the proxy cells.
     pub fn apply(&mut self, input: &[f64], out: &mut [f64]) {
         let level = self.level;
         let h = level.width();
@@ -1011,7 +1011,7 @@ impl ProlongedField<'_> {
         prolonged_at(self.coarse, self.fine, self.field, scales, i)
     }
 
-    /// v[axis][i] += the prolonged field at every fine node i.
+    /// `v[axis][i] +=` the prolonged field at every fine node i.
     pub fn add_to(&self, v: &mut [Vec<f64>; 3]) {
         let [vx, vy, vz] = v;
         vx.par_chunks_mut(CHUNK)
@@ -1028,7 +1028,7 @@ impl ProlongedField<'_> {
     }
 }
 
-/// The transpose of [`prolong`]: adds Σ_children w · fine[child] to every coarse node.
+/// The transpose of [`prolong`]: adds Σ_children w · `fine[child]` to every coarse node.
 pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_out: &mut [f64]) {
     for i in 0..fine.len() as u32 {
         let v = fine_values[i as usize];
