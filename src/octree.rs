@@ -576,35 +576,34 @@ impl BrickIndex {
     /// The slots of the 27 bricks around brick `b` (index (dx+1) + 3(dy+1) + 9(dz+1); brick b
     /// itself in the middle), `None` where no node lies.
     pub fn bricks_around27(&self, b: usize) -> [Option<usize>; 27] {
-        let brick = self.bricks[b];
-        let coord = [0, 1, 2].map(|axis| compact(brick >> axis) as i64);
         std::array::from_fn(|slot| {
             let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| o as i64 - 1);
-            let mut key = 0;
-            for axis in 0..3 {
-                let c = coord[axis] + offset[axis];
-                if c < 0 {
-                    return None;
-                }
-                key |= spread(c as u64) << axis;
-            }
-            self.slot_of(key)
+            self.brick_beside(b, offset)
         })
     }
 
+    /// The slots of the six face-neighbouring bricks of brick slot `b` (−x, +x, −y, +y, −z,
+    /// +z), `None` where no node lies.
     fn bricks_around(&self, b: usize) -> [Option<usize>; 6] {
-        let brick = self.bricks[b];
         std::array::from_fn(|dir| {
-            let axis = dir / 2;
-            let c = compact(brick >> axis);
-            let c = if dir % 2 == 0 {
-                c.checked_sub(1)?
-            } else {
-                c + 1
-            };
-            let others = brick & !(spread(u64::MAX) << axis);
-            self.slot_of(others | spread(c) << axis)
+            let mut offset = [0; 3];
+            offset[dir / 2] = if dir % 2 == 0 { -1 } else { 1 };
+            self.brick_beside(b, offset)
         })
+    }
+
+    /// The slot of the brick `offset` bricks away from brick slot `b`, if it has nodes.
+    fn brick_beside(&self, b: usize, offset: [i64; 3]) -> Option<usize> {
+        let brick = self.bricks[b];
+        let mut key = 0;
+        for (axis, o) in offset.into_iter().enumerate() {
+            let c = compact(brick >> axis) as i64 + o;
+            if c < 0 {
+                return None;
+            }
+            key |= spread(c as u64) << axis;
+        }
+        self.slot_of(key)
     }
 }
 
@@ -628,6 +627,12 @@ struct BrickWalk {
 fn local_coord(position: usize, axis: usize) -> usize {
     let p = position >> axis;
     (p & 1) | (p >> 2 & 2) | (p >> 4 & 4)
+}
+
+/// The three coordinates (0..8) of a position within a brick.
+#[inline]
+pub fn brick_local(position: usize) -> [usize; 3] {
+    [0, 1, 2].map(|axis| local_coord(position, axis))
 }
 
 /// `position` with its coordinate along `axis` replaced by `v` (0..8).

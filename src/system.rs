@@ -26,7 +26,7 @@
 //! divergence of finer vector-field coefficients is restricted to coarser nodes. Both are exact.
 
 use crate::bspline::{tables, REFINE};
-use crate::octree::{Level, NONE};
+use crate::octree::{brick_local, Level, NONE};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -256,13 +256,6 @@ struct CoreBricks {
     first_core: Vec<u32>,
     /// Which positions of each core brick hold core nodes.
     core_mask: Vec<[u64; 8]>,
-}
-
-/// The three coordinates (0..8) of a position within a brick.
-#[inline]
-fn brick_local(p: usize) -> [usize; 3] {
-    let c = |v: usize| (v & 1) | (v >> 2 & 2) | (v >> 4 & 4);
-    [c(p), c(p >> 1), c(p >> 2)]
 }
 
 /// For each of the 27 bricks around a brick, the positions whose window coordinates (local
