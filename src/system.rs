@@ -284,6 +284,28 @@ struct BrickScratch {
     y: [Vec<[f64; WINDOW]>; 2],
 }
 
+impl BrickScratch {
+    /// The x-pass at the core nodes: scale·(Σ taps[0]·y₀ + Σ taps[1]·y₁) along x.
+    fn x_pass(
+        &self,
+        core_nodes: &mut dyn Iterator<Item = (&mut f64, [usize; 3])>,
+        taps: [&[f64; 5]; 2],
+        scale: f64,
+    ) {
+        for (o, [x, y, z]) in core_nodes {
+            let a: [f64; 5] = self.y[0][z * 8 + y][x..x + 5].try_into().unwrap();
+            let b: [f64; 5] = self.y[1][z * 8 + y][x..x + 5].try_into().unwrap();
+            *o = scale * (window_sum(taps[0], &a) + window_sum(taps[1], &b));
+        }
+    }
+}
+
+/// Element-wise a + b.
+#[inline]
+fn add_rows(a: [f64; WINDOW], b: [f64; WINDOW]) -> [f64; WINDOW] {
+    std::array::from_fn(|x| a[x] + b[x])
+}
+
 /// The five rows `rows[start + k·stride]`, k = 0..5.
 #[inline]
 fn rows5(rows: &[[f64; WINDOW]], start: usize, stride: usize) -> [&[f64; WINDOW]; 5] {
@@ -351,29 +373,24 @@ impl CoreBricks {
                 // z-pass: every row of the window, at the brick's 8 depths.
                 for zl in 0..8 {
                     for yw in 0..WINDOW {
-                        let rows = std::array::from_fn(|k| &w[(zl + k) * WINDOW + yw]);
-                        scratch.z[0][zl * WINDOW + yw] = row_sum(&t.mass, rows);
-                        scratch.z[1][zl * WINDOW + yw] = row_sum(&t.stiffness, rows);
+                        let at = zl * WINDOW + yw;
+                        let rows = rows5(w, at, WINDOW);
+                        scratch.z[0][at] = row_sum(&t.mass, rows);
+                        scratch.z[1][at] = row_sum(&t.stiffness, rows);
                     }
                 }
                 // y-pass: the brick's 8 × 8 rows.
                 for zl in 0..8 {
                     for yl in 0..8 {
-                        let a = std::array::from_fn(|k| &scratch.z[0][zl * WINDOW + yl + k]);
-                        let b = std::array::from_fn(|k| &scratch.z[1][zl * WINDOW + yl + k]);
-                        let (mass_a, stiffness_a) = (row_sum(&t.mass, a), row_sum(&t.stiffness, a));
-                        let mass_b = row_sum(&t.mass, b);
+                        let (at, z) = (zl * WINDOW + yl, &scratch.z);
+                        let (a, b) = (rows5(&z[0], at, 1), rows5(&z[1], at, 1));
+                        let mass_a = row_sum(&t.mass, a);
+                        let mixed = add_rows(row_sum(&t.stiffness, a), row_sum(&t.mass, b));
                         scratch.y[0][zl * 8 + yl] = mass_a;
-                        scratch.y[1][zl * 8 + yl] =
-                            std::array::from_fn(|x| stiffness_a[x] + mass_b[x]);
+                        scratch.y[1][zl * 8 + yl] = mixed;
                     }
                 }
-                // x-pass at the core nodes.
-                for (o, [x, y, z]) in core_nodes {
-                    let a: [f64; 5] = scratch.y[0][z * 8 + y][x..x + 5].try_into().unwrap();
-                    let b: [f64; 5] = scratch.y[1][z * 8 + y][x..x + 5].try_into().unwrap();
-                    *o = h * (window_sum(&t.stiffness, &a) + window_sum(&t.mass, &b));
-                }
+                scratch.x_pass(core_nodes, [&t.stiffness, &t.mass], h);
             },
         );
     }
@@ -392,34 +409,24 @@ impl CoreBricks {
             for zl in 0..8 {
                 for yw in 0..WINDOW {
                     let at = zl * WINDOW + yw;
-                    let (rx, ry, rz) = (
-                        rows5(wx, at, WINDOW),
-                        rows5(wy, at, WINDOW),
-                        rows5(wz, at, WINDOW),
-                    );
-                    scratch.z[0][zl * WINDOW + yw] = row_sum(&t.mass, rx);
-                    scratch.z[1][zl * WINDOW + yw] = row_sum(&t.mass, ry);
-                    scratch.z[2][zl * WINDOW + yw] = row_sum(&t.advection, rz);
+                    scratch.z[0][at] = row_sum(&t.mass, rows5(wx, at, WINDOW));
+                    scratch.z[1][at] = row_sum(&t.mass, rows5(wy, at, WINDOW));
+                    scratch.z[2][at] = row_sum(&t.advection, rows5(wz, at, WINDOW));
                 }
             }
             for zl in 0..8 {
                 for yl in 0..8 {
-                    let at = zl * WINDOW + yl;
-                    let z = &scratch.z;
-                    let (a, b) = (
+                    let (at, z) = (zl * WINDOW + yl, &scratch.z);
+                    let mixed = add_rows(
                         row_sum(&t.advection, rows5(&z[1], at, 1)),
                         row_sum(&t.mass, rows5(&z[2], at, 1)),
                     );
                     let mass_x = row_sum(&t.mass, rows5(&z[0], at, 1));
                     scratch.y[0][zl * 8 + yl] = mass_x;
-                    scratch.y[1][zl * 8 + yl] = std::array::from_fn(|x| a[x] + b[x]);
+                    scratch.y[1][zl * 8 + yl] = mixed;
                 }
             }
-            for (o, [x, y, z]) in core_nodes {
-                let a: [f64; 5] = scratch.y[0][z * 8 + y][x..x + 5].try_into().unwrap();
-                let b: [f64; 5] = scratch.y[1][z * 8 + y][x..x + 5].try_into().unwrap();
-                *o = inv_h * (window_sum(&t.advection, &a) + window_sum(&t.mass, &b));
-            }
+            scratch.x_pass(core_nodes, [&t.advection, &t.mass], inv_h);
         });
     }
 
