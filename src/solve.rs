@@ -22,41 +22,29 @@ pub struct CgOutcome {
     pub cancelled: bool,
 }
 
+/// Σ_{i < n} term(i) in parallel, deterministically: fixed chunks of [`CHUNK`] terms, each
+/// summed in order, and the chunks' sums added in order, whatever the number of threads.
+fn chunked_sum(n: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+    let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| (c * CHUNK..n.min((c + 1) * CHUNK)).map(&term).sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
 /// Deterministic parallel dot product.
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let partial: Vec<f64> = a
-        .par_chunks(CHUNK)
-        .zip(b.par_chunks(CHUNK))
-        .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>())
-        .collect();
-    partial.iter().sum()
+    chunked_sum(a.len(), |i| a[i] * b[i])
 }
 
-/// Σ r_i·(r_i·w_i), chunked like [`dot`]: rᵀz for the preconditioned residual z = w∘r.
+/// Σ r_i·(r_i·w_i): rᵀz for the preconditioned residual z = w∘r.
 fn weighted_dot(r: &[f64], w: &[f64]) -> f64 {
-    let partial: Vec<f64> = r
-        .par_chunks(CHUNK)
-        .zip(w.par_chunks(CHUNK))
-        .map(|(r, w)| r.iter().zip(w).map(|(r, w)| r * (r * w)).sum::<f64>())
-        .collect();
-    partial.iter().sum()
+    chunked_sum(r.len(), |i| r[i] * (r[i] * w[i]))
 }
 
-/// Σ_i p[core node i]·a_i for `p` on K_d and `a` on the core, chunked like [`dot`].
+/// Σ_i p[core node i]·a_i for `p` on K_d and `a` on the core.
 fn dot_on_core(level: &Level, p: &[f64], a: &[f64]) -> f64 {
-    let partial: Vec<f64> = level
-        .core
-        .par_chunks(CHUNK)
-        .zip(a.par_chunks(CHUNK))
-        .map(|(nodes, a)| {
-            nodes
-                .iter()
-                .zip(a)
-                .map(|(&n, a)| p[n as usize] * a)
-                .sum::<f64>()
-        })
-        .collect();
-    partial.iter().sum()
+    chunked_sum(a.len(), |i| p[level.core[i] as usize] * a[i])
 }
 
 /// Solves A x = b on the core of `op.level` (x starts at zero) and adds x to `solution`, a

@@ -92,6 +92,17 @@ pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
 /// Sets x[core node i] = f(i, x[core node i]) for every core position i (in parallel, in fixed
 /// chunks), then refills the mirror nodes: how a vector that lives on the core is kept on K_d.
 pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f64 + Sync) {
+    for_each_core_node(level, x, |i, _, v| *v = f(i, *v));
+    fill_mirrors(level, x);
+}
+
+/// x[core node] += alpha · p[core node] for every core node (in parallel; mirrors untouched).
+pub fn add_on_core(level: &Level, x: &mut [f64], alpha: f64, p: &[f64]) {
+    for_each_core_node(level, x, |_, n, v| *v += alpha * p[n]);
+}
+
+/// `f(core position, node, &mut x[node])` for every core node, in parallel chunks.
+fn for_each_core_node(level: &Level, x: &mut [f64], f: impl Fn(usize, usize, &mut f64) + Sync) {
     let shared = SharedSlice::new(x);
     level
         .core
@@ -100,22 +111,11 @@ pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f6
         .for_each(|(c, nodes)| {
             for (j, &n) in nodes.iter().enumerate() {
                 // SAFETY: core indices are distinct, so each element has one writer.
-                let v = unsafe { shared.get_mut(n as usize) };
-                *v = f(c * CHUNK + j, *v);
+                f(c * CHUNK + j, n as usize, unsafe {
+                    shared.get_mut(n as usize)
+                });
             }
         });
-    fill_mirrors(level, x);
-}
-
-/// x[core node] += alpha · p[core node] for every core node (in parallel; mirrors untouched).
-pub fn add_on_core(level: &Level, x: &mut [f64], alpha: f64, p: &[f64]) {
-    let shared = SharedSlice::new(x);
-    level.core.par_chunks(CHUNK).for_each(|nodes| {
-        for &n in nodes {
-            // SAFETY: core indices are distinct, so each element has one writer.
-            unsafe { *shared.get_mut(n as usize) += alpha * p[n as usize] };
-        }
-    });
 }
 
 /// The screening samples of one depth: the samples grouped by node cell at a finer "proxy
