@@ -879,6 +879,26 @@ fn add_into(out: &mut [f64], x: &[f64]) {
         });
 }
 
+/// The two-scale weight of parent k of a fine node (bit a of k set: the partner along axis a,
+/// weight ¼; clear: the node's own parent's column, weight ¾), the same for every node.
+const PARENT_WEIGHTS: [f64; 8] = {
+    let mut w = [1.0; 8];
+    let mut k = 0;
+    while k < 8 {
+        let mut axis = 0;
+        while axis < 3 {
+            w[k] *= if (k >> axis) & 1 == 1 {
+                REFINE[0]
+            } else {
+                REFINE[1]
+            };
+            axis += 1;
+        }
+        k += 1;
+    }
+    w
+};
+
 /// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:
 /// per axis, child 2m = ¾·parent m + ¼·parent m−1 and child 2m+1 = ¾·parent m + ¼·parent m+1.
 #[inline]
@@ -905,15 +925,7 @@ fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
                 coarse.neighbor(from, partner_dir[axis])
             }
         };
-        let mut w = 1.0;
-        for axis in 0..3 {
-            w *= if (k >> axis) & 1 == 1 {
-                REFINE[0]
-            } else {
-                REFINE[1]
-            };
-        }
-        out[k] = (node, w);
+        out[k] = (node, PARENT_WEIGHTS[k]);
     }
     out
 }
