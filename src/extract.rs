@@ -556,115 +556,119 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
         .collect();
     frontier.retain(|leaf| visited.insert(leaves.key(leaf), ()).is_none());
 
-    while !frontier.is_empty() {
-        // A wave is processed in batches of a fixed size: the first wave holds every leaf with
-        // a sample, and planning it at once held ~0.6 KB per leaf (bunny depth 10: 400 MB).
-        let mut next_frontier = Vec::new();
-        for batch in frontier.chunks(WAVE_BATCH) {
-            // Where each leaf of the wave stands among its neighbours, and its points.
-            let plans: Vec<(Block, [Point; SLOTS], u32)> = batch
-                .par_iter()
-                .map(|leaf| {
-                    let block = leaves.block(leaf);
-                    let (points, used) = leaf_points(leaf, &block, finest);
-                    (block, points, used)
-                })
-                .collect();
-            // Evaluate the points this wave needs, in parallel (a pure function of the position).
-            let mut needed: Vec<u64> = plans
-                .par_iter()
-                .flat_map_iter(|(_, points, used)| {
-                    (0..SLOTS)
-                        .filter(move |&i| used >> i & 1 == 1)
-                        .map(move |i| pack(points[i]))
-                })
-                .filter(|k| !values.contains_key(k))
-                .collect();
-            needed.par_sort_unstable();
-            needed.dedup();
-            let fresh: Vec<f64> = needed.par_iter().map(|&k| evaluate(unpack(k))).collect();
-            values.extend(needed.into_iter().zip(fresh));
+    // Wave by wave, each in batches of a fixed size: the first wave holds every leaf with a
+    // sample, and planning it at once held ~0.6 KB per leaf (bunny depth 10: 400 MB).
+    let mut next_frontier = Vec::new();
+    let mut done = 0;
+    while done < frontier.len() {
+        let batch = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
+        done += batch.len();
+        // Where each leaf of the wave stands among its neighbours, and its points.
+        let plans: Vec<(Block, [Point; SLOTS], u32)> = batch
+            .par_iter()
+            .map(|leaf| {
+                let block = leaves.block(leaf);
+                let (points, used) = leaf_points(leaf, &block, finest);
+                (block, points, used)
+            })
+            .collect();
+        // Evaluate the points this wave needs, in parallel (a pure function of the position).
+        let mut needed: Vec<u64> = plans
+            .par_iter()
+            .flat_map_iter(|(_, points, used)| {
+                (0..SLOTS)
+                    .filter(move |&i| used >> i & 1 == 1)
+                    .map(move |i| pack(points[i]))
+            })
+            .filter(|k| !values.contains_key(k))
+            .collect();
+        needed.par_sort_unstable();
+        needed.dedup();
+        let fresh: Vec<f64> = needed.par_iter().map(|&k| evaluate(unpack(k))).collect();
+        values.extend(needed.into_iter().zip(fresh));
 
-            // The surface's loops in each leaf of the wave (independent: in parallel). Face
-            // centres, needed only by rare ambiguous faces, are evaluated where they are needed.
-            let crossed: Vec<Vec<Vec<Crossing>>> = plans
-                .par_iter()
-                .map(|&(_, points, used)| {
-                    let mut vals = [0.0; SLOTS];
-                    let (mut outside, mut inside) = (false, false);
-                    for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                        vals[i] = values[&pack(points[i])];
-                        outside |= vals[i] >= 0.0;
-                        inside |= vals[i] < 0.0;
-                    }
-                    if !(outside && inside) {
-                        return Vec::new();
-                    }
-                    let (faces, count) = minimal_faces(used, &cycles);
-                    leaf_loops(&faces[..count], &points, &vals, &evaluate)
-                })
-                .collect();
+        // The surface's loops in each leaf of the wave (independent: in parallel). Face
+        // centres, needed only by rare ambiguous faces, are evaluated where they are needed.
+        let crossed: Vec<Vec<Vec<Crossing>>> = plans
+            .par_iter()
+            .map(|&(_, points, used)| {
+                let mut vals = [0.0; SLOTS];
+                let (mut outside, mut inside) = (false, false);
+                for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
+                    vals[i] = values[&pack(points[i])];
+                    outside |= vals[i] >= 0.0;
+                    inside |= vals[i] < 0.0;
+                }
+                if !(outside && inside) {
+                    return Vec::new();
+                }
+                let (faces, count) = minimal_faces(used, &cycles);
+                leaf_loops(&faces[..count], &points, &vals, &evaluate)
+            })
+            .collect();
 
-            // Number the vertices of newly crossed edges in trace order, and visit the leaves
-            // around each of those edges.
-            let mut new_edges: Vec<Crossing> = Vec::new();
-            for ((leaf, (block, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
-                for c in loops.iter().flatten() {
-                    let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
-                    let mut created = false;
-                    vertex_of_edge.entry(c.key).or_insert_with(|| {
-                        created = true;
-                        next_id
-                    });
-                    if !created {
-                        continue;
-                    }
-                    new_edges.push(*c);
-                    for around in leaves_around(leaf, block, c, finest).into_iter().flatten() {
-                        if visited.insert(leaves.key(&around), ()).is_none() {
-                            next_frontier.push(around);
-                        }
+        // Number the vertices of newly crossed edges in trace order, and visit the leaves
+        // around each of those edges.
+        let mut new_edges: Vec<Crossing> = Vec::new();
+        for ((leaf, (block, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
+            for c in loops.iter().flatten() {
+                let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
+                let mut created = false;
+                vertex_of_edge.entry(c.key).or_insert_with(|| {
+                    created = true;
+                    next_id
+                });
+                if !created {
+                    continue;
+                }
+                new_edges.push(*c);
+                for around in leaves_around(leaf, block, c, finest).into_iter().flatten() {
+                    if visited.insert(leaves.key(&around), ()).is_none() {
+                        next_frontier.push(around);
                     }
                 }
             }
-            drop(plans);
-            // Place the new vertices (independent of each other: in parallel), then triangulate.
-            let placed: Vec<DVec3> = new_edges
-                .par_iter()
-                .map(|c| edge_vertex(chi, isovalue, h, c))
-                .collect();
-            mesh.vertices.extend(placed);
-            // Triangulate each leaf's loops (in parallel), then append in wave order, numbering the
-            // centre vertices some loops add after this wave's edge vertices.
-            let vertices = &mesh.vertices;
-            let vertex_of_edge = &vertex_of_edge;
-            let fans: Vec<(Vec<[u32; 3]>, Vec<DVec3>)> = crossed
-                .par_iter()
-                .map(|loops| {
-                    let (mut triangles, mut centres) = (Vec::new(), Vec::new());
-                    for lp in loops {
-                        let ids: Vec<u32> = lp.iter().map(|c| vertex_of_edge[&c.key]).collect();
-                        let on_faces: Vec<u8> = lp.iter().map(|c| c.faces).collect();
-                        triangulate(&ids, &on_faces, vertices, &mut triangles, &mut centres);
-                    }
-                    (triangles, centres)
-                })
-                .collect();
-            for (triangles, centres) in fans {
-                let base = mesh.vertices.len() as u32;
-                mesh.vertices.extend(centres);
-                mesh.triangles.extend(triangles.into_iter().map(|t| {
-                    t.map(|i| {
-                        if i & ADDED_CENTRE != 0 {
-                            base + (i & !ADDED_CENTRE)
-                        } else {
-                            i
-                        }
-                    })
-                }));
-            }
         }
-        frontier = next_frontier;
+        drop(plans);
+        // Place the new vertices (independent of each other: in parallel), then triangulate.
+        let placed: Vec<DVec3> = new_edges
+            .par_iter()
+            .map(|c| edge_vertex(chi, isovalue, h, c))
+            .collect();
+        mesh.vertices.extend(placed);
+        // Triangulate each leaf's loops (in parallel), then append in wave order, numbering the
+        // centre vertices some loops add after this wave's edge vertices.
+        let vertices = &mesh.vertices;
+        let vertex_of_edge = &vertex_of_edge;
+        let fans: Vec<(Vec<[u32; 3]>, Vec<DVec3>)> = crossed
+            .par_iter()
+            .map(|loops| {
+                let (mut triangles, mut centres) = (Vec::new(), Vec::new());
+                for lp in loops {
+                    let ids: Vec<u32> = lp.iter().map(|c| vertex_of_edge[&c.key]).collect();
+                    let on_faces: Vec<u8> = lp.iter().map(|c| c.faces).collect();
+                    triangulate(&ids, &on_faces, vertices, &mut triangles, &mut centres);
+                }
+                (triangles, centres)
+            })
+            .collect();
+        for (triangles, centres) in fans {
+            let base = mesh.vertices.len() as u32;
+            mesh.vertices.extend(centres);
+            mesh.triangles.extend(triangles.into_iter().map(|t| {
+                t.map(|i| {
+                    if i & ADDED_CENTRE != 0 {
+                        base + (i & !ADDED_CENTRE)
+                    } else {
+                        i
+                    }
+                })
+            }));
+        }
+        if done == frontier.len() {
+            frontier = std::mem::take(&mut next_frontier);
+            done = 0;
+        }
     }
     mesh
 }
