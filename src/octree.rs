@@ -529,9 +529,9 @@ impl BrickIndex {
         self.first.partition_point(|&f| f <= i) - 1
     }
 
-    /// For every node (keys sorted, as given to [`BrickIndex::new`]), `f(node, key, brick
-    /// slot)`, in parallel chunks of nodes; the slot comes from walking the bricks in order,
-    /// not from hashing each key.
+    /// For every node (keys sorted, as given to [`BrickIndex::new`]), `f(walk, node, key,
+    /// &mut out[node])`, in parallel chunks of nodes; the walk holds the node's brick slot,
+    /// found by walking the bricks in order rather than by hashing each key.
     fn for_each_node<T: Send>(
         &self,
         keys: &[u64],

@@ -933,39 +933,11 @@ fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
 /// Prolongs coarse coefficients (on K_{d−1}) to the fine halo K_d, exactly: the fine
 /// combination represents the same function wherever the coarse one is complete.
 pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Vec<f64> {
-    let [out] = prolong_many(coarse, fine, [x], [scale]);
-    out
-}
-
-/// [`prolong`] of several coefficient vectors (each with its scale) in one sweep, so the parents
-/// of every fine node are looked up once.
-pub fn prolong_many<const N: usize>(
-    coarse: &Level,
-    fine: &Level,
-    inputs: [&[f64]; N],
-    scales: [f64; N],
-) -> [Vec<f64>; N] {
-    let mut out: [Vec<f64>; N] = std::array::from_fn(|_| vec![0.0; fine.len()]);
-    let mut columns = out.each_mut().map(|o| o.chunks_mut(CHUNK));
-    let chunks: Vec<[&mut [f64]; N]> = (0..fine.len().div_ceil(CHUNK))
-        .map(|_| {
-            columns
-                .each_mut()
-                .map(|c| c.next().expect("one chunk per column"))
-        })
-        .collect();
-    chunks
+    (0..fine.len() as u32)
         .into_par_iter()
-        .enumerate()
-        .for_each(|(c, mut outs)| {
-            for j in 0..outs[0].len() {
-                let values = prolonged_at(coarse, fine, inputs, scales, (c * CHUNK + j) as u32);
-                for (o, v) in outs.iter_mut().zip(values) {
-                    o[j] = v;
-                }
-            }
-        });
-    out
+        .with_min_len(CHUNK)
+        .map(|i| prolonged_at(coarse, fine, [x], [scale], i)[0])
+        .collect()
 }
 
 /// The prolongation of `inputs` (each times its scale) at fine node `i`.
@@ -989,9 +961,9 @@ fn prolonged_at<const N: usize>(
 }
 
 /// A coarser vector field prolonged to a finer halo, evaluated node by node instead of stored:
-/// the value at a fine node is what [`prolong_many`] followed by [`fill_mirrors_field`] would
-/// hold there. Reading it once per node (as a pass does) costs one prolongation sweep and saves
-/// three halo-sized vectors.
+/// the value at a fine node is what [`prolong`] of each component followed by
+/// [`fill_mirrors_field`] would hold there. Reading it where needed saves three halo-sized
+/// vectors.
 pub struct ProlongedField<'a> {
     pub coarse: &'a Level,
     pub fine: &'a Level,
