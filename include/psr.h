@@ -228,6 +228,22 @@ typedef enum {
 } psr_splatting;
 
 /**
+ * Where the mesh's vertices go, for psr_reconstructor_set_vertex_placement.
+ */
+typedef enum {
+    /**
+     * Found on the isosurface, then moved along the normal by the mean sag of the chords they
+     * end, so that the flat triangles straddle the curved surface (the default; closer to the
+     * surface and to the input points).
+     */
+    PSR_VERTEX_PLACEMENT_FITTED = 0,
+    /**
+     * Exactly on the isosurface {chi = isovalue}, as PoissonRecon places them.
+     */
+    PSR_VERTEX_PLACEMENT_ON_ISOSURFACE = 1,
+} psr_vertex_placement;
+
+/**
  * A reconstructed triangle mesh. Created by psr_reconstructor_solve, destroyed by
  * psr_mesh_free; independent of the reconstructor that made it. Opaque to C.
  */
@@ -557,6 +573,28 @@ psr_status psr_reconstructor_set_splatting(psr_reconstructor *r, int32_t splatti
  * `r` is NULL or a live handle; `out` is NULL or valid for writes.
  */
 psr_status psr_reconstructor_get_splatting(const psr_reconstructor *r, int32_t *out);
+
+/**
+ * Sets where the mesh's vertices go: PSR_VERTEX_PLACEMENT_FITTED (0, the default: moved off the
+ * isosurface by the mean sag of their chords, so that the triangles straddle it) or
+ * PSR_VERTEX_PLACEMENT_ON_ISOSURFACE (1: exactly on it, as PoissonRecon places them).
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+ * (PSR_STATUS_INVALID_PARAMETER for any other value).
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_vertex_placement(psr_reconstructor *r, int32_t placement);
+
+/**
+ * Writes where the vertices go (a psr_vertex_placement value) to *out. r and out must not be
+ * NULL. Returns the statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_vertex_placement(const psr_reconstructor *r, int32_t *out);
 
 /**
  * Appends `count` oriented points to r. Position i is the 3 floats at

@@ -37,6 +37,11 @@
 //! to leaf through the leaves around every crossed edge, evaluating χ at each corner and edge
 //! midpoint once (and at the centre of the rare ambiguous face with cut edges).
 //!
+//! **Vertices.** Each crossed minimal edge's vertex is the root of χ − γ on it; then, unless the
+//! caller asks for vertices on the level set, [`fit_to_surface`] moves every vertex along the
+//! normal by the (smoothed) mean sag of its chords, so that the flat triangles straddle the
+//! surface.
+//!
 //! Corners are classed "outside" when χ ≥ γ. Triangles are oriented so that their normals point
 //! towards larger χ, which is outside (V points along the outward normals). Beyond the cube
 //! everything is outside, and one layer of cells mirroring the leaves inside takes part, so
@@ -671,6 +676,94 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
         }
     }
     mesh
+}
+
+/// Moves every vertex along the surface normal so that the flat triangles straddle {χ = γ}
+/// instead of lying on its concave side.
+///
+/// Extraction puts every vertex on the surface exactly, so each triangle is a chord of it: on a
+/// convex patch the whole triangle is inside, on a concave one outside. With vertices on a
+/// surface z = ½ xᵀ II x, the linear interpolant's error at barycentric coordinates λ is
+/// ½ Σ_{i<j} λ_i λ_j e_ijᵀ II e_ij, whose mean over the triangle is the mean of its three edges'
+/// midpoint sags eᵀ II e / 8. The normal curvature along an edge a→b follows from the unit
+/// normals at its ends, eᵀ II e ≈ (n_b − n_a)·(b − a), and the normals are ∇χ/|∇χ| (degree-2
+/// B-splines have a continuous gradient, so they are smooth across cells). A vertex's sag is
+/// the mean over its edges; moving every vertex out by it makes each triangle's mean signed
+/// distance to the surface about zero. Per edge the term is at most |b − a|/4, so no vertex
+/// moves further than a quarter of the longest edge within two edges of it, whatever the
+/// normals.
+///
+/// The sags are then averaged with their neighbours' twice (each pass: half the vertex's own,
+/// half its neighbours' mean). Where the samples are noisy, χ's level set has wiggles a few
+/// cells wide whose sag is noise too, and restoring it would copy the noise into the mesh;
+/// the curvature of the shape itself spans more cells and passes through. Measured against the
+/// exact surfaces (Chamfer, thousandths of the diagonal), without → with smoothing: torus at
+/// depth 7 0.030 → 0.030 (0.043 on the isosurface), a noisy sphere at depth 8 0.089 → 0.087
+/// (0.083), a 100k-point sphere at depth 8 0.0158 → 0.0153 (0.0153); and from the input
+/// points, CGAL's kitten 0.29 → 0.30 (0.41) and oni 1.29 → 1.36 (1.66).
+///
+/// Vertices of the cap on the cube's faces (outside the unit cube by construction) stay on the
+/// face, and their edges do not count: χ is not defined beyond the cube.
+pub fn fit_to_surface(chi: &Indicator<'_>, mesh: &mut RawMesh) {
+    const SMOOTHING_PASSES: usize = 2;
+    let inside = |v: DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::ONE).all();
+    let normals: Vec<Option<DVec3>> = mesh
+        .vertices
+        .par_iter()
+        .map(|&v| {
+            if !inside(v) {
+                return None;
+            }
+            chi.gradient(v).try_normalize()
+        })
+        .collect();
+    let vertices = &mesh.vertices;
+    let valid: Vec<bool> = normals.iter().map(Option::is_some).collect();
+    let normal = |i: usize| normals[i].unwrap_or(DVec3::ZERO);
+    let mut sag = mean_over_edges(&mesh.triangles, &valid, |a, b| {
+        (normal(b) - normal(a)).dot(vertices[b] - vertices[a]) / 8.0
+    });
+    for _ in 0..SMOOTHING_PASSES {
+        let around = mean_over_edges(&mesh.triangles, &valid, |_, b| sag[b]);
+        sag = sag
+            .iter()
+            .zip(&around)
+            .map(|(s, a)| 0.5 * (s + a))
+            .collect();
+    }
+    mesh.vertices
+        .par_iter_mut()
+        .zip(normals.par_iter().zip(sag.par_iter()))
+        .for_each(|(v, (n, &s))| {
+            if let Some(n) = n {
+                *v += *n * s;
+            }
+        });
+}
+
+/// For every vertex of a closed mesh, the mean of `term(vertex, neighbour)` over its edges
+/// whose two ends are `valid` (0 with none). Each triangle's directed edges a→b visit every
+/// edge once from each end.
+fn mean_over_edges(
+    triangles: &[[u32; 3]],
+    valid: &[bool],
+    term: impl Fn(usize, usize) -> f64,
+) -> Vec<f64> {
+    let mut sum = vec![0.0f64; valid.len()];
+    let mut count = vec![0u32; valid.len()];
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            if valid[a] && valid[b] {
+                sum[a] += term(a, b);
+                count[a] += 1;
+            }
+        }
+    }
+    sum.into_iter()
+        .zip(count)
+        .map(|(s, c)| if c > 0 { s / c as f64 } else { 0.0 })
+        .collect()
 }
 
 /// The leaves around a crossed minimal edge on the boundary of `leaf` (whose neighbourhood is

@@ -889,6 +889,18 @@ pub enum psr_splatting {
     Trilinear = 1,
 }
 
+/// Where the mesh's vertices go, for psr_reconstructor_set_vertex_placement.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum psr_vertex_placement {
+    /// Found on the isosurface, then moved along the normal by the mean sag of the chords they
+    /// end, so that the flat triangles straddle the curved surface (the default; closer to the
+    /// surface and to the input points).
+    Fitted = 0,
+    /// Exactly on the isosurface {chi = isovalue}, as PoissonRecon places them.
+    OnIsosurface = 1,
+}
+
 /// Sets a parameter that takes one of a few named values, given as an integer (never trusted
 /// as a Rust enum).
 ///
@@ -1005,6 +1017,55 @@ pub unsafe extern "C" fn psr_reconstructor_get_splatting(
             crate::Splatting::Trilinear => psr_splatting::Trilinear as i32,
         }
     })
+}
+
+/// Sets where the mesh's vertices go: PSR_VERTEX_PLACEMENT_FITTED (0, the default: moved off the
+/// isosurface by the mean sag of their chords, so that the triangles straddle it) or
+/// PSR_VERTEX_PLACEMENT_ON_ISOSURFACE (1: exactly on it, as PoissonRecon places them).
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+/// (PSR_STATUS_INVALID_PARAMETER for any other value).
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_vertex_placement(
+    r: *mut psr_reconstructor,
+    placement: i32,
+) -> psr_status {
+    set_choice(
+        "psr_reconstructor_set_vertex_placement",
+        r,
+        "vertex_placement",
+        "PSR_VERTEX_PLACEMENT_FITTED (0) or PSR_VERTEX_PLACEMENT_ON_ISOSURFACE (1)",
+        placement,
+        &[
+            crate::VertexPlacement::Fitted,
+            crate::VertexPlacement::OnIsosurface,
+        ],
+        |p, v| p.vertex_placement = v,
+    )
+}
+
+/// Writes where the vertices go (a psr_vertex_placement value) to *out. r and out must not be
+/// NULL. Returns the statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_vertex_placement(
+    r: *const psr_reconstructor,
+    out: *mut i32,
+) -> psr_status {
+    get_param(
+        "psr_reconstructor_get_vertex_placement",
+        r,
+        out,
+        |p| match p.vertex_placement {
+            crate::VertexPlacement::Fitted => psr_vertex_placement::Fitted as i32,
+            crate::VertexPlacement::OnIsosurface => psr_vertex_placement::OnIsosurface as i32,
+        },
+    )
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ pub mod splat;
 pub mod system;
 
 pub use error::{Error, Result};
-pub use params::{Boundary, Params, Splatting};
+pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use points::PointSet;
 
 /// The stages of a reconstruction, in order, as reported to progress callbacks.

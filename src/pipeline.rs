@@ -14,6 +14,7 @@ use crate::system::{
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
+    VertexPlacement,
 };
 use glam::DVec3;
 use rayon::prelude::*;
@@ -354,7 +355,10 @@ pub(crate) fn run(
             [c[0] as i64, c[1] as i64, c[2] as i64]
         })
         .collect();
-    let raw = pool.install(|| extract::extract(&chi, isovalue, seeds));
+    let mut raw = pool.install(|| extract::extract(&chi, isovalue, seeds));
+    if params.vertex_placement == VertexPlacement::Fitted {
+        pool.install(|| extract::fit_to_surface(&chi, &mut raw));
+    }
     clock.done(Stage::Extract)?;
 
     // 9. Mesh: back to input coordinates, with the sampling density at each vertex.

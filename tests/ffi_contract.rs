@@ -1190,11 +1190,11 @@ fn two_handles_on_two_threads_match_sequential_runs() {
     );
 }
 
-/// Proves: the boundary and splatting choices are set and read back as integers, default to
-/// Neumann and B-spline, and any other integer is refused with INVALID_PARAMETER naming the
-/// parameter, leaving the value as it was.
+/// Proves: the boundary, splatting and vertex placement choices are set and read back as
+/// integers, default to Neumann, B-spline and fitted, and any other integer is refused with
+/// INVALID_PARAMETER naming the parameter, leaving the value as it was.
 #[test]
-fn boundary_and_splatting_choices_round_trip_and_reject_unknown_values() {
+fn boundary_splatting_and_vertex_placement_choices_round_trip_and_reject_unknown_values() {
     let r = new_handle();
     unsafe {
         let mut v = -7i32;
@@ -1202,6 +1202,20 @@ fn boundary_and_splatting_choices_round_trip_and_reject_unknown_values() {
         assert_eq!(v, psr_boundary::Neumann as i32);
         assert_eq!(psr_reconstructor_get_splatting(r, &mut v), psr_status::Ok);
         assert_eq!(v, psr_splatting::Bspline as i32);
+        assert_eq!(
+            psr_reconstructor_get_vertex_placement(r, &mut v),
+            psr_status::Ok
+        );
+        assert_eq!(v, psr_vertex_placement::Fitted as i32);
+        assert_eq!(
+            psr_reconstructor_set_vertex_placement(r, psr_vertex_placement::OnIsosurface as i32),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_vertex_placement(r, &mut v),
+            psr_status::Ok
+        );
+        assert_eq!(v, psr_vertex_placement::OnIsosurface as i32);
         assert_eq!(
             psr_reconstructor_set_boundary(r, psr_boundary::Free as i32),
             psr_status::Ok
@@ -1225,7 +1239,21 @@ fn boundary_and_splatting_choices_round_trip_and_reject_unknown_values() {
                 psr_status::InvalidParameter
             );
             assert!(last_error(r).contains("splatting"), "{}", last_error(r));
+            assert_eq!(
+                psr_reconstructor_set_vertex_placement(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(
+                last_error(r).contains("vertex_placement"),
+                "{}",
+                last_error(r)
+            );
         }
+        assert_eq!(
+            psr_reconstructor_get_vertex_placement(r, &mut v),
+            psr_status::Ok
+        );
+        assert_eq!(v, psr_vertex_placement::OnIsosurface as i32);
         assert_eq!(psr_reconstructor_get_boundary(r, &mut v), psr_status::Ok);
         assert_eq!(v, psr_boundary::Free as i32);
         assert_eq!(
@@ -1234,6 +1262,14 @@ fn boundary_and_splatting_choices_round_trip_and_reject_unknown_values() {
         );
         assert_eq!(
             psr_reconstructor_get_splatting(r, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_set_vertex_placement(ptr::null_mut(), 0),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_vertex_placement(r, ptr::null_mut()),
             psr_status::NullArgument
         );
         psr_reconstructor_free(r);

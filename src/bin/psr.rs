@@ -3,7 +3,7 @@
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
-//!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear] [--confidence] [--no-density] [--quiet] [--verbose]
+//!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear] [--vertices fitted|on-isosurface] [--confidence] [--no-density] [--quiet] [--verbose]
 //! ```
 //!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
@@ -15,7 +15,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use psr::{ply, Boundary, Mesh, Params, PointSet, Splatting, Stage};
+use psr::{ply, Boundary, Mesh, Params, PointSet, Splatting, Stage, VertexPlacement};
 
 /// Poisson surface reconstruction: turns an oriented point cloud (PLY with x y z nx ny nz)
 /// into a watertight triangle mesh (binary PLY).
@@ -75,6 +75,11 @@ struct Args {
     #[arg(long, value_enum, default_value_t = SplattingArg::Bspline)]
     splatting: SplattingArg,
 
+    /// Where the vertices go: fitted (moved off the isosurface by the mean sag of their chords,
+    /// so that the flat triangles straddle it) or on-isosurface (exactly on it, as PoissonRecon).
+    #[arg(long, value_enum, default_value_t = VerticesArg::Fitted)]
+    vertices: VerticesArg,
+
     /// Weigh each point by the input's `confidence` (or `value`) property.
     #[arg(long)]
     confidence: bool,
@@ -112,6 +117,10 @@ impl Args {
                 SplattingArg::Bspline => Splatting::BSpline,
                 SplattingArg::Trilinear => Splatting::Trilinear,
             },
+            vertex_placement: match self.vertices {
+                VerticesArg::Fitted => VertexPlacement::Fitted,
+                VerticesArg::OnIsosurface => VertexPlacement::OnIsosurface,
+            },
             ..Params::default()
         }
     }
@@ -127,6 +136,12 @@ enum BoundaryArg {
 enum SplattingArg {
     Bspline,
     Trilinear,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum VerticesArg {
+    Fitted,
+    OnIsosurface,
 }
 
 /// Why the run failed, which decides the exit status.
