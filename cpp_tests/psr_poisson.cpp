@@ -48,6 +48,12 @@ Result run_psr(const inputs::Cloud &cloud, const OctreeParams &p) {
     check(psr_reconstructor_set_threads(r.get(), p.threads), r.get(), "set_threads");
     check(psr_reconstructor_set_max_solver_iterations(r.get(), 60), r.get(), "set_max_solver_iterations");
     check(psr_reconstructor_set_solver_tolerance(r.get(), 1e-2), r.get(), "set_solver_tolerance");
+    // Fitted vertices (psr's default): found on the isosurface, then moved along the normal by
+    // the mean sag of their chords so that the flat triangles straddle the curved surface. PCL
+    // and CGAL have no such step; PCL's vertices come out about 1e-4 outside its isosurface on
+    // the torus anyway (its isovalue is an average over node centres, not over the samples).
+    check(psr_reconstructor_set_vertex_placement(r.get(), PSR_VERTEX_PLACEMENT_FITTED), r.get(),
+          "set_vertex_placement");
 
     std::vector<float> xyz, nxyz;
     xyz.reserve(3 * cloud.size());
@@ -77,7 +83,7 @@ Result run_psr(const inputs::Cloud &cloud, const OctreeParams &p) {
     std::ostringstream s;
     s << "psr " << psr_version() << ": depth " << p.depth << ", full_depth " << p.full_depth << ", kernel_depth "
       << p.depth - 2 << ", samples_per_node " << p.samples_per_node << ", scale " << p.scale << ", point_weight "
-      << p.point_weight << ", threads " << p.threads << ", max_solver_iterations 60, solver_tolerance 1e-2";
+      << p.point_weight << ", threads " << p.threads << ", max_solver_iterations 60, solver_tolerance 1e-2, vertex_placement fitted";
     out.settings = s.str();
     return out;
 }
