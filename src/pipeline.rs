@@ -173,10 +173,17 @@ pub(crate) fn run(
     clock.done(Stage::Splat)?;
 
     // 5. System: ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo, finest first (restriction is exact).
+    // The finest depth's V is needed for nothing else (no finer depth prolongs it): its three
+    // vectors become the divergence's scratch space.
     let mut rho: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
     for d in (0..=max_depth as usize).rev() {
         let level = &tree.levels[d];
-        let mut r = pool.install(|| divergence(level, &field_v[d]));
+        let v = if d == max_depth as usize {
+            std::mem::take(&mut field_v[d])
+        } else {
+            field_v[d].clone()
+        };
+        let mut r = pool.install(|| divergence(level, v));
         if d < max_depth as usize {
             let finer: &Vec<f64> = rho.last().expect("finer level computed first");
             restrict_into(level, &tree.levels[d + 1], finer, &mut r);
@@ -189,8 +196,6 @@ pub(crate) fn run(
         )?;
     }
     rho.reverse();
-    // The finest depth's V is in ρ now; nothing finer will prolong it.
-    field_v[max_depth as usize] = [Vec::new(), Vec::new(), Vec::new()];
     // Screening weights: SPSR's α·Area/Σw·Σ w χ², with the area from the density estimate.
     let total_area: f64 = sample_density
         .area

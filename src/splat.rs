@@ -16,7 +16,7 @@
 //! their reflection.
 
 use crate::octree::{Level, NONE};
-use crate::system::cell_of;
+use crate::system::{cell_of, SharedSlice, CHUNK};
 use crate::Splatting;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -55,30 +55,33 @@ pub fn splat_depth(
         })
         .collect();
     by_cell.par_sort_unstable_by_key(|(cell, s)| (*cell, s.sample));
-    let mut ranges = vec![(0u32, 0u32); level.len()];
-    let mut start = 0;
-    while start < by_cell.len() {
-        let cell = by_cell[start].0;
-        let mut end = start + 1;
-        while end < by_cell.len() && by_cell[end].0 == cell {
-            end += 1;
-        }
-        ranges[cell as usize] = (start as u32, end as u32);
-        start = end;
+    // The samples of cell c are by_cell[starts[c]..starts[c + 1]].
+    let mut starts = vec![0u32; level.len() + 1];
+    for &(cell, _) in &by_cell {
+        starts[cell as usize + 1] += 1;
+    }
+    for c in 0..level.len() {
+        starts[c + 1] += starts[c];
     }
 
-    let gathered: Vec<DVec3> = level
-        .core
-        .par_iter()
-        .map(|&node| {
+    // Each core node's sum goes straight into the field: no per-node list of sums beside it.
+    let mut field = [
+        vec![0.0; level.len()],
+        vec![0.0; level.len()],
+        vec![0.0; level.len()],
+    ];
+    let [fx, fy, fz] = &mut field;
+    let shared = [fx, fy, fz].map(|component| SharedSlice::new(component));
+    level.core.par_chunks(CHUNK).for_each(|nodes| {
+        for &node in nodes {
             let o = level.coord(node);
             let mut sum = DVec3::ZERO;
             for (slot, &cell) in level.block27(node).iter().enumerate() {
                 if cell == NONE {
                     continue;
                 }
-                let (first, last) = ranges[cell as usize];
-                for &(_, s) in &by_cell[first as usize..last as usize] {
+                let samples = starts[cell as usize] as usize..starts[cell as usize + 1] as usize;
+                for &(_, s) in &by_cell[samples] {
                     let p = positions[s.sample as usize];
                     let t = p * inv_h;
                     let cell_coord = [
@@ -94,19 +97,12 @@ pub fn splat_depth(
                     sum += normals[s.sample as usize] * (s.mass * weight);
                 }
             }
-            sum
-        })
-        .collect();
-    let mut field = [
-        vec![0.0; level.len()],
-        vec![0.0; level.len()],
-        vec![0.0; level.len()],
-    ];
-    for (&node, v) in level.core.iter().zip(&gathered) {
-        for axis in 0..3 {
-            field[axis][node as usize] = v[axis];
+            for (component, value) in shared.iter().zip(sum.to_array()) {
+                // SAFETY: core nodes are distinct, so each element has one writer.
+                unsafe { *component.get_mut(node as usize) = value };
+            }
         }
-    }
+    });
     field
 }
 

@@ -798,7 +798,7 @@ impl ScreeningCells {
 }
 
 /// A slice written from several threads at indices known to be disjoint between threads.
-struct SharedSlice<'a, T> {
+pub(crate) struct SharedSlice<'a, T> {
     start: *mut T,
     len: usize,
     _slice: std::marker::PhantomData<&'a mut [T]>,
@@ -809,7 +809,7 @@ struct SharedSlice<'a, T> {
 unsafe impl<T: Send> Sync for SharedSlice<'_, T> {}
 
 impl<'a, T> SharedSlice<'a, T> {
-    fn new(slice: &'a mut [T]) -> Self {
+    pub(crate) fn new(slice: &'a mut [T]) -> Self {
         SharedSlice {
             start: slice.as_mut_ptr(),
             len: slice.len(),
@@ -823,7 +823,7 @@ impl<'a, T> SharedSlice<'a, T> {
     /// No other thread may access element `i` while the returned reference lives.
     #[inline]
     #[allow(clippy::mut_from_ref)]
-    unsafe fn get_mut(&self, i: usize) -> &mut T {
+    pub(crate) unsafe fn get_mut(&self, i: usize) -> &mut T {
         assert!(i < self.len);
         &mut *self.start.add(i)
     }
@@ -843,28 +843,28 @@ pub fn evaluate_block(level: &Level, cell: u32, st: &[[f64; 3]; 3], x: &[f64]) -
 }
 
 /// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
-/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d.
-pub fn divergence(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
+/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d. The three components are
+/// taken by value and used as scratch once read: one more halo vector, not three (pass a
+/// clone to keep V).
+pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
     let t = tables();
-    let n = level.len();
     let inv_h = 1.0 / level.width();
-    let mut a = vec![0.0; n];
-    let mut b = vec![0.0; n];
-    let mut out = vec![0.0; n];
-    // x component: G_x M_y M_z
-    pass(level, 2, &t.mass, &v[0], &mut a);
-    pass(level, 1, &t.mass, &a, &mut b);
-    pass(level, 0, &t.advection, &b, &mut out);
-    // y component: M_x G_y M_z
-    pass(level, 2, &t.mass, &v[1], &mut a);
-    pass(level, 1, &t.advection, &a, &mut b);
-    pass(level, 0, &t.mass, &b, &mut a);
-    add_into(&mut out, &a);
-    // z component: M_x M_y G_z
-    pass(level, 2, &t.advection, &v[2], &mut a);
-    pass(level, 1, &t.mass, &a, &mut b);
-    pass(level, 0, &t.mass, &b, &mut a);
-    add_into(&mut out, &a);
+    let [mut vx, mut vy, vz] = v;
+    let mut out = vec![0.0; level.len()];
+    // x component: G_x M_y M_z (vx is free once the first pass has read it).
+    pass(level, 2, &t.mass, &vx, &mut out);
+    pass(level, 1, &t.mass, &out, &mut vx);
+    pass(level, 0, &t.advection, &vx, &mut out);
+    // y component: M_x G_y M_z, through vx and vy.
+    pass(level, 2, &t.mass, &vy, &mut vx);
+    pass(level, 1, &t.advection, &vx, &mut vy);
+    pass(level, 0, &t.mass, &vy, &mut vx);
+    add_into(&mut out, &vx);
+    // z component: M_x M_y G_z, through vx and vy.
+    pass(level, 2, &t.advection, &vz, &mut vx);
+    pass(level, 1, &t.mass, &vx, &mut vy);
+    pass(level, 0, &t.mass, &vy, &mut vx);
+    add_into(&mut out, &vx);
     out.par_iter_mut().for_each(|o| *o *= inv_h);
     out
 }
@@ -1085,7 +1085,7 @@ mod tests {
             coefficients(level, |t| h * h * h * (2.0 * h * t[1])),
             coefficients(level, |t| h * h * h * (-h * t[2])),
         ];
-        let div = divergence(level, &v);
+        let div = divergence(level, v);
         // ⟨∇B_o, V⟩ = −∫B_o ∇·V = −(1 + 2 − 1)·h³ at every core node.
         for &c in &level.core {
             let got = div[c as usize];
@@ -1102,7 +1102,7 @@ mod tests {
                 .map(|i| ((i * (a + 3)) % 11) as f64 - 5.0)
                 .collect()
         });
-        let full = divergence(level, &v);
+        let full = divergence(level, v.clone());
         let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);
         let on_core = op.divergence_on_core(|n| [v[0][n], v[1][n], v[2][n]]);
