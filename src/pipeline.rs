@@ -252,13 +252,13 @@ pub(crate) fn run(
         let is_finest = d == max_depth as usize;
         let mut field = std::mem::take(&mut field_v[d]);
         let rho_here = std::mem::take(&mut rho[d]);
-        let (y, rhs) = pool.install(|| {
+        let (y, coarse_div) = pool.install(|| {
             // The coarser solution and V from coarser depths, represented at this depth (F̃
             // halves in width: ×1/8). The solution's prolongation is stored (it is part of this
             // depth's coefficients); V's is computed node by node where it is read, by the
             // divergence and, above the finest depth, by the sweep that adds it to this depth's
             // V for the next depth, so it never takes three halo vectors.
-            let (y, coarse_div) = if d == 0 {
+            if d == 0 {
                 (vec![0.0; level.len()], vec![0.0; level.core.len()])
             } else {
                 let coarse = &tree.levels[d - 1];
@@ -276,22 +276,25 @@ pub(crate) fn run(
                     prolonged.add_to(&mut field);
                 }
                 (y, coarse_div)
-            };
-            let mut applied = vec![0.0; level.core.len()];
-            op.apply(&y, &mut applied);
-            let rhs: Vec<f64> = level
-                .core
-                .par_iter()
-                .zip(coarse_div.par_iter().zip(&applied))
-                .map(|(&c, (div, a))| rho_here[c as usize] + div - a)
-                .collect();
-            (y, rhs)
+            }
         });
-        drop(rho_here);
+        // The coarser depths' V is read: it goes before this depth's vectors are allocated (at
+        // the finest depth nothing replaces it).
         coarse_field = field;
         if !is_finest {
             fill_mirrors_field(level, &mut coarse_field);
         }
+        // b − A·y on the core, computed in A·y's vector.
+        let rhs = pool.install(|| {
+            let mut rhs = vec![0.0; level.core.len()];
+            op.apply(&y, &mut rhs);
+            rhs.par_iter_mut()
+                .zip(level.core.par_iter().zip(&coarse_div))
+                .for_each(|(a, (&c, div))| *a = rho_here[c as usize] + div - *a);
+            rhs
+        });
+        drop(rho_here);
+        drop(coarse_div);
         let base = d as f32 / depths as f32;
         // The coefficients of this depth: the prolonged coarser solution plus the correction
         // the solve adds on the core.
