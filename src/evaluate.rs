@@ -8,7 +8,7 @@
 
 use crate::density::stencil27;
 use crate::octree::{Octree, NEAR, NONE};
-use crate::system::{cell_of, evaluate_block};
+use crate::system::cell_of;
 use glam::DVec3;
 
 /// The solved indicator function.
@@ -18,50 +18,78 @@ pub struct Indicator<'t> {
     pub coefficients: Vec<Vec<f64>>,
 }
 
+/// Where χ near a point comes from: the deepest depth whose core functions reach the point and
+/// the 27 nodes around the point's cell there (`NONE` where the halo has none). Points in the
+/// same cell of the finest depth share it.
+pub struct Block {
+    depth: usize,
+    inv_h: f64,
+    nodes: [u32; 27],
+}
+
 impl Indicator<'_> {
     /// χ(p) for a point in unit-cube coordinates (0 far outside the tree).
     pub fn value(&self, p: DVec3) -> f64 {
-        self.locate(p).map_or(0.0, |(d, cell, inv_h)| {
-            let (_, stencil) = stencil27(p, inv_h);
-            evaluate_block(&self.tree.levels[d], cell, &stencil, &self.coefficients[d])
-        })
+        self.block(p).map_or(0.0, |b| self.value_in(&b, p))
     }
 
-    /// ∇χ(p) for a point in unit-cube coordinates (zero far outside the tree), from the same
-    /// 27 nodes as [`Indicator::value`]: degree-2 B-splines have continuous first derivatives.
+    /// ∇χ(p) for a point in unit-cube coordinates (zero far outside the tree).
     pub fn gradient(&self, p: DVec3) -> DVec3 {
-        self.locate(p).map_or(DVec3::ZERO, |(d, cell, inv_h)| {
-            let (value, slope) = stencil27_with_slopes(p, inv_h);
-            let x = &self.coefficients[d];
-            let mut g = DVec3::ZERO;
-            for (slot, &n) in self.tree.levels[d].block27(cell).iter().enumerate() {
-                if n == NONE {
-                    continue;
-                }
-                let (i, j, k) = (slot % 3, (slot / 3) % 3, slot / 9);
-                g += x[n as usize]
-                    * DVec3::new(
-                        slope[0][i] * value[1][j] * value[2][k],
-                        value[0][i] * slope[1][j] * value[2][k],
-                        value[0][i] * value[1][j] * slope[2][k],
-                    );
-            }
-            g * inv_h
-        })
+        self.block(p)
+            .map_or(DVec3::ZERO, |b| self.gradient_in(&b, p))
     }
 
-    /// The deepest depth whose core functions reach p, p's cell there and 1/h of that depth.
-    fn locate(&self, p: DVec3) -> Option<(usize, u32, f64)> {
+    /// The block χ(p) comes from, `None` far outside the tree.
+    pub fn block(&self, p: DVec3) -> Option<Block> {
         self.tree
             .levels
             .iter()
             .enumerate()
             .rev()
-            .find_map(|(d, level)| {
-                let inv_h = (d as f64).exp2();
-                let cell = level.find(cell_of(p, inv_h))?;
-                (level.flags[cell as usize] & NEAR != 0).then_some((d, cell, inv_h))
+            .find_map(|(depth, level)| {
+                let inv_h = (depth as f64).exp2();
+                let cell = cell_of(p, inv_h);
+                let index = level.find(cell)?;
+                (level.flags[index as usize] & NEAR != 0).then(|| Block {
+                    depth,
+                    inv_h,
+                    nodes: level.block27(index),
+                })
             })
+    }
+
+    /// χ(p) from the block of a point in p's cell.
+    pub fn value_in(&self, block: &Block, p: DVec3) -> f64 {
+        let (_, st) = stencil27(p, block.inv_h);
+        let x = &self.coefficients[block.depth];
+        let mut sum = 0.0;
+        for (slot, &n) in block.nodes.iter().enumerate() {
+            if n != NONE {
+                sum += x[n as usize] * st[0][slot % 3] * st[1][(slot / 3) % 3] * st[2][slot / 9];
+            }
+        }
+        sum
+    }
+
+    /// ∇χ(p) from the block of a point in p's cell: degree-2 B-splines have continuous first
+    /// derivatives.
+    pub fn gradient_in(&self, block: &Block, p: DVec3) -> DVec3 {
+        let (value, slope) = stencil27_with_slopes(p, block.inv_h);
+        let x = &self.coefficients[block.depth];
+        let mut g = DVec3::ZERO;
+        for (slot, &n) in block.nodes.iter().enumerate() {
+            if n == NONE {
+                continue;
+            }
+            let (i, j, k) = (slot % 3, (slot / 3) % 3, slot / 9);
+            g += x[n as usize]
+                * DVec3::new(
+                    slope[0][i] * value[1][j] * value[2][k],
+                    value[0][i] * slope[1][j] * value[2][k],
+                    value[0][i] * value[1][j] * slope[2][k],
+                );
+        }
+        g * block.inv_h
     }
 }
 

@@ -58,6 +58,9 @@ use rayon::prelude::*;
 pub struct RawMesh {
     pub vertices: Vec<DVec3>,
     pub triangles: Vec<[u32; 3]>,
+    /// When asked for: the unit normal ∇χ/|∇χ| at each vertex, zero where there is none (the
+    /// cap on the cube's faces, where χ is not defined beyond the face).
+    pub normals: Vec<DVec3>,
 }
 
 /// A grid point of the finest depth D (integer coordinates, 2^D across the cube).
@@ -529,7 +532,12 @@ const WAVE_BATCH: usize = 16384;
 
 /// Extracts {χ = γ} on the leaves of `chi`'s tree, following the surface from the leaves
 /// containing the finest-depth cells in `seeds` (any order, duplicates allowed).
-pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawMesh {
+pub fn extract(
+    chi: &Indicator<'_>,
+    isovalue: f64,
+    seeds: Vec<[i64; 3]>,
+    with_normals: bool,
+) -> RawMesh {
     let finest = chi.tree.max_depth();
     let leaves = Leaves {
         tree: chi.tree,
@@ -636,11 +644,14 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
         }
         drop(plans);
         // Place the new vertices (independent of each other: in parallel), then triangulate.
-        let placed: Vec<DVec3> = new_edges
+        let placed: Vec<(DVec3, DVec3)> = new_edges
             .par_iter()
-            .map(|c| edge_vertex(chi, isovalue, h, c))
+            .map(|c| edge_vertex(chi, isovalue, h, c, with_normals))
             .collect();
-        mesh.vertices.extend(placed);
+        mesh.vertices.extend(placed.iter().map(|&(v, _)| v));
+        if with_normals {
+            mesh.normals.extend(placed.iter().map(|&(_, n)| n));
+        }
         // Triangulate each leaf's loops (in parallel), then append in wave order, numbering the
         // centre vertices some loops add after this wave's edge vertices.
         let vertices = &mesh.vertices;
@@ -659,6 +670,16 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
             .collect();
         for (triangles, centres) in fans {
             let base = mesh.vertices.len() as u32;
+            if with_normals {
+                let inside = |v: &DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::ONE).all();
+                mesh.normals.extend(centres.iter().map(|v| {
+                    if inside(v) {
+                        chi.gradient(*v).normalize_or_zero()
+                    } else {
+                        DVec3::ZERO
+                    }
+                }));
+            }
             mesh.vertices.extend(centres);
             mesh.triangles.extend(triangles.into_iter().map(|t| {
                 t.map(|i| {
@@ -704,24 +725,17 @@ pub fn extract(chi: &Indicator<'_>, isovalue: f64, seeds: Vec<[i64; 3]>) -> RawM
 ///
 /// Vertices of the cap on the cube's faces (outside the unit cube by construction) stay on the
 /// face, and their edges do not count: χ is not defined beyond the cube.
-pub fn fit_to_surface(chi: &Indicator<'_>, mesh: &mut RawMesh) {
+pub fn fit_to_surface(mesh: &mut RawMesh) {
     const SMOOTHING_PASSES: usize = 2;
-    let inside = |v: DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::ONE).all();
-    let normals: Vec<Option<DVec3>> = mesh
-        .vertices
-        .par_iter()
-        .map(|&v| {
-            if !inside(v) {
-                return None;
-            }
-            chi.gradient(v).try_normalize()
-        })
-        .collect();
-    let vertices = &mesh.vertices;
-    let valid: Vec<bool> = normals.iter().map(Option::is_some).collect();
-    let normal = |i: usize| normals[i].unwrap_or(DVec3::ZERO);
+    assert_eq!(
+        mesh.normals.len(),
+        mesh.vertices.len(),
+        "fitting needs the normals: extract with_normals"
+    );
+    let (vertices, normals) = (&mesh.vertices, &mesh.normals);
+    let valid: Vec<bool> = normals.iter().map(|n| *n != DVec3::ZERO).collect();
     let mut sag = mean_over_edges(&mesh.triangles, &valid, |a, b| {
-        (normal(b) - normal(a)).dot(vertices[b] - vertices[a]) / 8.0
+        (normals[b] - normals[a]).dot(vertices[b] - vertices[a]) / 8.0
     });
     for _ in 0..SMOOTHING_PASSES {
         let around = mean_over_edges(&mesh.triangles, &valid, |_, b| sag[b]);
@@ -733,12 +747,8 @@ pub fn fit_to_surface(chi: &Indicator<'_>, mesh: &mut RawMesh) {
     }
     mesh.vertices
         .par_iter_mut()
-        .zip(normals.par_iter().zip(sag.par_iter()))
-        .for_each(|(v, (n, &s))| {
-            if let Some(n) = n {
-                *v += *n * s;
-            }
-        });
+        .zip(mesh.normals.par_iter().zip(sag.par_iter()))
+        .for_each(|(v, (n, &s))| *v += *n * s);
 }
 
 /// For every vertex of a closed mesh, the mean of `term(vertex, neighbour)` over its edges
@@ -820,19 +830,40 @@ fn leaves_around(leaf: &Leaf, block: &Block, c: &Crossing, finest: u32) -> [Opti
 /// misplaces vertices by up to a few percent of a cell, in a pattern that follows the grid:
 /// measured on a 40k-point sphere at depth 7, exact roots cut the mean mesh-to-sphere distance by
 /// 17%.)
-fn edge_vertex(chi: &Indicator<'_>, isovalue: f64, h: f64, c: &Crossing) -> DVec3 {
+///
+/// With `with_normal`, also the unit normal ∇χ/|∇χ| there (zero on the cap). On an edge of the
+/// finest grid the vertex and the midpoint share their cell at every depth, so χ at both comes
+/// from the same nodes, found once.
+fn edge_vertex(
+    chi: &Indicator<'_>,
+    isovalue: f64,
+    h: f64,
+    c: &Crossing,
+    with_normal: bool,
+) -> (DVec3, DVec3) {
     let start = DVec3::new(c.a[0] as f64, c.a[1] as f64, c.a[2] as f64);
     let end = DVec3::new(c.b[0] as f64, c.b[1] as f64, c.b[2] as f64);
-    let t = if c.va.is_infinite() {
-        1.0 // the cap: on the face, at the far end
-    } else if c.vb.is_infinite() {
-        0.0 // the cap: on the face, at the near end
-    } else {
-        let vm = chi.value((start + end) * 0.5 * h) - isovalue;
-        quadratic_root(c.va, vm, c.vb)
-    };
     // Kept off the corners so that no two vertices coincide.
-    (start + (end - start) * t.clamp(1e-3, 1.0 - 1e-3)) * h
+    let at = |t: f64| (start + (end - start) * t.clamp(1e-3, 1.0 - 1e-3)) * h;
+    if c.va.is_infinite() {
+        return (at(1.0), DVec3::ZERO); // the cap: on the face, at the far end
+    }
+    if c.vb.is_infinite() {
+        return (at(0.0), DVec3::ZERO); // the cap: on the face, at the near end
+    }
+    let midpoint = (start + end) * 0.5 * h;
+    let block = chi.block(midpoint);
+    let vm = block.as_ref().map_or(0.0, |b| chi.value_in(b, midpoint)) - isovalue;
+    let vertex = at(quadratic_root(c.va, vm, c.vb));
+    if !with_normal {
+        return (vertex, DVec3::ZERO);
+    }
+    let finest_edge = (0..3).map(|i| (c.b[i] - c.a[i]).abs()).sum::<i64>() == 1;
+    let gradient = match &block {
+        Some(b) if finest_edge => chi.gradient_in(b, vertex),
+        _ => chi.gradient(vertex),
+    };
+    (vertex, gradient.normalize_or_zero())
 }
 
 /// The root in [0, 1] of the quadratic through (0, `v0`), (½, `vm`), (1, `v1`), where `v0` and

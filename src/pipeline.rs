@@ -363,9 +363,10 @@ pub(crate) fn run(
             [c[0] as i64, c[1] as i64, c[2] as i64]
         })
         .collect();
-    let mut raw = pool.install(|| extract::extract(&chi, isovalue, seeds));
-    if params.vertex_placement == VertexPlacement::Fitted {
-        pool.install(|| extract::fit_to_surface(&chi, &mut raw));
+    let fitted = params.vertex_placement == VertexPlacement::Fitted;
+    let mut raw = pool.install(|| extract::extract(&chi, isovalue, seeds, fitted));
+    if fitted {
+        pool.install(|| extract::fit_to_surface(&mut raw));
     }
     clock.done(Stage::Extract)?;
 

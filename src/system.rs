@@ -829,19 +829,6 @@ impl<'a, T> SharedSlice<'a, T> {
     }
 }
 
-/// Σ over the 27 nodes around `cell` of x · (tensor stencil weight).
-#[inline]
-pub fn evaluate_block(level: &Level, cell: u32, st: &[[f64; 3]; 3], x: &[f64]) -> f64 {
-    let block = level.block27(cell);
-    let mut sum = 0.0;
-    for (slot, &n) in block.iter().enumerate() {
-        if n != NONE {
-            sum += x[n as usize] * st[0][slot % 3] * st[1][(slot / 3) % 3] * st[2][slot / 9];
-        }
-    }
-    sum
-}
-
 /// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
 /// functions, §4.1) has coefficients `v` (x, y, z components) on K_d. The three components are
 /// taken by value and used as scratch once read: one more halo vector, not three (pass a
