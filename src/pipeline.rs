@@ -46,10 +46,10 @@ impl Clock<'_, '_> {
     }
 }
 
-/// The samples in unit-cube coordinates.
+/// The samples in unit-cube coordinates (their unit normals are the point set's, read where
+/// splatted).
 struct Samples {
     positions: Vec<DVec3>,
-    normals: Vec<DVec3>,
     /// Confidence weights (all 1 unless given).
     confidence: Vec<f64>,
 }
@@ -77,11 +77,6 @@ pub(crate) fn run(
             .par_iter()
             .map(|&p| map.to_unit(p))
             .collect(),
-        normals: points
-            .normals()
-            .par_iter()
-            .map(|n| DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64))
-            .collect(),
         confidence: match points.weights() {
             Some(w) => w.iter().map(|&w| w as f64).collect(),
             None => vec![1.0; points.len()],
@@ -101,7 +96,7 @@ pub(crate) fn run(
     // 2. Density (before the octree: the sample depths decide which nodes the tree needs).
     let kernel_depth = params.effective_kernel_depth();
     let field = DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
-    let sample_density = pool.install(|| {
+    let mut sample_density = pool.install(|| {
         density::estimate(
             &field,
             &samples.positions,
@@ -125,6 +120,8 @@ pub(crate) fn run(
             }
         }
     }
+    // The fractional depths are spent; the areas weigh the isovalue at the end.
+    sample_density.depth = Vec::new();
     // When the density puts no sample at the deepest depths (sparse scans at a high --depth),
     // those depths would hold no unknowns and only multiply the extraction grid: the tree, the
     // screening scale and the extraction stop at the finest depth that has samples.
@@ -158,7 +155,7 @@ pub(crate) fn run(
                 splat_depth(
                     level,
                     &samples.positions,
-                    &samples.normals,
+                    points.normals(),
                     at,
                     params.splatting,
                     neumann,

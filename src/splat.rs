@@ -35,7 +35,7 @@ pub struct DepthSample {
 pub fn splat_depth(
     level: &Level,
     positions: &[DVec3],
-    normals: &[DVec3],
+    normals: &[[f32; 3]],
     at_depth: &[DepthSample],
     splatting: Splatting,
     neumann: bool,
@@ -94,7 +94,8 @@ pub fn splat_depth(
                         weight *=
                             axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, neumann);
                     }
-                    sum += normals[s.sample as usize] * (s.mass * weight);
+                    let normal = DVec3::from_array(normals[s.sample as usize].map(f64::from));
+                    sum += normal * (s.mass * weight);
                 }
             }
             for (component, value) in shared.iter().zip(sum.to_array()) {
