@@ -146,6 +146,11 @@ impl Level {
         &self.index
     }
 
+    /// The slot in [`Level::bricks`] of the brick holding coordinate `c`, if it has nodes.
+    pub fn brick_containing(&self, c: Coord) -> Option<usize> {
+        self.index.slot_of(morton(c) >> BrickIndex::BRICK_BITS)
+    }
+
     /// Number of nodes in K_d.
     pub fn len(&self) -> usize {
         self.keys.len()

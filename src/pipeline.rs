@@ -267,7 +267,7 @@ pub(crate) fn run(
                     field: [&coarse_field[0], &coarse_field[1], &coarse_field[2]],
                     scale: 0.125,
                 };
-                let coarse_div = op.divergence_on_core(|n| prolonged.at(n as u32));
+                let coarse_div = op.divergence_of_prolonged(&prolonged);
                 if !is_finest {
                     // V of this depth and all coarser ones, for the next depth.
                     prolonged.add_to(&mut field);
