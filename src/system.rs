@@ -575,55 +575,10 @@ impl CoreBricks {
         scratch: &mut BrickScratch,
     ) {
         let (fine, coarse) = (field.fine, field.coarse);
-        // The brick's origin in fine coordinates (a multiple of 8 on every axis).
-        let (first, _) = fine.bricks().brick(self.around[cb][13] as usize);
-        let (c, l) = (
-            fine.coord(first),
-            brick_local((fine.keys[first as usize] & 511) as usize),
-        );
-        let origin: [i32; 3] = std::array::from_fn(|a| c[a] - l[a] as i32);
+        let origin = brick_origin(fine, self.around[cb][13] as usize);
         let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
 
-        // The coarse window.
-        for component in scratch.coarse.iter_mut() {
-            component.fill(0.0);
-        }
-        let coarse_index = coarse.bricks();
-        for k in 0..8 {
-            let brick_origin: [i32; 3] = std::array::from_fn(|a| {
-                coarse_origin[a].div_euclid(8) * 8 + 8 * ((k >> a) & 1) as i32
-            });
-            let Some(slot) = coarse.brick_containing(brick_origin) else {
-                continue;
-            };
-            // The part of this brick inside the window, per axis, in its local coordinates.
-            let mut region = [u64::MAX; 8];
-            for a in 0..3 {
-                let lo = (coarse_origin[a] - brick_origin[a]).max(0) as usize;
-                let hi = (coarse_origin[a] + 8 - brick_origin[a]).min(8) as usize;
-                for (r, m) in region.iter_mut().zip(&axis_interval_masks()[a][lo][hi]) {
-                    *r &= m;
-                }
-            }
-            let (mut node, occupied) = coarse_index.brick(slot);
-            for (word, (&occ, &region)) in occupied.iter().zip(&region).enumerate() {
-                let mut bits = occ & region;
-                let base = node;
-                while bits != 0 {
-                    let bit = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    let n = base + (occ & ((1u64 << bit) - 1)).count_ones();
-                    let l = brick_local(word * 64 + bit as usize);
-                    let u: [usize; 3] = std::array::from_fn(|a| {
-                        (brick_origin[a] + l[a] as i32 - coarse_origin[a]) as usize
-                    });
-                    for (w, values) in scratch.coarse.iter_mut().zip(&field.field) {
-                        w[u[2] * 64 + u[1] * 8 + u[0]] = values[n as usize];
-                    }
-                }
-                node += occ.count_ones();
-            }
-        }
+        coarse_window(coarse, coarse_origin, field.field, &mut scratch.coarse);
 
         // The fine window.
         for w in windows.iter_mut() {
@@ -651,24 +606,7 @@ impl CoreBricks {
                     let values = if mirrored && f.iter().any(|&v| v < 0 || v >= n) {
                         field.at(before + (occ & ((1u64 << bit) - 1)).count_ones())
                     } else {
-                        // Per axis: the parent's and its partner's place in the coarse window
-                        // (as flat-index terms), then parent k's place: bit a of k picks the
-                        // partner along axis a.
-                        let place: [[usize; 2]; 3] = std::array::from_fn(|a| {
-                            let own = ((f[a] >> 1) - coarse_origin[a]) as usize;
-                            let partner = if f[a] & 1 == 1 { own + 1 } else { own - 1 };
-                            [own << (3 * a), partner << (3 * a)]
-                        });
-                        let parents: [usize; 8] = std::array::from_fn(|k| {
-                            place[0][k & 1] + place[1][(k >> 1) & 1] + place[2][(k >> 2) & 1]
-                        });
-                        std::array::from_fn(|component| {
-                            let coarse_values = &scratch.coarse[component][..512];
-                            (0..8)
-                                .map(|k| PARENT_WEIGHTS[k] * coarse_values[parents[k]])
-                                .sum::<f64>()
-                                * field.scale
-                        })
+                        prolonged_from_window(&scratch.coarse, coarse_origin, f, field.scale)
                     };
                     for (window, v) in windows.iter_mut().zip(values) {
                         window[w[2] * WINDOW + w[1]][w[0]] = v;
@@ -678,6 +616,135 @@ impl CoreBricks {
             }
         }
     }
+}
+
+/// The origin (fine coordinates, a multiple of 8 per axis) of brick `b` of `level`.
+fn brick_origin(level: &Level, b: usize) -> [i32; 3] {
+    let (first, _) = level.bricks().brick(b);
+    let (c, l) = (
+        level.coord(first),
+        brick_local((level.keys[first as usize] & 511) as usize),
+    );
+    std::array::from_fn(|a| c[a] - l[a] as i32)
+}
+
+/// Fills `window` (per component, 8×8×8, index x + 8y + 64z) with `fields` at the coarse nodes
+/// of coordinates `origin` .. `origin` + 8 per axis (zero where `coarse` has no node), from the
+/// eight coarse bricks that cover them (`origin` ≡ 2 mod 4: the window of a fine brick whose
+/// origin is O starts at O/2 − 2, and spans two bricks per axis).
+fn coarse_window<const C: usize>(
+    coarse: &Level,
+    origin: [i32; 3],
+    fields: [&[f64]; C],
+    window: &mut [Vec<f64>; C],
+) {
+    for component in window.iter_mut() {
+        component.fill(0.0);
+    }
+    let index = coarse.bricks();
+    for k in 0..8 {
+        let brick_origin: [i32; 3] =
+            std::array::from_fn(|a| origin[a].div_euclid(8) * 8 + 8 * ((k >> a) & 1) as i32);
+        let Some(slot) = coarse.brick_containing(brick_origin) else {
+            continue;
+        };
+        // The part of this brick inside the window, per axis, in its local coordinates.
+        let mut region = [u64::MAX; 8];
+        for a in 0..3 {
+            let lo = (origin[a] - brick_origin[a]).max(0) as usize;
+            let hi = (origin[a] + 8 - brick_origin[a]).min(8) as usize;
+            for (r, m) in region.iter_mut().zip(&axis_interval_masks()[a][lo][hi]) {
+                *r &= m;
+            }
+        }
+        let (mut node, occupied) = index.brick(slot);
+        for (word, (&occ, &region)) in occupied.iter().zip(&region).enumerate() {
+            let mut bits = occ & region;
+            while bits != 0 {
+                let bit = bits.trailing_zeros();
+                bits &= bits - 1;
+                let n = node + (occ & ((1u64 << bit) - 1)).count_ones();
+                let l = brick_local(word * 64 + bit as usize);
+                let u: [usize; 3] =
+                    std::array::from_fn(|a| (brick_origin[a] + l[a] as i32 - origin[a]) as usize);
+                for (w, values) in window.iter_mut().zip(&fields) {
+                    w[u[2] * 64 + u[1] * 8 + u[0]] = values[n as usize];
+                }
+            }
+            node += occ.count_ones();
+        }
+    }
+}
+
+/// The prolongation (times `scale`) at fine coordinate `f` of the coarse values in `window`
+/// (from [`coarse_window`] at `origin`): its eight refinement parents summed in the order and
+/// with the weights of [`refinement_parents`].
+#[inline]
+fn prolonged_from_window<const C: usize>(
+    window: &[Vec<f64>; C],
+    origin: [i32; 3],
+    f: [i32; 3],
+    scale: f64,
+) -> [f64; C] {
+    // Per axis: the parent's and its partner's place in the window (as flat-index terms), then
+    // parent k's place: bit a of k picks the partner along axis a.
+    let place: [[usize; 2]; 3] = std::array::from_fn(|a| {
+        let own = ((f[a] >> 1) - origin[a]) as usize;
+        let partner = if f[a] & 1 == 1 { own + 1 } else { own - 1 };
+        [own << (3 * a), partner << (3 * a)]
+    });
+    let parents: [usize; 8] =
+        std::array::from_fn(|k| place[0][k & 1] + place[1][(k >> 1) & 1] + place[2][(k >> 2) & 1]);
+    std::array::from_fn(|component| {
+        let values = &window[component][..512];
+        (0..8)
+            .map(|k| PARENT_WEIGHTS[k] * values[parents[k]])
+            .sum::<f64>()
+            * scale
+    })
+}
+
+/// `write(node, value)` for every node of `fine` with the prolongation of `fields` (times
+/// `scale`) there, brick by brick in parallel: each fine brick gathers the coarse nodes under
+/// it once ([`coarse_window`]). With `mirrored`, nodes beyond the cube take `at_mirror(node)`
+/// instead. Each node is written once, by the task of its brick.
+fn prolong_by_brick<const C: usize>(
+    coarse: &Level,
+    fine: &Level,
+    fields: [&[f64]; C],
+    scale: f64,
+    at_mirror: Option<&(dyn Fn(u32) -> [f64; C] + Sync)>,
+    write: impl Fn(u32, [f64; C]) + Sync,
+) {
+    let n = 1i32 << fine.depth;
+    let index = fine.bricks();
+    (0..index.brick_count())
+        .into_par_iter()
+        .with_min_len(16)
+        .for_each_init(
+            || std::array::from_fn::<_, C, _>(|_| vec![0.0; 512]),
+            |window, b| {
+                let origin = brick_origin(fine, b);
+                let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
+                coarse_window(coarse, coarse_origin, fields, window);
+                let (mut node, occupied) = index.brick(b);
+                for (word, &occ) in occupied.iter().enumerate() {
+                    let mut bits = occ;
+                    while bits != 0 {
+                        let bit = bits.trailing_zeros();
+                        bits &= bits - 1;
+                        let l = brick_local(word * 64 + bit as usize);
+                        let f: [i32; 3] = std::array::from_fn(|a| origin[a] + l[a] as i32);
+                        let value = match at_mirror {
+                            Some(at) if f.iter().any(|&v| v < 0 || v >= n) => at(node),
+                            _ => prolonged_from_window(window, coarse_origin, f, scale),
+                        };
+                        write(node, value);
+                        node += 1;
+                    }
+                }
+            },
+        );
 }
 
 /// Per axis a and local interval lo..hi (0 ≤ lo ≤ hi ≤ 8), the brick positions whose local
@@ -1089,11 +1156,13 @@ fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
 /// Prolongs coarse coefficients (on K_{d−1}) to the fine halo K_d, exactly: the fine
 /// combination represents the same function wherever the coarse one is complete.
 pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Vec<f64> {
-    (0..fine.len() as u32)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map(|i| prolonged_at(coarse, fine, [x], [scale], i)[0])
-        .collect()
+    let mut out = vec![0.0; fine.len()];
+    let shared = SharedSlice::new(&mut out);
+    prolong_by_brick(coarse, fine, [x], scale, None, |node, [v]| {
+        // SAFETY: every node is written once, by the task of its brick.
+        unsafe { *shared.get_mut(node as usize) = v };
+    });
+    out
 }
 
 /// The prolongation of `inputs` (each times its scale) at fine node `i`.
@@ -1151,20 +1220,30 @@ impl ProlongedField<'_> {
         prolonged_at(self.coarse, self.fine, self.field, scales, i)
     }
 
-    /// `v[axis][i] +=` the prolonged field at every fine node i.
+    /// `v[axis][i] +=` the prolonged field at every fine node i (brick by brick).
     pub fn add_to(&self, v: &mut [Vec<f64>; 3]) {
         let [vx, vy, vz] = v;
-        vx.par_chunks_mut(CHUNK)
-            .zip(vy.par_chunks_mut(CHUNK).zip(vz.par_chunks_mut(CHUNK)))
-            .enumerate()
-            .for_each(|(c, (x, (y, z)))| {
-                for j in 0..x.len() {
-                    let p = self.at((c * CHUNK + j) as u32);
-                    x[j] = p[0] + x[j];
-                    y[j] = p[1] + y[j];
-                    z[j] = p[2] + z[j];
+        let shared = [vx, vy, vz].map(|component| SharedSlice::new(component));
+        let at_mirror = |node: u32| self.at(node);
+        let at_mirror: Option<&(dyn Fn(u32) -> [f64; 3] + Sync)> = if self.fine.mirrors.is_empty() {
+            None
+        } else {
+            Some(&at_mirror)
+        };
+        prolong_by_brick(
+            self.coarse,
+            self.fine,
+            self.field,
+            self.scale,
+            at_mirror,
+            |node, p| {
+                for (component, p) in shared.iter().zip(p) {
+                    // SAFETY: every node is written once, by the task of its brick.
+                    let x = unsafe { component.get_mut(node as usize) };
+                    *x = p + *x;
                 }
-            });
+            },
+        );
     }
 }
 
@@ -1249,11 +1328,12 @@ mod tests {
         }
     }
 
-    /// The brick-window prolongation gives the node-by-node one's divergence bit for bit, with
-    /// free and with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only
-    /// part of the cube refined) as well as complete ones.
+    /// The brick-by-brick prolongations (of the coefficients, of V added to a field, and inside
+    /// the coarse divergence's windows) give the node-by-node values bit for bit, with free and
+    /// with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only part of
+    /// the cube refined) as well as complete ones.
     #[test]
-    fn divergence_of_prolonged_matches_node_by_node_prolongation() {
+    fn brick_prolongations_match_node_by_node_prolongation() {
         let sparse: Vec<Vec<[i32; 3]>> = (0..=5)
             .map(|d| {
                 let n = 1 << d;
@@ -1285,12 +1365,33 @@ mod tests {
                     let by_node = op.divergence_on_core(|n| prolonged.at(n as u32));
                     let by_brick = op.divergence_of_prolonged(&prolonged);
                     assert!(!by_node.is_empty());
-                    for (a, b) in by_node.iter().zip(&by_brick) {
-                        assert_eq!(
-                            a.to_bits(),
-                            b.to_bits(),
-                            "depth {d}, neumann {neumann}: {a} vs {b}"
-                        );
+                    let same = |a: &[f64], b: &[f64], what: &str| {
+                        assert_eq!(a.len(), b.len());
+                        for (a, b) in a.iter().zip(b) {
+                            assert_eq!(
+                                a.to_bits(),
+                                b.to_bits(),
+                                "{what}, depth {d}, neumann {neumann}: {a} vs {b}"
+                            );
+                        }
+                    };
+                    same(&by_node, &by_brick, "divergence");
+                    let by_node: Vec<f64> = (0..fine.len() as u32)
+                        .map(|i| prolonged_at(coarse, fine, [&field[0]], [2.0], i)[0])
+                        .collect();
+                    same(&by_node, &prolong(coarse, fine, &field[0], 2.0), "prolong");
+                    let base: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                        (0..fine.len()).map(|i| (i % (a + 2)) as f64).collect()
+                    });
+                    let mut added = base.clone();
+                    prolonged.add_to(&mut added);
+                    let want: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                        (0..fine.len())
+                            .map(|i| prolonged.at(i as u32)[a] + base[a][i])
+                            .collect()
+                    });
+                    for a in 0..3 {
+                        same(&want[a], &added[a], "add_to");
                     }
                 }
             }
