@@ -252,7 +252,7 @@ pub(crate) fn run(
         let (y, coarse_div) = pool.install(|| {
             // The coarser solution and V from coarser depths, represented at this depth (F̃
             // halves in width: ×1/8). The solution's prolongation is stored (it is part of this
-            // depth's coefficients); V's is computed node by node where it is read, by the
+            // depth's coefficients); V's is computed where it is read, brick by brick, by the
             // divergence and, above the finest depth, by the sweep that adds it to this depth's
             // V for the next depth, so it never takes three halo vectors.
             if d == 0 {

@@ -1185,10 +1185,11 @@ fn prolonged_at<const N: usize>(
     })
 }
 
-/// A coarser vector field prolonged to a finer halo, evaluated node by node instead of stored:
-/// the value at a fine node is what [`prolong`] of each component followed by
-/// [`fill_mirrors_field`] would hold there. Reading it where needed saves three halo-sized
-/// vectors.
+/// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
+/// stored (node by node with [`ProlongedField::at`], brick by brick by
+/// [`DepthOperator::divergence_of_prolonged`] and [`ProlongedField::add_to`]): the value at a
+/// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`] would
+/// hold there. Reading it where needed saves three halo-sized vectors.
 pub struct ProlongedField<'a> {
     pub coarse: &'a Level,
     pub fine: &'a Level,
