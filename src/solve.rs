@@ -10,7 +10,7 @@
 //! is the same bit for bit whatever the number of threads.
 
 use crate::octree::Level;
-use crate::system::{add_on_core, update_on_core, DepthOperator, CHUNK};
+use crate::system::{update_on_core, DepthOperator, SharedSlice, CHUNK};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -40,6 +40,44 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// Σ r_i·(r_i·w_i): rᵀz for the preconditioned residual z = w∘r.
 fn weighted_dot(r: &[f64], w: &[f64]) -> f64 {
     chunked_sum(r.len(), |i| r[i] * (r[i] * w[i]))
+}
+
+/// One pass of a CG step over the core, chunk by chunk: x += α·p (x and p on K_d), r −= α·A·p,
+/// and the new rᵀr and rᵀz (z = w∘r), each the sum [`dot`] and [`weighted_dot`] would give:
+/// the same chunks, each summed in order, the chunks' sums added in order. One pass instead of
+/// three over r.
+fn step(
+    level: &Level,
+    x: &mut [f64],
+    alpha: f64,
+    p: &[f64],
+    r: &mut [f64],
+    ap: &[f64],
+    w: &[f64],
+) -> (f64, f64) {
+    let x = SharedSlice::new(x);
+    let partial: Vec<(f64, f64)> = r
+        .par_chunks_mut(CHUNK)
+        .zip(ap.par_chunks(CHUNK))
+        .enumerate()
+        .map(|(c, (r, ap))| {
+            let range = c * CHUNK..c * CHUNK + r.len();
+            for ((r, a), &n) in r.iter_mut().zip(ap).zip(&level.core[range.clone()]) {
+                // SAFETY: core indices are distinct, so each element has one writer.
+                unsafe { *x.get_mut(n as usize) += alpha * p[n as usize] };
+                *r -= alpha * a;
+            }
+            let w = &w[range];
+            (
+                r.iter().map(|r| r * r).sum::<f64>(),
+                r.iter().zip(w).map(|(r, w)| r * (r * w)).sum::<f64>(),
+            )
+        })
+        .collect();
+    (
+        partial.iter().map(|s| s.0).sum(),
+        partial.iter().map(|s| s.1).sum(),
+    )
 }
 
 /// Σ_i p[core node i]·a_i for `p` on K_d and `a` on the core.
@@ -98,19 +136,13 @@ pub fn conjugate_gradients(
             break;
         }
         let alpha = rz / pap;
-        let rr = pool.install(|| {
-            add_on_core(level, solution, alpha, &p);
-            r.par_chunks_mut(CHUNK)
-                .zip(ap.par_chunks(CHUNK))
-                .for_each(|(r, a)| r.iter_mut().zip(a).for_each(|(r, a)| *r -= alpha * a));
-            dot(&r, &r)
-        });
+        let (rr, rz_new) =
+            pool.install(|| step(level, solution, alpha, &p, &mut r, &ap, &inv_diag));
         iterations += 1;
         residual = rr.sqrt() / b_norm;
         if residual <= tolerance {
             break;
         }
-        let rz_new = pool.install(|| weighted_dot(&r, &inv_diag));
         let beta = rz_new / rz;
         rz = rz_new;
         pool.install(|| update_on_core(level, &mut p, |i, p| r[i] * inv_diag[i] + beta * p));

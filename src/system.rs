@@ -96,11 +96,6 @@ pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f6
     fill_mirrors(level, x);
 }
 
-/// x[core node] += alpha · p[core node] for every core node (in parallel; mirrors untouched).
-pub fn add_on_core(level: &Level, x: &mut [f64], alpha: f64, p: &[f64]) {
-    for_each_core_node(level, x, |_, n, v| *v += alpha * p[n]);
-}
-
 /// `f(core position, node, &mut x[node])` for every core node, in parallel chunks.
 fn for_each_core_node(level: &Level, x: &mut [f64], f: impl Fn(usize, usize, &mut f64) + Sync) {
     let shared = SharedSlice::new(x);
