@@ -701,7 +701,7 @@ fn prolonged_from_window<const C: usize>(
 
 /// `write(node, value)` for every node of `fine` with the prolongation of `fields` (times
 /// `scale`) there, brick by brick in parallel: each fine brick gathers the coarse nodes under
-/// it once ([`coarse_window`]). With `mirrored`, nodes beyond the cube take `at_mirror(node)`
+/// it once ([`coarse_window`]). With `at_mirror`, nodes beyond the cube take `at_mirror(node)`
 /// instead. Each node is written once, by the task of its brick.
 fn prolong_by_brick<const C: usize>(
     coarse: &Level,
