@@ -854,7 +854,10 @@ impl<'a> DepthOperator<'a> {
     /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V whose coefficients on K_d
     /// (x, y, z at node n) `v(n)` gives: [`divergence`] restricted to the core, computed brick
     /// by brick as (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)). `v` is called
-    /// once per node for every brick window it lies in (about 3.4 times on average).
+    /// once per node for every brick window it lies in (about 3.4 times on average). The
+    /// pipeline uses [`DepthOperator::divergence_of_prolonged`]; this is the node-by-node
+    /// reference the tests check it and [`divergence`] against.
+    #[cfg(test)]
     pub fn divergence_on_core(&mut self, v: impl Fn(usize) -> [f64; 3] + Sync) -> Vec<f64> {
         let level = self.level;
         let bricks = &self.bricks;
@@ -867,10 +870,10 @@ impl<'a> DepthOperator<'a> {
         out
     }
 
-    /// [`DepthOperator::divergence_on_core`] of a coarser field's prolongation, which each
-    /// brick's window computes from the coarse nodes under it instead of node by node (each
-    /// node of a window otherwise finds its eight parents by following links, and every node
-    /// lies in about 3.4 windows).
+    /// ⟨∇B_o, V⟩ at every core node (in core order) for V a coarser field prolonged to this
+    /// depth ([`divergence`] restricted to the core, brick by brick): each brick's window
+    /// computes the prolongation from the coarse nodes under it, instead of every window node
+    /// finding its eight parents by following links (every node lies in about 3.4 windows).
     pub fn divergence_of_prolonged(&mut self, field: &ProlongedField<'_>) -> Vec<f64> {
         let level = self.level;
         assert!(
