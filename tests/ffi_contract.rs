@@ -1228,25 +1228,17 @@ fn boundary_splatting_and_vertex_placement_choices_round_trip_and_reject_unknown
         );
         assert_eq!(psr_reconstructor_get_splatting(r, &mut v), psr_status::Ok);
         assert_eq!(v, psr_splatting::Trilinear as i32);
+        // Each setter refuses the value with INVALID_PARAMETER and names its parameter.
+        let refused = |status: psr_status, name: &str| {
+            assert_eq!(status, psr_status::InvalidParameter, "{name}");
+            assert!(last_error(r).contains(name), "{}", last_error(r));
+        };
         for bad in [-1, 2, i32::MAX] {
-            assert_eq!(
-                psr_reconstructor_set_boundary(r, bad),
-                psr_status::InvalidParameter
-            );
-            assert!(last_error(r).contains("boundary"), "{}", last_error(r));
-            assert_eq!(
-                psr_reconstructor_set_splatting(r, bad),
-                psr_status::InvalidParameter
-            );
-            assert!(last_error(r).contains("splatting"), "{}", last_error(r));
-            assert_eq!(
+            refused(psr_reconstructor_set_boundary(r, bad), "boundary");
+            refused(psr_reconstructor_set_splatting(r, bad), "splatting");
+            refused(
                 psr_reconstructor_set_vertex_placement(r, bad),
-                psr_status::InvalidParameter
-            );
-            assert!(
-                last_error(r).contains("vertex_placement"),
-                "{}",
-                last_error(r)
+                "vertex_placement",
             );
         }
         assert_eq!(

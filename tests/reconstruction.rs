@@ -291,10 +291,7 @@ fn fitted_vertices_straddle_a_curved_surface_instead_of_cutting_inside_it() {
     let points = point_set(&positions, &normals);
     let (truth, _) = sample_torus(CHAMFER_TRUE_SAMPLES, TORUS_MAJOR, TORUS_MINOR, 1002);
     let diagonal = torus_bbox_diagonal(TORUS_MAJOR, TORUS_MINOR);
-    let signed = |p: [f64; 3]| {
-        let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
-        (rho - TORUS_MAJOR).hypot(p[2]) - TORUS_MINOR
-    };
+    let signed = torus_signed_distance(TORUS_MAJOR, TORUS_MINOR);
     let mean_signed = |samples: &[[f64; 3]]| {
         samples.iter().map(|&p| signed(p)).sum::<f64>() / samples.len() as f64 / diagonal
     };

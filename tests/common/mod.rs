@@ -276,17 +276,26 @@ pub fn sphere_distance(
     move |p| ((DVec3::from_array(p) - c).length() - radius).abs()
 }
 
-/// Unsigned distance to the torus of [`sample_torus`]: | √((ρ − R)² + z²) − r | with
-/// ρ = √(x² + y²). Exact everywhere (on the z axis every point of the core circle is equally
-/// near, and the formula still holds).
-pub fn torus_distance(
+/// Signed distance to the torus of [`sample_torus`] (positive outside):
+/// √((ρ − R)² + z²) − r with ρ = √(x² + y²). Exact everywhere (on the z axis every point of the
+/// core circle is equally near, and the formula still holds).
+pub fn torus_signed_distance(
     major_radius: f64,
     minor_radius: f64,
 ) -> impl Fn([f64; 3]) -> f64 + Sync + Send + Copy {
     move |p| {
         let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
-        ((rho - major_radius).hypot(p[2]) - minor_radius).abs()
+        (rho - major_radius).hypot(p[2]) - minor_radius
     }
+}
+
+/// Unsigned distance to the torus of [`sample_torus`]: |[`torus_signed_distance`]|.
+pub fn torus_distance(
+    major_radius: f64,
+    minor_radius: f64,
+) -> impl Fn([f64; 3]) -> f64 + Sync + Send + Copy {
+    let signed = torus_signed_distance(major_radius, minor_radius);
+    move |p| signed(p).abs()
 }
 
 /// Diagonal of the bounding box of a sphere: 2√3 r.
