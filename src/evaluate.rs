@@ -49,11 +49,11 @@ impl Indicator<'_> {
             .find_map(|(depth, level)| {
                 let inv_h = (depth as f64).exp2();
                 let cell = cell_of(p, inv_h);
-                let index = level.find(cell)?;
+                let (index, at) = level.find_place(cell)?;
                 (level.flags[index as usize] & NEAR != 0).then(|| Block {
                     depth,
                     inv_h,
-                    nodes: level.block27(index),
+                    nodes: level.block27_at(index, at),
                 })
             })
     }

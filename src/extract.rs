@@ -223,17 +223,17 @@ impl Leaves<'_> {
         let level = &self.tree.levels[leaf.depth as usize];
         let interior = leaf.cell.iter().all(|&x| x >= 1 && x <= n - 2);
         let node = if interior {
-            level.find(leaf.cell.map(|x| x as i32))
+            level.find_place(leaf.cell.map(|x| x as i32))
         } else {
             None
         };
         match node {
-            Some(i) => {
+            Some((i, at)) => {
                 let coarser = leaf
                     .depth
                     .checked_sub(1)
                     .map(|d| &self.tree.levels[d as usize]);
-                level.block27(i).map(|j| {
+                level.block27_at(i, at).map(|j| {
                     if j == NONE {
                         Status::Coarser
                     } else {

@@ -12,8 +12,9 @@
 //!   the coarser solution and the evaluation of χ near the core read only nodes of K_d.
 //!
 //! Nodes of one depth are sorted by Morton key; a [`BrickIndex`] finds a node from its key, and
-//! every node stores the indices of its six face neighbours and of its parent, so hot loops
-//! follow indices instead of looking nodes up. Node indices can lie just outside [0, 2^d): a node function near
+//! finds its neighbours from its position in its 8×8×8 brick and the bricks around (kept per
+//! brick, not per node: a node costs its key, flags and parent only), so hot loops count bits
+//! in occupancy masks instead of hashing keys. Node indices can lie just outside [0, 2^d): a node function near
 //! the cube's face reaches beyond it, and with free boundaries (the paper's) that is where its
 //! neighbours live.
 
@@ -106,10 +107,6 @@ impl Hasher for KeyHasher {
 /// A hash map from Morton keys.
 pub type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
 
-/// Neighbour offsets: no neighbour in K_d, and one too far for an i16 (looked up instead).
-const NO_NEIGHBOR: i16 = i16::MIN;
-const FAR_NEIGHBOR: i16 = i16::MIN + 1;
-
 /// Flag bits per node.
 pub const CORE: u8 = 1;
 /// Within one node of the core: the node functions of the core cover (part of) this cell.
@@ -126,9 +123,6 @@ pub struct Level {
     pub keys: Vec<u64>,
     /// `CORE` / `NEAR` / `SPLIT` bits per node.
     pub flags: Vec<u8>,
-    /// Face neighbours per node, −x, +x, −y, +y, −z, +z, as index offsets (see
-    /// [`Level::neighbor`]): 12 bytes a node instead of 24 for indices.
-    neighbor_offsets: Vec<[i16; 6]>,
     /// Index of the parent (the node at depth d − 1 containing this one) in the coarser level's
     /// arrays; `NONE` at depth 0.
     pub parent: Vec<u32>,
@@ -166,6 +160,24 @@ impl Level {
         self.index.get(morton(c))
     }
 
+    /// The node with this coordinate and where it lies, if it is in K_d.
+    #[inline]
+    pub fn find_place(&self, c: Coord) -> Option<(u32, NodePlace)> {
+        let key = morton(c);
+        let slot = self.index.slot_of(key >> BrickIndex::BRICK_BITS)?;
+        let position = (key & 511) as usize;
+        let i = self.index.in_brick(slot, position)?;
+        let local = brick_local(position).map(|v| v as i32);
+        Some((
+            i,
+            NodePlace {
+                slot,
+                position,
+                local,
+            },
+        ))
+    }
+
     /// The coordinate of node `i`.
     #[inline]
     pub fn coord(&self, i: u32) -> Coord {
@@ -179,48 +191,248 @@ impl Level {
 
     /// The face neighbour of node `i` in direction `dir` (−x, +x, −y, +y, −z, +z), `NONE` when
     /// outside K_d.
-    ///
-    /// Stored as the difference of the two indices, which in Morton order is small for almost
-    /// every pair (both in one 8×8×8 brick, or in neighbouring bricks); the few pairs farther
-    /// apart are marked and looked up in the index.
-    #[inline]
     pub fn neighbor(&self, i: u32, dir: usize) -> u32 {
-        match self.neighbor_offsets[i as usize][dir] {
-            NO_NEIGHBOR => NONE,
-            FAR_NEIGHBOR => self.far_neighbor(i, dir),
-            delta => (i as i64 + delta as i64) as u32,
+        let mut offset = [0; 3];
+        offset[dir / 2] = if dir % 2 == 0 { -1 } else { 1 };
+        let at = self.locate(&mut BrickCursor::default(), i);
+        self.node_near(at, offset)
+    }
+
+    /// Where node `i` lies: its brick's slot (found from `cursor`, which remembers the last
+    /// brick so that a walk over ascending nodes searches once per brick) and its coordinates
+    /// within the brick.
+    #[inline]
+    pub fn locate(&self, cursor: &mut BrickCursor, i: u32) -> NodePlace {
+        let position = (self.keys[i as usize] & 511) as usize;
+        NodePlace {
+            slot: self.index.slot_of_node_from(cursor, i),
+            position,
+            local: brick_local(position).map(|v| v as i32),
         }
     }
 
-    #[cold]
-    fn far_neighbor(&self, i: u32, dir: usize) -> u32 {
-        let mut c = self.coord(i);
-        c[dir / 2] += if dir % 2 == 0 { -1 } else { 1 };
-        self.find(c).unwrap_or(NONE)
+    /// The node a move from the node at `at` lands on, `NONE` if outside K_d.
+    #[inline(always)]
+    pub fn node_after(&self, at: NodePlace, step: AxisStep) -> u32 {
+        self.index.node_at(at.slot, step)
     }
 
-    /// The 3×3×3 block of nodes around node `i` (x fastest), following neighbour links;
-    /// entries outside K_d are `NONE`.
+    /// The node `offset` (each component in −8..=8) away from the node at `at`, `NONE` if
+    /// outside K_d.
+    #[inline]
+    pub fn node_near(&self, at: NodePlace, offset: [i32; 3]) -> u32 {
+        let steps: [AxisStep; 3] =
+            std::array::from_fn(|axis| AxisStep::new(at.local[axis], offset[axis], axis));
+        self.index
+            .node_at(at.slot, steps[0].join(steps[1]).join(steps[2]))
+    }
+
+    /// The nodes at −2, −1, +1, +2 along `axis` from the node at `at`, reached as by stepping
+    /// from neighbour to neighbour: the one two away is `NONE` when the one between is missing.
+    #[inline]
+    pub fn line4(&self, at: NodePlace, axis: usize) -> [u32; 4] {
+        // The node's key bits of the other two axes, with no brick step.
+        let across = AxisStep {
+            brick: 0,
+            bits: at.position & !(spread3(7) << axis),
+        };
+        let local = at.local[axis];
+        let index = &self.index;
+        let m1 = index.node_at(at.slot, across.join(AxisStep::new(local, -1, axis)));
+        let p1 = index.node_at(at.slot, across.join(AxisStep::new(local, 1, axis)));
+        let m2 = if m1 == NONE {
+            NONE
+        } else {
+            index.node_at(at.slot, across.join(AxisStep::new(local, -2, axis)))
+        };
+        let p2 = if p1 == NONE {
+            NONE
+        } else {
+            index.node_at(at.slot, across.join(AxisStep::new(local, 2, axis)))
+        };
+        [m2, m1, p1, p2]
+    }
+
+    /// The 3×3×3 block of nodes around node `i` (x fastest); entries outside K_d are `NONE`.
     #[inline]
     pub fn block27(&self, i: u32) -> [u32; 27] {
-        let mut out = [NONE; 27];
-        let step = |n: u32, dir: usize| {
-            if n == NONE {
-                NONE
-            } else {
-                self.neighbor(n, dir)
-            }
+        let at = self.locate(&mut BrickCursor::default(), i);
+        self.block27_at(i, at)
+    }
+
+    /// [`Level::block27`] of node `i` at `at`. Reached as by stepping from neighbour to
+    /// neighbour along z, then y, then x: a node whose row (or plane) centre is missing from
+    /// K_d is `NONE` too.
+    #[inline]
+    pub fn block27_at(&self, i: u32, at: NodePlace) -> [u32; 27] {
+        let steps: [[AxisStep; 3]; 3] = std::array::from_fn(|axis| {
+            std::array::from_fn(|d| AxisStep::new(at.local[axis], d as i32 - 1, axis))
+        });
+        let node = |x: usize, y: usize, z: usize| {
+            self.index
+                .node_at(at.slot, steps[0][x].join(steps[1][y]).join(steps[2][z]))
         };
-        for (zi, zn) in [step(i, 4), i, step(i, 5)].into_iter().enumerate() {
-            for (yi, yn) in [step(zn, 2), zn, step(zn, 3)].into_iter().enumerate() {
-                let row = zi * 9 + yi * 3;
-                out[row] = step(yn, 0);
+        let mut out = [NONE; 27];
+        for z in 0..3 {
+            let zn = if z == 1 { i } else { node(1, 1, z) };
+            if zn == NONE {
+                continue;
+            }
+            for y in 0..3 {
+                let yn = if y == 1 { zn } else { node(1, y, z) };
+                if yn == NONE {
+                    continue;
+                }
+                let row = z * 9 + y * 3;
+                out[row] = node(0, y, z);
                 out[row + 1] = yn;
-                out[row + 2] = step(yn, 1);
+                out[row + 2] = node(2, y, z);
             }
         }
         out
     }
+}
+
+/// A move from a node along some axes, as the brick it lands in (its offset in the 27-brick
+/// table from the node's own brick, 0 for the same brick) and the key bits of its position
+/// there. Moves along different axes combine with [`AxisStep::join`].
+#[derive(Debug, Clone, Copy)]
+pub struct AxisStep {
+    brick: i32,
+    bits: usize,
+}
+
+impl AxisStep {
+    /// `delta` (−8..=8) along `axis` from brick-local coordinate `local`.
+    #[inline(always)]
+    pub fn new(local: i32, delta: i32, axis: usize) -> AxisStep {
+        let v = local + delta;
+        let stride = 3i32.pow(axis as u32);
+        let (brick, v) = if v < 0 {
+            (-stride, v + 8)
+        } else if v >= 8 {
+            (stride, v - 8)
+        } else {
+            (0, v)
+        };
+        AxisStep {
+            brick,
+            bits: spread3(v as usize) << axis,
+        }
+    }
+
+    #[inline(always)]
+    pub fn join(self, other: AxisStep) -> AxisStep {
+        AxisStep {
+            brick: self.brick + other.brick,
+            bits: self.bits | other.bits,
+        }
+    }
+}
+
+/// The 3×3×3 blocks of the nodes of one brick at a time, from a 10×10×10 table of the node
+/// indices around the brick, filled once per brick (its own nodes walked in key order, and the
+/// one-node margins of the 26 bricks around), instead of 27 searches per node.
+pub struct BlockWindow {
+    slot: usize,
+    nodes: Box<[u32; 1000]>,
+}
+
+impl Default for BlockWindow {
+    fn default() -> Self {
+        BlockWindow {
+            slot: usize::MAX,
+            nodes: Box::new([NONE; 1000]),
+        }
+    }
+}
+
+impl BlockWindow {
+    /// [`Level::block27`] of node `i` at `at` (the same nodes, reached the same way).
+    #[inline]
+    pub fn block27(&mut self, level: &Level, i: u32, at: NodePlace) -> [u32; 27] {
+        if self.slot != at.slot {
+            self.fill(level, at.slot);
+        }
+        let centre = at.local.map(|v| v as usize + 1);
+        let node = |x: usize, y: usize, z: usize| {
+            self.nodes[(centre[0] + x - 1) + 10 * ((centre[1] + y - 1) + 10 * (centre[2] + z - 1))]
+        };
+        let mut out = [NONE; 27];
+        for z in 0..3 {
+            let zn = if z == 1 { i } else { node(1, 1, z) };
+            if zn == NONE {
+                continue;
+            }
+            for y in 0..3 {
+                let yn = if y == 1 { zn } else { node(1, y, z) };
+                if yn == NONE {
+                    continue;
+                }
+                let row = z * 9 + y * 3;
+                out[row] = node(0, y, z);
+                out[row + 1] = yn;
+                out[row + 2] = node(2, y, z);
+            }
+        }
+        out
+    }
+
+    fn fill(&mut self, level: &Level, b: usize) {
+        self.slot = b;
+        self.nodes.fill(NONE);
+        let index = &level.index;
+        let masks = axis_interval_masks();
+        for (around, &slot) in index.around[b].iter().enumerate() {
+            if slot == NONE {
+                continue;
+            }
+            // This brick's offset per axis (−1, 0, 1) and the local range within one node of b.
+            let offset = [around % 3, around / 3 % 3, around / 9].map(|o| o as i32 - 1);
+            let mut region = [u64::MAX; 8];
+            for (axis, &o) in offset.iter().enumerate() {
+                let (lo, hi) = match o {
+                    -1 => (7, 8),
+                    0 => (0, 8),
+                    _ => (0, 1),
+                };
+                for (r, m) in region.iter_mut().zip(&masks[axis][lo][hi]) {
+                    *r &= m;
+                }
+            }
+            let (mut first, occupied) = index.brick(slot as usize);
+            for (word, (&occ, &region)) in occupied.iter().zip(&region).enumerate() {
+                let mut bits = occ & region;
+                while bits != 0 {
+                    let bit = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let node = first + (occ & ((1u64 << bit) - 1)).count_ones();
+                    let l = brick_local(word * 64 + bit);
+                    let w: [usize; 3] =
+                        std::array::from_fn(|a| (l[a] as i32 + 8 * offset[a] + 1) as usize);
+                    self.nodes[w[0] + 10 * (w[1] + 10 * w[2])] = node;
+                }
+                first += occ.count_ones();
+            }
+        }
+    }
+}
+
+/// A node's brick slot and its position (key bits and coordinates 0..8) within the brick.
+#[derive(Debug, Clone, Copy)]
+pub struct NodePlace {
+    pub slot: usize,
+    /// The low nine bits of the node's key.
+    pub position: usize,
+    pub local: [i32; 3],
+}
+
+/// The brick of the last node located: the range of node indices it holds and its slot.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BrickCursor {
+    start: u32,
+    end: u32,
+    slot: usize,
 }
 
 /// A halo node outside the cube that stands for the reflection of an inside node.
@@ -407,33 +619,6 @@ impl Level {
             flags[i as usize] |= CORE;
         }
         core.par_sort_unstable();
-        // Face neighbours, brick by brick: inside a brick a neighbour is a rank in its
-        // occupancy; across its faces, in one of the six bricks around (one hash each per brick).
-        let mut neighbor_offsets = vec![[NO_NEIGHBOR; 6]; keys.len()];
-        index.for_each_node(&keys, &mut neighbor_offsets, |walk, i, k, out| {
-            let position = (k & 511) as usize;
-            for (dir, offset) in out.iter_mut().enumerate() {
-                let axis = dir / 2;
-                let v = local_coord(position, axis);
-                let (slot, v) = match (dir % 2, v) {
-                    (0, 0) => (walk_around(&index, walk)[dir], 7),
-                    (1, 7) => (walk_around(&index, walk)[dir], 0),
-                    (0, v) => (Some(walk.slot), v - 1),
-                    (_, v) => (Some(walk.slot), v + 1),
-                };
-                let Some(j) =
-                    slot.and_then(|b| index.in_brick(b, with_local_coord(position, axis, v)))
-                else {
-                    continue;
-                };
-                let d = j as i64 - i as i64;
-                *offset = if d > FAR_NEIGHBOR as i64 && d <= i16::MAX as i64 {
-                    d as i16
-                } else {
-                    FAR_NEIGHBOR
-                };
-            }
-        });
         let mut mirrors = Vec::new();
         if neumann {
             let n = 1i32 << depth;
@@ -454,7 +639,6 @@ impl Level {
             depth,
             keys,
             flags,
-            neighbor_offsets,
             parent: Vec::new(),
             core,
             mirrors,
@@ -479,6 +663,13 @@ pub struct BrickIndex {
     bricks: Vec<u64>,
     first: Vec<u32>,
     occupied: Vec<[u64; 8]>,
+    /// Per brick, the index of the first node of each 64-position word of its occupancy (so a
+    /// node's index is one count of bits below it in its word away).
+    word_first: Vec<[u32; 8]>,
+    /// Per brick, the slots of the 27 bricks around it (index (dx+1) + 3(dy+1) + 9(dz+1), the
+    /// brick itself in the middle), `NONE` where no node lies: a neighbour across a brick face
+    /// costs a table read, not a hash.
+    around: Vec<[u32; 27]>,
 }
 
 impl BrickIndex {
@@ -500,6 +691,28 @@ impl BrickIndex {
             let position = (k & 511) as usize;
             index.occupied.last_mut().expect("pushed above")[position >> 6] |= 1 << (position & 63);
         }
+        index.word_first = index
+            .first
+            .iter()
+            .zip(&index.occupied)
+            .map(|(&first, occupied)| {
+                let mut next = first;
+                occupied.map(|word| {
+                    let start = next;
+                    next += word.count_ones();
+                    start
+                })
+            })
+            .collect();
+        index.around = (0..index.bricks.len())
+            .into_par_iter()
+            .map(|b| {
+                std::array::from_fn(|slot| {
+                    let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| o as i64 - 1);
+                    index.brick_beside(b, offset).map_or(NONE, |s| s as u32)
+                })
+            })
+            .collect();
         index
     }
 
@@ -520,52 +733,44 @@ impl BrickIndex {
     #[inline]
     fn in_brick(&self, b: usize, position: usize) -> Option<u32> {
         let (word, bit) = (position >> 6, position & 63);
-        let mask = &self.occupied[b];
-        if mask[word] >> bit & 1 == 0 {
+        let mask = self.occupied[b][word];
+        if mask >> bit & 1 == 0 {
             return None;
         }
-        let before: u32 = mask[..word].iter().map(|w| w.count_ones()).sum::<u32>()
-            + (mask[word] & ((1u64 << bit) - 1)).count_ones();
-        Some(self.first[b] + before)
+        Some(self.word_first[b][word] + (mask & ((1u64 << bit) - 1)).count_ones())
     }
 
-    /// The slot of the brick holding node `i`.
-    fn slot_of_node(&self, i: u32) -> usize {
-        self.first.partition_point(|&f| f <= i) - 1
+    /// The slot of the brick holding node `i`, searching only when `i` is outside the cursor's
+    /// brick.
+    #[inline]
+    fn slot_of_node_from(&self, cursor: &mut BrickCursor, i: u32) -> usize {
+        if !(cursor.start..cursor.end).contains(&i) {
+            let slot = self.first.partition_point(|&f| f <= i) - 1;
+            *cursor = BrickCursor {
+                start: self.first[slot],
+                end: self.first.get(slot + 1).copied().unwrap_or(u32::MAX),
+                slot,
+            };
+        }
+        cursor.slot
     }
 
-    /// For every node (keys sorted, as given to [`BrickIndex::new`]), `f(walk, node, key,
-    /// &mut out[node])`, in parallel chunks of nodes; the walk holds the node's brick slot,
-    /// found by walking the bricks in order rather than by hashing each key.
-    fn for_each_node<T: Send>(
-        &self,
-        keys: &[u64],
-        out: &mut [T],
-        f: impl Fn(&mut BrickWalk, u32, u64, &mut T) + Sync,
-    ) {
-        const NODES_PER_TASK: usize = 4096;
-        out.par_chunks_mut(NODES_PER_TASK)
-            .enumerate()
-            .for_each(|(c, chunk)| {
-                let start = (c * NODES_PER_TASK) as u32;
-                let mut walk = BrickWalk {
-                    slot: self.slot_of_node(start),
-                    around: None,
-                };
-                for (j, o) in chunk.iter_mut().enumerate() {
-                    let i = start + j as u32;
-                    let k = keys[i as usize];
-                    while self.bricks[walk.slot] != k >> Self::BRICK_BITS {
-                        walk.slot += 1;
-                        walk.around = None;
-                    }
-                    f(&mut walk, i, k, o);
-                }
-            });
+    /// The node at brick-local coordinates `local` of brick slot `b`, `NONE` if absent.
+    #[inline]
+    pub fn node_in(&self, b: usize, local: [usize; 3]) -> u32 {
+        self.in_brick(b, brick_position(local)).unwrap_or(NONE)
     }
 
-    /// The slots of the six face-neighbouring bricks of brick slot `b` (−x, +x, −y, +y, −z,
-    /// +z), `None` where no node lies.
+    /// The node a move from a node of brick slot `b` lands on, `NONE` if absent.
+    #[inline(always)]
+    fn node_at(&self, b: usize, step: AxisStep) -> u32 {
+        let slot = self.around[b][(13 + step.brick) as usize];
+        if slot == NONE {
+            return NONE;
+        }
+        self.in_brick(slot as usize, step.bits).unwrap_or(NONE)
+    }
+
     /// Number of bricks that hold nodes.
     pub fn brick_count(&self) -> usize {
         self.bricks.len()
@@ -581,20 +786,7 @@ impl BrickIndex {
     /// The slots of the 27 bricks around brick `b` (index (dx+1) + 3(dy+1) + 9(dz+1); brick b
     /// itself in the middle), `None` where no node lies.
     pub fn bricks_around27(&self, b: usize) -> [Option<usize>; 27] {
-        std::array::from_fn(|slot| {
-            let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| o as i64 - 1);
-            self.brick_beside(b, offset)
-        })
-    }
-
-    /// The slots of the six face-neighbouring bricks of brick slot `b` (−x, +x, −y, +y, −z,
-    /// +z), `None` where no node lies.
-    fn bricks_around(&self, b: usize) -> [Option<usize>; 6] {
-        std::array::from_fn(|dir| {
-            let mut offset = [0; 3];
-            offset[dir / 2] = if dir % 2 == 0 { -1 } else { 1 };
-            self.brick_beside(b, offset)
-        })
+        self.around[b].map(|s| (s != NONE).then_some(s as usize))
     }
 
     /// The slot of the brick `offset` bricks away from brick slot `b`, if it has nodes.
@@ -612,21 +804,6 @@ impl BrickIndex {
     }
 }
 
-/// The bricks around the walk's current one, looked up on first use.
-#[inline]
-fn walk_around(index: &BrickIndex, walk: &mut BrickWalk) -> [Option<usize>; 6] {
-    *walk
-        .around
-        .get_or_insert_with(|| index.bricks_around(walk.slot))
-}
-
-/// Where a walk over the nodes in key order is: the current brick's slot and, once asked for,
-/// the slots of the bricks around it.
-struct BrickWalk {
-    slot: usize,
-    around: Option<[Option<usize>; 6]>,
-}
-
 /// A coordinate of a position within a brick (nine bits, x y z interleaved from bit 0).
 #[inline]
 fn local_coord(position: usize, axis: usize) -> usize {
@@ -640,11 +817,38 @@ pub fn brick_local(position: usize) -> [usize; 3] {
     [0, 1, 2].map(|axis| local_coord(position, axis))
 }
 
-/// `position` with its coordinate along `axis` replaced by `v` (0..8).
+/// Per axis a and local interval lo..hi (0 ≤ lo ≤ hi ≤ 8), the brick positions whose local
+/// coordinate along a lies in it.
+pub fn axis_interval_masks() -> &'static [[[[u64; 8]; 9]; 9]; 3] {
+    static MASKS: std::sync::OnceLock<Box<[[[[u64; 8]; 9]; 9]; 3]>> = std::sync::OnceLock::new();
+    MASKS.get_or_init(|| {
+        let mut masks = Box::new([[[[0u64; 8]; 9]; 9]; 3]);
+        for (a, per_axis) in masks.iter_mut().enumerate() {
+            for lo in 0..9 {
+                for hi in lo..9 {
+                    for p in 0..512 {
+                        if (lo..hi).contains(&brick_local(p)[a]) {
+                            per_axis[lo][hi][p >> 6] |= 1 << (p & 63);
+                        }
+                    }
+                }
+            }
+        }
+        masks
+    })
+}
+
+/// The position (key's low nine bits) of brick-local coordinates, the inverse of
+/// [`brick_local`].
 #[inline]
-fn with_local_coord(position: usize, axis: usize, v: usize) -> usize {
-    let spread3 = |v: usize| (v & 1) | (v & 2) << 2 | (v & 4) << 4;
-    (position & !(spread3(7) << axis)) | spread3(v) << axis
+pub fn brick_position(local: [usize; 3]) -> usize {
+    spread3(local[0]) | spread3(local[1]) << 1 | spread3(local[2]) << 2
+}
+
+/// The three bits of a brick-local coordinate (0..8) spread to every third bit, as in a key.
+#[inline]
+fn spread3(v: usize) -> usize {
+    (v & 1) | (v & 2) << 2 | (v & 4) << 4
 }
 
 /// Packs a node coordinate with z most significant, then y, then x (21 bits each after the
@@ -910,22 +1114,69 @@ mod tests {
     }
 
     #[test]
-    fn neighbours_near_and_far_in_index_order_are_the_nodes_beside() {
-        // A complete 64³ grid plus its halo: +z neighbours across the coarsest Morton
-        // boundaries are ~2^17 indices apart, beyond an i16 offset.
-        let tree = Octree::build(vec![Vec::new(); 7], 6, false);
-        let level = &tree.levels[6];
-        let mut far = 0;
-        for i in 0..level.len() as u32 {
-            let c = level.coord(i);
-            for dir in 0..6 {
-                let mut q = c;
-                q[dir / 2] += if dir % 2 == 0 { -1 } else { 1 };
-                let want = level.find(q).unwrap_or(NONE);
-                assert_eq!(level.neighbor(i, dir), want, "node {c:?} direction {dir}");
-                far += (level.neighbor_offsets[i as usize][dir] == FAR_NEIGHBOR) as usize;
+    fn neighbours_found_through_bricks_are_the_nodes_beside() {
+        // A 64³ grid plus its halo, and a sparse tree whose halo is ragged: neighbours within a
+        // brick, across brick faces, edges and corners, and missing ones.
+        let mut shell = Vec::new();
+        for z in 0..64 {
+            for y in 0..64 {
+                for x in 0..64 {
+                    let r2 = (x - 32) * (x - 32) + (y - 32) * (y - 32) + (z - 32) * (z - 32);
+                    if (r2 - 400i32).abs() < 40 {
+                        shell.push([x, y, z]);
+                    }
+                }
             }
         }
-        assert!(far > 0, "the grid is large enough to need far neighbours");
+        let grid = Octree::build(vec![Vec::new(); 7], 6, false);
+        let mut cells = vec![Vec::new(); 7];
+        cells[6] = shell;
+        let sparse = Octree::build(cells, 2, true);
+        for level in [&grid.levels[6], &sparse.levels[6]] {
+            let mut cursor = BrickCursor::default();
+            let mut window = BlockWindow::default();
+            let mut missing = 0;
+            for i in 0..level.len() as u32 {
+                let c = level.coord(i);
+                let at_offset = |o: [i32; 3]| {
+                    level
+                        .find([c[0] + o[0], c[1] + o[1], c[2] + o[2]])
+                        .unwrap_or(NONE)
+                };
+                for dir in 0..6 {
+                    let mut o = [0; 3];
+                    o[dir / 2] = if dir % 2 == 0 { -1 } else { 1 };
+                    assert_eq!(level.neighbor(i, dir), at_offset(o), "node {c:?} dir {dir}");
+                }
+                let at = level.locate(&mut cursor, i);
+                for axis in 0..3 {
+                    let along = |d: i32| {
+                        let mut o = [0; 3];
+                        o[axis] = d;
+                        at_offset(o)
+                    };
+                    let (m1, p1) = (along(-1), along(1));
+                    let want = [
+                        if m1 == NONE { NONE } else { along(-2) },
+                        m1,
+                        p1,
+                        if p1 == NONE { NONE } else { along(2) },
+                    ];
+                    assert_eq!(level.line4(at, axis), want, "node {c:?} axis {axis}");
+                }
+                let block = level.block27_at(i, at);
+                assert_eq!(block, level.block27(i));
+                assert_eq!(block, window.block27(level, i, at));
+                for (slot, &n) in block.iter().enumerate() {
+                    let o = [slot % 3, slot / 3 % 3, slot / 9].map(|v| v as i32 - 1);
+                    let reached =
+                        at_offset([0, 0, o[2]]) != NONE && at_offset([0, o[1], o[2]]) != NONE;
+                    let want = if reached { at_offset(o) } else { NONE };
+                    assert_eq!(n, want, "node {c:?} slot {slot}");
+                    missing += (n == NONE) as usize;
+                }
+            }
+            assert!(missing > 0, "the halo's edge has missing neighbours");
+        }
     }
 }

@@ -15,7 +15,7 @@
 //! node it mirrors inside: along each axis, the first and last node also collect the weight of
 //! their reflection.
 
-use crate::octree::{Level, NONE};
+use crate::octree::{BlockWindow, BrickCursor, Level, NONE};
 use crate::system::{cell_of, SharedSlice, CHUNK};
 use crate::Splatting;
 use glam::DVec3;
@@ -73,10 +73,13 @@ pub fn splat_depth(
     let [fx, fy, fz] = &mut field;
     let shared = [fx, fy, fz].map(|component| SharedSlice::new(component));
     level.core.par_chunks(CHUNK).for_each(|nodes| {
+        let mut cursor = BrickCursor::default();
+        let mut window = BlockWindow::default();
         for &node in nodes {
             let o = level.coord(node);
             let mut sum = DVec3::ZERO;
-            for (slot, &cell) in level.block27(node).iter().enumerate() {
+            let at = level.locate(&mut cursor, node);
+            for (slot, &cell) in window.block27(level, node, at).iter().enumerate() {
                 if cell == NONE {
                     continue;
                 }

@@ -26,46 +26,180 @@
 //! divergence of finer vector-field coefficients is restricted to coarser nodes. Both are exact.
 
 use crate::bspline::{tables, REFINE};
-use crate::octree::{brick_local, Level, NONE};
+use crate::octree::{
+    axis_interval_masks, brick_local, AxisStep, BlockWindow, BrickCursor, BrickIndex, Level, NONE,
+};
 use glam::DVec3;
 use rayon::prelude::*;
 
 /// Rows per parallel task: fixed, so results never depend on the thread count.
 pub const CHUNK: usize = 4096;
 
-/// `out[i]` = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d.
+/// `out[i]` = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d,
+/// where a node two away counts only if the one between is in K_d too (as when stepping from
+/// neighbour to neighbour).
+///
+/// Brick by brick: each brick's values and those of the two layers of the bricks before and
+/// after it along `axis` are laid out in a dense 12 × 8 × 8 window first, walking occupancy
+/// bits in key order (a node's index is one more than the previous one's: no search, no count).
 pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mut [f64]) {
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(c, chunk)| {
-            for (j, o) in chunk.iter_mut().enumerate() {
-                *o = tap_sum(level, axis, taps, input, (c * CHUNK + j) as u32);
-            }
-        });
+    const BRICKS_PER_TASK: usize = 16;
+    let index = level.bricks();
+    let shared = SharedSlice::new(out);
+    let stride = 3usize.pow(axis as u32);
+    let [a1, a2] = match axis {
+        0 => [1, 2],
+        1 => [0, 2],
+        _ => [0, 1],
+    };
+    (0..index.brick_count())
+        .into_par_iter()
+        .with_min_len(BRICKS_PER_TASK)
+        .for_each_init(
+            || Box::new([0.0f64; 12 * 64]),
+            |window, b| {
+                // Layer = coordinate along `axis` + 2 (0..12); cross = the other two, 8 × 8. Only
+                // entries marked present are read, so the window is never cleared.
+                let mut present = [0u64; 12];
+                let around = index.bricks_around27(b);
+                let sources = [
+                    (around[13 - stride], 6, -6i32),
+                    (Some(b), 0, 2),
+                    (around[13 + stride], 0, 10),
+                ];
+                for (slot, from, shift) in sources {
+                    let Some(slot) = slot else { continue };
+                    let lo = from;
+                    let hi = if shift == 10 { 2 } else { 8 };
+                    let walk = if slot == b {
+                        BrickNodes::new(index, slot)
+                    } else {
+                        BrickNodes::in_half(index, slot, axis, lo >= 4)
+                    };
+                    for (node, l) in walk {
+                        if !(lo..hi).contains(&l[axis]) {
+                            continue;
+                        }
+                        let layer = (l[axis] as i32 + shift) as usize;
+                        let cross = l[a1] + 8 * l[a2];
+                        window[layer * 64 + cross] = input[node as usize];
+                        present[layer] |= 1 << cross;
+                    }
+                }
+                for (node, l) in BrickNodes::new(index, b) {
+                    let layer = (l[axis] & 7) + 2;
+                    let cross = (l[a1] & 7) + 8 * (l[a2] & 7);
+                    let has = |layer: usize| present[layer] >> cross & 1 == 1;
+                    let value = |layer: usize| window[layer * 64 + cross];
+                    let mut sum = taps[2] * value(layer);
+                    if has(layer - 1) {
+                        sum += taps[1] * value(layer - 1);
+                        if has(layer - 2) {
+                            sum += taps[0] * value(layer - 2);
+                        }
+                    }
+                    if has(layer + 1) {
+                        sum += taps[3] * value(layer + 1);
+                        if has(layer + 2) {
+                            sum += taps[4] * value(layer + 2);
+                        }
+                    }
+                    // SAFETY: every node belongs to one brick, whose task alone writes it.
+                    unsafe { *shared.get_mut(node as usize) = sum };
+                }
+            },
+        );
 }
 
-#[inline]
-fn tap_sum(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], i: u32) -> f64 {
-    let (minus, plus) = (2 * axis, 2 * axis + 1);
-    let mut sum = taps[2] * input[i as usize];
-    let m1 = level.neighbor(i, minus);
-    if m1 != NONE {
-        sum += taps[1] * input[m1 as usize];
-        let m2 = level.neighbor(m1, minus);
-        if m2 != NONE {
-            sum += taps[0] * input[m2 as usize];
-        }
-    }
-    let p1 = level.neighbor(i, plus);
-    if p1 != NONE {
-        sum += taps[3] * input[p1 as usize];
-        let p2 = level.neighbor(p1, plus);
-        if p2 != NONE {
-            sum += taps[4] * input[p2 as usize];
-        }
-    }
-    sum
+/// The nodes of one brick in key order, as (node index, brick-local coordinates): a node's
+/// index is one more than the previous one's, not searched or counted.
+#[derive(Clone)]
+struct BrickNodes<'a> {
+    occupied: &'a [u64; 8],
+    /// Bit w: walk word w (the others are skipped, their nodes counted).
+    words: u8,
+    word: usize,
+    bits: u64,
+    node: u32,
 }
+
+impl<'a> BrickNodes<'a> {
+    #[inline(always)]
+    fn new(index: &'a BrickIndex, b: usize) -> Self {
+        Self::in_words(index, b, 0xff)
+    }
+
+    /// Only the nodes whose coordinate along `axis` is in the upper half (4..8) of the brick,
+    /// or the lower (0..4): the words of a brick's occupancy split by each axis's top bit.
+    #[inline(always)]
+    fn in_half(index: &'a BrickIndex, b: usize, axis: usize, upper: bool) -> Self {
+        let words = (0..8u8)
+            .filter(|w| (w >> axis & 1 == 1) == upper)
+            .fold(0, |m, w| m | 1 << w);
+        Self::in_words(index, b, words)
+    }
+
+    #[inline(always)]
+    fn in_words(index: &'a BrickIndex, b: usize, words: u8) -> Self {
+        let (node, occupied) = index.brick(b);
+        let mut walk = BrickNodes {
+            occupied,
+            words,
+            word: 0,
+            bits: 0,
+            node,
+        };
+        walk.bits = walk.word_bits(0);
+        walk
+    }
+
+    #[inline(always)]
+    fn word_bits(&mut self, word: usize) -> u64 {
+        if self.words >> word & 1 == 1 {
+            self.occupied[word]
+        } else {
+            self.node += self.occupied[word].count_ones();
+            0
+        }
+    }
+}
+
+impl Iterator for BrickNodes<'_> {
+    type Item = (u32, [usize; 3]);
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<(u32, [usize; 3])> {
+        while self.bits == 0 {
+            self.word += 1;
+            if self.word == 8 {
+                return None;
+            }
+            self.bits = self.word_bits(self.word);
+        }
+        let bit = self.bits.trailing_zeros() as usize;
+        self.bits &= self.bits - 1;
+        let node = self.node;
+        self.node += 1;
+        let l = BRICK_LOCAL[self.word * 64 + bit];
+        Some((node, [l[0] as usize, l[1] as usize, l[2] as usize]))
+    }
+}
+
+/// [`brick_local`] of every position, looked up rather than computed in the bit walks.
+static BRICK_LOCAL: [[u8; 3]; 512] = {
+    let mut table = [[0u8; 3]; 512];
+    let mut p = 0;
+    while p < 512 {
+        let mut axis = 0;
+        while axis < 3 {
+            let q = p >> axis;
+            table[p][axis] = ((q & 1) | (q >> 2 & 2) | (q >> 4 & 4)) as u8;
+            axis += 1;
+        }
+        p += 1;
+    }
+    table
+};
 
 /// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
 /// reflects, so free-space stencils act as the folded (even) basis (no-op with free boundaries).
@@ -742,27 +876,6 @@ fn prolong_by_brick<const C: usize>(
         );
 }
 
-/// Per axis a and local interval lo..hi (0 ≤ lo ≤ hi ≤ 8), the brick positions whose local
-/// coordinate along a lies in it.
-fn axis_interval_masks() -> &'static [[[[u64; 8]; 9]; 9]; 3] {
-    static MASKS: std::sync::OnceLock<Box<[[[[u64; 8]; 9]; 9]; 3]>> = std::sync::OnceLock::new();
-    MASKS.get_or_init(|| {
-        let mut masks = Box::new([[[[0u64; 8]; 9]; 9]; 3]);
-        for (a, per_axis) in masks.iter_mut().enumerate() {
-            for lo in 0..9 {
-                for hi in lo..9 {
-                    for p in 0..512 {
-                        if (lo..hi).contains(&brick_local(p)[a]) {
-                            per_axis[lo][hi][p >> 6] |= 1 << (p & 63);
-                        }
-                    }
-                }
-            }
-        }
-        masks
-    })
-}
-
 /// Σ_δ taps[δ+2] · window[δ+2], in the order centre, −1, −2, +1, +2.
 #[inline]
 fn window_sum(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
@@ -996,7 +1109,12 @@ impl ScreeningCells {
         ScreeningCells {
             blocks: cells
                 .par_iter()
-                .map(|&(cell, _)| level.block27(cell))
+                .map_init(
+                    || (BrickCursor::default(), BlockWindow::default()),
+                    |(cursor, window), &(cell, _)| {
+                        window.block27(level, cell, level.locate(cursor, cell))
+                    },
+                )
                 .collect(),
             proxies: cells.iter().map(|&(_, range)| range).collect(),
             slabs,
@@ -1123,27 +1241,38 @@ const PARENT_WEIGHTS: [f64; 8] = {
 /// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:
 /// per axis, child 2m = ¾·parent m + ¼·parent m−1 and child 2m+1 = ¾·parent m + ¼·parent m+1.
 #[inline]
-fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
+fn refinement_parents(
+    coarse: &Level,
+    fine: &Level,
+    coarse_cursor: &mut BrickCursor,
+    i: u32,
+) -> [(u32, f64); 8] {
     let mut out = [(NONE, 0.0); 8];
     let p = fine.parent[i as usize];
     if p == NONE {
         return out;
     }
+    let at = coarse.locate(coarse_cursor, p);
     // The parity of each coordinate is the key's bit of that axis (the key's offset is even).
     let key = fine.keys[i as usize];
-    let partner_dir = [0, 1, 2].map(|axis| 2 * axis + ((key >> axis) & 1) as usize);
+    let steps: [[AxisStep; 2]; 3] = std::array::from_fn(|axis| {
+        let partner = if (key >> axis) & 1 == 0 { -1 } else { 1 };
+        [0, partner].map(|delta| AxisStep::new(at.local[axis], delta, axis))
+    });
     for k in 0..8 {
-        // Parent k is parent (k without its highest axis bit) stepped along that axis: seven
-        // links in all, each parent reached along x, then y, then z.
+        // Parent k is parent (k without its highest axis bit) stepped along that axis: each
+        // parent reached along x, then y, then z, and missing when the one it steps from is.
         let node = if k == 0 {
             p
         } else {
             let axis = 7 - (k as u8).leading_zeros() as usize;
-            let from = out[k & !(1 << axis)].0;
-            if from == NONE {
+            if out[k & !(1 << axis)].0 == NONE {
                 NONE
             } else {
-                coarse.neighbor(from, partner_dir[axis])
+                let step = steps[0][k & 1]
+                    .join(steps[1][k >> 1 & 1])
+                    .join(steps[2][k >> 2 & 1]);
+                coarse.node_after(at, step)
             }
         };
         out[k] = (node, PARENT_WEIGHTS[k]);
@@ -1172,7 +1301,7 @@ fn prolonged_at<const N: usize>(
     scales: [f64; N],
     i: u32,
 ) -> [f64; N] {
-    let parents = refinement_parents(coarse, fine, i);
+    let parents = refinement_parents(coarse, fine, &mut BrickCursor::default(), i);
     std::array::from_fn(|k| {
         parents
             .iter()
@@ -1247,15 +1376,81 @@ impl ProlongedField<'_> {
 }
 
 /// The transpose of [`prolong`]: adds Σ_children w · `fine[child]` to every coarse node.
+///
+/// Fine brick by fine brick: the coarse nodes its nodes refine from (a 6×6×6 block) are looked
+/// up once per brick, then every fine node adds to its eight parents, in node order and with
+/// the parents of [`refinement_parents`] (so sums come out the same as node by node).
 pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_out: &mut [f64]) {
-    for i in 0..fine.len() as u32 {
-        let v = fine_values[i as usize];
-        if v == 0.0 {
+    const SIDE: usize = 6;
+    let fine_index = fine.bricks();
+    let coarse_index = coarse.bricks();
+    let mut window = [NONE; SIDE * SIDE * SIDE];
+    for b in 0..fine_index.brick_count() {
+        let (first, _) = fine_index.brick(b);
+        let walk = BrickNodes::new(fine_index, b);
+        if walk
+            .clone()
+            .all(|(node, _)| fine_values[node as usize] == 0.0)
+        {
             continue;
         }
-        for (n, w) in refinement_parents(coarse, fine, i) {
-            if n != NONE {
-                coarse_out[n as usize] += w * v;
+        let first_local = brick_local((fine.keys[first as usize] & 511) as usize);
+        let fine_origin: [i32; 3] =
+            std::array::from_fn(|a| fine.coord(first)[a] - first_local[a] as i32);
+        // Window coordinate w along an axis is coarse coordinate origin + w; it spans the two
+        // coarse bricks from `coarse_brick`.
+        let origin = fine_origin.map(|o| o.div_euclid(2) - 1);
+        let coarse_brick = origin.map(|o| o.div_euclid(8) * 8);
+        let slots: [Option<usize>; 8] = std::array::from_fn(|k| {
+            coarse.brick_containing(std::array::from_fn(|a| {
+                coarse_brick[a] + 8 * ((k >> a) & 1) as i32
+            }))
+        });
+        for (w, entry) in window.iter_mut().enumerate() {
+            let w = [w % SIDE, w / SIDE % SIDE, w / (SIDE * SIDE)];
+            // The coordinate relative to the first coarse brick of each axis (0..16).
+            let c: [i32; 3] = std::array::from_fn(|a| origin[a] + w[a] as i32 - coarse_brick[a]);
+            let k = (0..3).fold(0, |k, a| k | ((c[a] >= 8) as usize) << a);
+            *entry = slots[k].map_or(NONE, |slot| {
+                coarse_index.node_in(slot, c.map(|v| (v & 7) as usize))
+            });
+        }
+        for (node, l) in walk {
+            let v = fine_values[node as usize];
+            if v == 0.0 {
+                continue;
+            }
+            // Parent at window coordinate l/2 + 1, partners one step towards the node's side.
+            let at = |k: usize| {
+                let c: [usize; 3] = std::array::from_fn(|a| {
+                    let partner = if (k >> a) & 1 == 0 {
+                        0
+                    } else if l[a] & 1 == 0 {
+                        -1
+                    } else {
+                        1
+                    };
+                    (l[a] as i32 / 2 + 1 + partner) as usize
+                });
+                window[c[0] + SIDE * (c[1] + SIDE * c[2])]
+            };
+            let mut parents = [NONE; 8];
+            for k in 0..8 {
+                // Reached as refinement_parents reaches it: missing when the one it steps
+                // from (k without its highest axis bit) is.
+                parents[k] = if k == 0 {
+                    at(0)
+                } else {
+                    let axis = 7 - (k as u8).leading_zeros() as usize;
+                    if parents[k & !(1 << axis)] == NONE {
+                        NONE
+                    } else {
+                        at(k)
+                    }
+                };
+                if parents[k] != NONE {
+                    coarse_out[parents[k] as usize] += PARENT_WEIGHTS[k] * v;
+                }
             }
         }
     }
@@ -1328,7 +1523,8 @@ mod tests {
     }
 
     /// The brick-by-brick prolongations (of the coefficients, of V added to a field, and inside
-    /// the coarse divergence's windows) give the node-by-node values bit for bit, with free and
+    /// the coarse divergence's windows), the restriction and the separable passes give the
+    /// node-by-node values bit for bit, with free and
     /// with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only part of
     /// the cube refined) as well as complete ones.
     #[test]
@@ -1391,6 +1587,63 @@ mod tests {
                     });
                     for a in 0..3 {
                         same(&want[a], &added[a], "add_to");
+                    }
+                    // Restriction (the transpose) brick by brick against node by node, with
+                    // zeros among the fine values as the pipeline's have.
+                    let fine_values: Vec<f64> = (0..fine.len())
+                        .map(|i| {
+                            if i % 5 == 0 {
+                                0.0
+                            } else {
+                                (i % 9) as f64 - 4.0
+                            }
+                        })
+                        .collect();
+                    let mut by_node = vec![0.5; coarse.len()];
+                    let mut cursor = BrickCursor::default();
+                    for i in 0..fine.len() as u32 {
+                        for (n, w) in refinement_parents(coarse, fine, &mut cursor, i) {
+                            if n != NONE && fine_values[i as usize] != 0.0 {
+                                by_node[n as usize] += w * fine_values[i as usize];
+                            }
+                        }
+                    }
+                    let mut by_brick = vec![0.5; coarse.len()];
+                    restrict_into(coarse, fine, &fine_values, &mut by_brick);
+                    same(&by_node, &by_brick, "restrict");
+                    // The separable passes brick by brick against node by node along lines.
+                    let taps = [0.1, -0.7, 1.3, 0.6, -0.2];
+                    for axis in 0..3 {
+                        let mut out = vec![0.0; fine.len()];
+                        pass(fine, axis, &taps, &fine_values, &mut out);
+                        let mut cursor = BrickCursor::default();
+                        let want: Vec<f64> = (0..fine.len() as u32)
+                            .map(|i| {
+                                let line = fine.line4(fine.locate(&mut cursor, i), axis);
+                                let x = |n: u32| {
+                                    if n == NONE {
+                                        0.0
+                                    } else {
+                                        fine_values[n as usize]
+                                    }
+                                };
+                                let mut sum = taps[2] * fine_values[i as usize];
+                                if line[1] != NONE {
+                                    sum += taps[1] * x(line[1]);
+                                    if line[0] != NONE {
+                                        sum += taps[0] * x(line[0]);
+                                    }
+                                }
+                                if line[2] != NONE {
+                                    sum += taps[3] * x(line[2]);
+                                    if line[3] != NONE {
+                                        sum += taps[4] * x(line[3]);
+                                    }
+                                }
+                                sum
+                            })
+                            .collect();
+                        same(&want, &out, "pass");
                     }
                 }
             }
