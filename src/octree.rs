@@ -771,6 +771,11 @@ impl BrickIndex {
         self.in_brick(slot as usize, step.bits).unwrap_or(NONE)
     }
 
+    /// The coordinates of the node at local (0, 0, 0) of brick slot `b`.
+    pub fn origin(&self, b: usize) -> Coord {
+        unmorton(self.bricks[b] << Self::BRICK_BITS)
+    }
+
     /// Number of bricks that hold nodes.
     pub fn brick_count(&self) -> usize {
         self.bricks.len()

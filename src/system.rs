@@ -27,7 +27,7 @@
 
 use crate::bspline::{tables, REFINE};
 use crate::octree::{
-    axis_interval_masks, brick_local, AxisStep, BlockWindow, BrickCursor, BrickIndex, Level, NONE,
+    axis_interval_masks, brick_local, AxisStep, BrickCursor, BrickIndex, Level, NONE,
 };
 use glam::DVec3;
 use rayon::prelude::*;
@@ -415,6 +415,8 @@ struct BrickScratch {
     /// (index x + 8y + 64z), when the window is a prolongation
     /// ([`CoreBricks::gather_prolonged`]).
     coarse: [Vec<f64>; 3],
+    /// The screening term at the brick's positions (x + 8y + 64z).
+    screened: Box<[f64; 512]>,
 }
 
 impl BrickScratch {
@@ -495,13 +497,40 @@ impl CoreBricks {
         bricks
     }
 
-    /// out[c] = h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)·input at every core node c (in core order).
-    fn laplacian(&self, level: &Level, input: &[f64], h: f64, out: &mut [f64]) {
+    /// out[c] = h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)·input at every core node c (in core order), plus,
+    /// with `screening` = (cells, proxies, weight α), α·Σ_q W_q B_c(q) χ(q) for χ = input.
+    fn laplacian(
+        &self,
+        level: &Level,
+        input: &[f64],
+        h: f64,
+        weighted_chi: Option<(&ScreeningCells, &Proxies, &mut [f64])>,
+        out: &mut [f64],
+    ) {
         let t = tables();
+        let weighted_chi =
+            weighted_chi.map(|(cells, proxies, chi)| (cells, proxies, SharedSlice::new(chi)));
         self.for_each_brick(
             |cb, windows, _| self.gather(level, cb, &|n| [input[n]], windows),
             out,
-            |[w], scratch, core_nodes| {
+            |[w], scratch, cb, core_nodes| {
+                if let Some((cells, proxies, chi)) = &weighted_chi {
+                    // W_q·χ(q) at the proxies of the cells in this brick, from the window.
+                    for cell in cells.in_brick(self.around[cb][13] as usize) {
+                        let c = brick_local(cell.position as usize).map(|v| v + 2);
+                        let mut x = [0.0; 27];
+                        for (k, x) in x.chunks_exact_mut(3).enumerate() {
+                            let row = &w[(c[2] + k / 3 - 1) * WINDOW + c[1] + k % 3 - 1];
+                            x.copy_from_slice(&row[c[0] - 1..c[0] + 2]);
+                        }
+                        for q in cell.proxies.0 as usize..cell.proxies.1 as usize {
+                            let value =
+                                proxies.weight[q] * tensor_contract(&proxies.stencil[q], &x);
+                            // SAFETY: each cell lies in one brick, handled by one task.
+                            unsafe { *chi.get_mut(q) = value };
+                        }
+                    }
+                }
                 // z-pass: every row of the window, at the brick's 8 depths.
                 for zl in 0..8 {
                     for yw in 0..WINDOW {
@@ -536,7 +565,7 @@ impl CoreBricks {
         out: &mut [f64],
     ) {
         let t = tables();
-        self.for_each_brick(fill, out, |[wx, wy, wz], scratch, core_nodes| {
+        self.for_each_brick(fill, out, |[wx, wy, wz], scratch, _, core_nodes| {
             for zl in 0..8 {
                 for yw in 0..WINDOW {
                     let at = zl * WINDOW + yw;
@@ -562,7 +591,7 @@ impl CoreBricks {
     }
 
     /// For every core brick `cb` (in parallel): `fill(cb, windows, scratch)` fills the window of
-    /// each of the C components, then `kernel(windows, scratch, core nodes)` runs, where the
+    /// each of the C components, then `kernel(windows, scratch, cb, core nodes)` runs, where the
     /// core nodes come as (their output element, their coordinates in the brick).
     fn for_each_brick<const C: usize>(
         &self,
@@ -571,6 +600,7 @@ impl CoreBricks {
         kernel: impl Fn(
                 &[Vec<[f64; WINDOW]>; C],
                 &mut BrickScratch,
+                usize,
                 &mut dyn Iterator<Item = (&mut f64, [usize; 3])>,
             ) + Sync,
     ) {
@@ -587,6 +617,7 @@ impl CoreBricks {
                             z: std::array::from_fn(|_| vec![[0.0; WINDOW]; 8 * WINDOW]),
                             y: std::array::from_fn(|_| vec![[0.0; WINDOW]; 8 * 8]),
                             coarse: std::array::from_fn(|_| vec![0.0; 8 * 8 * 8]),
+                            screened: Box::new([0.0; 512]),
                         },
                     )
                 },
@@ -611,7 +642,7 @@ impl CoreBricks {
                         .enumerate()
                         // SAFETY: every core node lies in one brick, handled by one task.
                         .map(|(k, p)| (unsafe { out.get_mut(first + k) }, brick_local(p)));
-                    kernel(windows, scratch, &mut core_nodes);
+                    kernel(windows, scratch, cb, &mut core_nodes);
                 },
             );
     }
@@ -894,25 +925,29 @@ pub struct DepthOperator<'a> {
     pub screening: f64,
     /// The bricks holding core nodes: the Laplacian is applied brick by brick.
     bricks: CoreBricks,
-    /// The cells whose proxies screen this depth (`None` without screening).
+    /// The cells whose proxies screen this depth, by brick (`None` without screening).
     screening_cells: Option<ScreeningCells>,
-    /// Σ_q W_q B_o(q) χ(q) on K_d (empty without screening).
-    screened: Vec<f64>,
+    /// W_q χ(q) at every proxy during a product (empty without screening).
+    weighted_chi: Vec<f64>,
 }
 
 impl<'a> DepthOperator<'a> {
     /// `screening` is the weight α_d of the screening term at this depth.
     pub fn new(level: &'a Level, proxies: &'a Proxies, screening: f64) -> Self {
-        let n = level.len();
         let screens = screening > 0.0 && !proxies.is_empty();
-        let screening_cells = screens.then(|| ScreeningCells::new(level, proxies));
+        let bricks = CoreBricks::new(level);
+        let screening_cells = screens.then(|| ScreeningCells::new(level, proxies, &bricks));
         DepthOperator {
             level,
             proxies,
             screening,
-            bricks: CoreBricks::new(level),
+            bricks,
             screening_cells,
-            screened: if screens { vec![0.0; n] } else { Vec::new() },
+            weighted_chi: if screens {
+                vec![0.0; proxies.len()]
+            } else {
+                Vec::new()
+            },
         }
     }
 
@@ -921,47 +956,51 @@ impl<'a> DepthOperator<'a> {
     /// conjugate-gradient direction (zero beyond the core but at the mirrors, see
     /// [`update_on_core`]).
     ///
-    /// The Laplacian h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D) is applied brick by brick (see
-    /// `CoreBricks`), the screening term by scattering over the proxy cells.
+    /// The Laplacian h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D) is applied brick by brick (see `CoreBricks`);
+    /// the screening term α·Σ_q W_q B_o(q) χ(q) in two sweeps over the bricks (see
+    /// `ScreeningCells`): W_q χ(q) at every proxy, read from the Laplacian's input window of the
+    /// proxy's brick, then each core brick collects from the proxies within one node of it.
     pub fn apply(&mut self, input: &[f64], out: &mut [f64]) {
         let level = self.level;
-        let h = level.width();
-        let core = &level.core;
-        self.bricks.laplacian(level, input, h, out);
-        if let Some(cells) = &self.screening_cells {
-            let scale = self.screening;
-            let proxies = self.proxies;
-            let screened = &mut self.screened;
-            screened.par_iter_mut().for_each(|v| *v = 0.0);
-            cells.scatter(screened, |block, range, contribution| {
-                let mut x = [0.0; 27];
-                for (x, &n) in x.iter_mut().zip(block) {
-                    if n != NONE {
-                        *x = input[n as usize];
-                    }
+        let proxies = self.proxies;
+        let bricks = &self.bricks;
+        let Some(cells) = &self.screening_cells else {
+            bricks.laplacian(level, input, level.width(), None, out);
+            return;
+        };
+        let chi = &mut self.weighted_chi;
+        bricks.laplacian(
+            level,
+            input,
+            level.width(),
+            Some((cells, proxies, chi)),
+            out,
+        );
+        cells.weigh_outside_core_bricks(level, proxies, input, chi);
+        let chi = &*chi;
+        let scale = self.screening;
+        bricks.for_each_brick::<0>(
+            |_, _, _| {},
+            out,
+            |_, scratch, cb, core_nodes| {
+                let acc = &mut scratch.screened;
+                acc.fill(0.0);
+                cells.accumulate(
+                    level,
+                    cb,
+                    &bricks.around[cb],
+                    acc,
+                    |part, range, contribution| {
+                        for q in range {
+                            tensor_accumulate_part(&proxies.stencil[q], chi[q], part, contribution);
+                        }
+                    },
+                );
+                for (o, [x, y, z]) in core_nodes {
+                    *o += scale * acc[x + 8 * (y + 8 * z)];
                 }
-                for q in range {
-                    let st = &proxies.stencil[q];
-                    let chi = tensor_contract(st, &x);
-                    tensor_accumulate(st, proxies.weight[q] * chi, contribution);
-                }
-            });
-            let screened = &*screened;
-            out.par_chunks_mut(CHUNK)
-                .zip(core.par_chunks(CHUNK))
-                .for_each(|(o, nodes)| {
-                    for (o, &n) in o.iter_mut().zip(nodes) {
-                        *o += scale * screened[n as usize];
-                    }
-                });
-            // Neumann: an inside node's function is folded with its reflections, so it also
-            // collects what the proxies give its mirror images.
-            for m in &level.mirrors {
-                if let Ok(pos) = core.binary_search(&m.inside) {
-                    out[pos] += scale * screened[m.outside as usize];
-                }
-            }
-        }
+            },
+        );
     }
 
     /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V whose coefficients on K_d
@@ -1008,29 +1047,36 @@ impl<'a> DepthOperator<'a> {
         let level = self.level;
         let t = tables();
         let lap = level.width() * 3.0 * t.stiffness[2] * t.mass[2] * t.mass[2];
+        let mut out = vec![lap; level.core.len()];
         let Some(cells) = &self.screening_cells else {
-            return vec![lap; level.core.len()];
+            return out;
         };
         let proxies = self.proxies;
         let scale = self.screening;
-        let screened = &mut self.screened;
-        screened.par_iter_mut().for_each(|v| *v = 0.0);
-        cells.scatter(screened, |_, range, contribution| {
-            for q in range {
-                let st = &proxies.stencil[q];
-                let w = proxies.weight[q];
-                for (slot, c) in contribution.iter_mut().enumerate() {
-                    let b = st[0][slot % 3] * st[1][(slot / 3) % 3] * st[2][slot / 9];
-                    *c += w * b * b;
+        self.bricks.for_each_brick::<0>(
+            |_, _, _| {},
+            &mut out,
+            |_, scratch, cb, core_nodes| {
+                let acc = &mut scratch.screened;
+                acc.fill(0.0);
+                cells.accumulate(
+                    level,
+                    cb,
+                    &self.bricks.around[cb],
+                    acc,
+                    |part, range, contribution| {
+                        for q in range {
+                            let squared = proxies.stencil[q].map(|axis| axis.map(|b| b * b));
+                            tensor_accumulate_part(&squared, proxies.weight[q], part, contribution);
+                        }
+                    },
+                );
+                for (o, [x, y, z]) in core_nodes {
+                    *o = lap + scale * acc[x + 8 * (y + 8 * z)];
                 }
-            }
-        });
-        let screened = &*screened;
-        level
-            .core
-            .par_iter()
-            .map(|&n| lap + scale * screened[n as usize])
-            .collect()
+            },
+        );
+        out
     }
 }
 
@@ -1049,102 +1095,250 @@ fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27]) -> f64 {
     sum
 }
 
-/// out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9], the transpose of
-/// [`tensor_contract`].
+/// out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] for the slots in
+/// `part` (the transpose of [`tensor_contract`] there).
 #[inline]
-fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
-    for (z, plane) in out.chunks_exact_mut(9).enumerate() {
+fn tensor_accumulate_part(st: &[[f64; 3]; 3], w: f64, part: BlockPart, out: &mut [f64; 27]) {
+    for z in part.lo[2]..part.hi[2] {
         let wz = w * st[2][z];
-        for (y, row) in plane.chunks_exact_mut(3).enumerate() {
+        for y in part.lo[1]..part.hi[1] {
             let wzy = wz * st[1][y];
-            for (o, sx) in row.iter_mut().zip(&st[0]) {
-                *o += wzy * sx;
+            for x in part.lo[0]..part.hi[0] {
+                out[9 * z + 3 * y + x] += wzy * st[0][x];
             }
         }
     }
 }
 
-/// The cells of K_d holding proxies, in slabs of [`SLAB`] cells along z, each slab in Morton
-/// order. The 3×3×3 node blocks around the cells of two even (or two odd) slabs never overlap,
-/// so all even slabs, then all odd ones, scatter into node values in parallel without races,
-/// one task per slab; every node then sums its contributions in an order that does not depend
-/// on the thread count. Within a slab, consecutive cells touch nearby nodes (cache reuse).
-///
-/// This replaces gathering, per core node, from the 27 cells around it (a random look-up per
-/// cell, most of them empty): only cells that hold proxies are visited, once per product.
+/// The cells of K_d holding proxies, grouped by brick, for the screening term
+/// Σ_q W_q B_o(q) χ(q) at a core node o: a core brick's nodes collect from the cells within one
+/// node of the brick (in its own and the 26 bricks around), each reading χ at its proxies from
+/// the 3×3×3 nodes around it in the brick's input window, which the Laplacian gathered anyway.
+/// No halo-sized sum, no random gather or scatter; a cell near a brick's edge is visited by
+/// each brick it touches (about twice on average).
 struct ScreeningCells {
-    /// The 3×3×3 node block around each cell holding proxies (x fastest, `NONE` outside K_d),
-    /// slab by slab: looked up once per depth rather than by chasing links in every product.
-    blocks: Vec<[u32; 27]>,
-    /// The range of each cell's proxies.
-    proxies: Vec<(u32, u32)>,
-    /// The ranges of `blocks` of the even slabs, then of the odd ones.
-    slabs: [Vec<std::ops::Range<usize>>; 2],
+    /// Per brick slot of K_d, the range of `cells` in it.
+    brick_start: Vec<u32>,
+    cells: Vec<ScreeningCell>,
+    /// Per core brick (in `CoreBricks` order), the range of `near`.
+    near_start: Vec<u32>,
+    /// The cells within one node of each core brick, with their window coordinates there.
+    near: Vec<NearCell>,
+    /// The cells (node index and index in `cells`) in bricks without core nodes, whose
+    /// proxies no core brick's window covers: found node by node (few, at the core's edge).
+    outside_core_bricks: Vec<(u32, u32)>,
 }
 
-/// Slab thickness in cells (≥ 2 keeps the blocks of same-parity slabs apart).
-const SLAB: i32 = 4;
+/// The part of a 3×3×3 block, lo[a]..hi[a] along each axis a.
+#[derive(Debug, Clone, Copy)]
+struct BlockPart {
+    lo: [usize; 3],
+    hi: [usize; 3],
+}
+
+/// A cell within one node of a core brick: its index in `ScreeningCells::cells` and its
+/// coordinates in the brick's window (local + 2, so 1..=10).
+#[derive(Debug, Clone, Copy)]
+struct NearCell {
+    cell: u32,
+    window: [u8; 3],
+}
+
+#[derive(Debug, Clone, Copy)]
+struct ScreeningCell {
+    /// The cell's position in its brick (its key's low nine bits).
+    position: u16,
+    /// The range of its proxies.
+    proxies: (u32, u32),
+}
 
 impl ScreeningCells {
-    fn new(level: &Level, proxies: &Proxies) -> ScreeningCells {
-        let slab_of = |cell: u32| level.coord(cell)[2].div_euclid(SLAB);
-        // Each cell with its run of proxies (the proxies of one cell are consecutive; were they
-        // not, a cell would just appear twice in its slab).
-        let mut cells: Vec<(u32, (u32, u32))> = Vec::new();
-        for (q, &cell) in proxies.cell.iter().enumerate() {
-            match cells.last_mut() {
-                Some((last, range)) if *last == cell => range.1 = q as u32 + 1,
-                _ => cells.push((cell, (q as u32, q as u32 + 1))),
+    /// Adds a cell's block contribution (cell at window coordinates `w`) to the brick at
+    /// `origin`, a block node beyond the cube going to the inside node it mirrors.
+    fn add_reflected(
+        origin: [i32; 3],
+        n: i32,
+        w: [usize; 3],
+        contribution: &[f64; 27],
+        acc: &mut [f64; 512],
+    ) {
+        for (k, c) in contribution.iter().enumerate() {
+            // The block node's brick-local coordinates.
+            let mut node = [k % 3, k / 3 % 3, k / 9].map(|d| d as i32);
+            for a in 0..3 {
+                node[a] += w[a] as i32 - 3;
+                let g = origin[a] + node[a];
+                if g < 0 {
+                    node[a] = -1 - g - origin[a];
+                } else if g >= n {
+                    node[a] = 2 * n - 1 - g - origin[a];
+                }
             }
-        }
-        cells.par_sort_unstable_by_key(|&(cell, _)| (slab_of(cell), cell));
-        let mut slabs: [Vec<std::ops::Range<usize>>; 2] = [Vec::new(), Vec::new()];
-        let mut start = 0;
-        while start < cells.len() {
-            let slab = slab_of(cells[start].0);
-            let end = start + cells[start..].partition_point(|&(c, _)| slab_of(c) == slab);
-            slabs[slab.rem_euclid(2) as usize].push(start..end);
-            start = end;
-        }
-        ScreeningCells {
-            blocks: cells
-                .par_iter()
-                .map_init(
-                    || (BrickCursor::default(), BlockWindow::default()),
-                    |(cursor, window), &(cell, _)| {
-                        window.block27(level, cell, level.locate(cursor, cell))
-                    },
-                )
-                .collect(),
-            proxies: cells.iter().map(|&(_, range)| range).collect(),
-            slabs,
+            if node.iter().all(|&v| (0..8).contains(&v)) {
+                acc[node[0] as usize + 8 * (node[1] as usize + 8 * node[2] as usize)] += *c;
+            }
         }
     }
 
-    /// For every cell, `contribute(node block, range of the cell's proxies, contribution)` fills
-    /// 27 values (x fastest) that are then added to `values` at the cell's 3×3×3 node block.
-    fn scatter(
+    fn new(level: &Level, proxies: &Proxies, core_bricks: &CoreBricks) -> ScreeningCells {
+        // Each cell with its run of proxies (the proxies of one cell are consecutive; were they
+        // not, a cell would just appear twice).
+        let mut runs: Vec<(u32, (u32, u32))> = Vec::new();
+        for (q, &cell) in proxies.cell.iter().enumerate() {
+            match runs.last_mut() {
+                Some((last, range)) if *last == cell => range.1 = q as u32 + 1,
+                _ => runs.push((cell, (q as u32, q as u32 + 1))),
+            }
+        }
+        runs.par_sort_unstable();
+        let index = level.bricks();
+        let mut brick_start = vec![0u32; index.brick_count() + 1];
+        let mut cursor = BrickCursor::default();
+        for &(cell, _) in &runs {
+            brick_start[level.locate(&mut cursor, cell).slot + 1] += 1;
+        }
+        for b in 0..index.brick_count() {
+            brick_start[b + 1] += brick_start[b];
+        }
+        let cells = runs
+            .iter()
+            .map(|&(cell, proxies)| ScreeningCell {
+                position: (level.keys[cell as usize] & 511) as u16,
+                proxies,
+            })
+            .collect();
+        let mut has_core = vec![false; index.brick_count()];
+        for around in &core_bricks.around {
+            has_core[around[13] as usize] = true;
+        }
+        let mut cursor = BrickCursor::default();
+        let outside_core_bricks = runs
+            .iter()
+            .enumerate()
+            .filter(|(_, &(cell, _))| !has_core[level.locate(&mut cursor, cell).slot])
+            .map(|(k, &(cell, _))| (cell, k as u32))
+            .collect();
+        let mut cells = ScreeningCells {
+            brick_start,
+            cells,
+            near_start: Vec::new(),
+            near: Vec::new(),
+            outside_core_bricks,
+        };
+        let per_brick: Vec<Vec<NearCell>> = core_bricks
+            .around
+            .par_iter()
+            .map(|around| cells.near_cells(around))
+            .collect();
+        cells.near_start = std::iter::once(0)
+            .chain(per_brick.iter().scan(0u32, |total, near| {
+                *total += near.len() as u32;
+                Some(*total)
+            }))
+            .collect();
+        cells.near = per_brick.into_iter().flatten().collect();
+        cells
+    }
+
+    /// The cells within one node of the brick whose 27 surrounding brick slots are `around`.
+    fn near_cells(&self, around: &[u32; 27]) -> Vec<NearCell> {
+        let mut near = Vec::new();
+        for (slot, &b) in around.iter().enumerate() {
+            if b == u32::MAX {
+                continue;
+            }
+            let offset = [slot % 3, slot / 3 % 3, slot / 9];
+            let range = self.brick_start[b as usize]..self.brick_start[b as usize + 1];
+            for k in range {
+                let l = brick_local(self.cells[k as usize].position as usize);
+                // Window coordinate: local + 8·(offset − 1) + 2; the cell's block meets the
+                // brick (window 2..10) when the cell is at 1..=10.
+                let w: [i32; 3] = std::array::from_fn(|a| (l[a] + 8 * offset[a]) as i32 - 6);
+                if w.iter().all(|v| (1..=10).contains(v)) {
+                    near.push(NearCell {
+                        cell: k,
+                        window: w.map(|v| v as u8),
+                    });
+                }
+            }
+        }
+        near
+    }
+
+    /// The cells in brick slot `b`.
+    fn in_brick(&self, b: usize) -> &[ScreeningCell] {
+        &self.cells[self.brick_start[b] as usize..self.brick_start[b + 1] as usize]
+    }
+
+    /// `chi[q]` = W_q χ(q) at the proxies of the cells outside every core brick.
+    fn weigh_outside_core_bricks(
         &self,
-        values: &mut [f64],
-        contribute: impl Fn(&[u32; 27], std::ops::Range<usize>, &mut [f64; 27]) + Sync,
+        level: &Level,
+        proxies: &Proxies,
+        input: &[f64],
+        chi: &mut [f64],
     ) {
-        let shared = SharedSlice::new(values);
-        for parity in &self.slabs {
-            parity.par_iter().for_each(|slab| {
-                let blocks = &self.blocks[slab.clone()];
-                let proxies = &self.proxies[slab.clone()];
-                for (block, &(start, end)) in blocks.iter().zip(proxies) {
-                    let mut contribution = [0.0; 27];
-                    contribute(block, start as usize..end as usize, &mut contribution);
-                    for (&n, c) in block.iter().zip(&contribution) {
-                        if n != NONE {
-                            // SAFETY: the blocks of the slabs of one parity are disjoint, so no
-                            // other thread touches node n while this parity runs.
-                            unsafe { *shared.get_mut(n as usize) += *c };
-                        }
+        for &(node, k) in &self.outside_core_bricks {
+            let x = level
+                .block27(node)
+                .map(|n| if n == NONE { 0.0 } else { input[n as usize] });
+            let cell = &self.cells[k as usize];
+            for q in cell.proxies.0 as usize..cell.proxies.1 as usize {
+                chi[q] = proxies.weight[q] * tensor_contract(&proxies.stencil[q], &x);
+            }
+        }
+    }
+
+    /// For every cell within one node of the brick whose 27 surrounding brick slots are
+    /// `around`, `contribute(part, range of its proxies, contribution)` fills the values of
+    /// `part` of the cell's 3×3×3 node block (x fastest), which are added to `acc` (the brick's
+    /// 8×8×8 positions, x fastest): the part is where the block meets the brick, so over all
+    /// bricks each block node is computed once. With Neumann boundaries a block node beyond the
+    /// cube is the mirror image of one inside, whose folded function collects it instead.
+    fn accumulate(
+        &self,
+        level: &Level,
+        cb: usize,
+        around: &[u32; 27],
+        acc: &mut [f64; 512],
+        mut contribute: impl FnMut(BlockPart, std::ops::Range<usize>, &mut [f64; 27]),
+    ) {
+        let origin = level.bricks().origin(around[13] as usize);
+        let n = 1i32 << level.depth;
+        let reflects =
+            !level.mirrors.is_empty() && (0..3).any(|a| origin[a] == 0 || origin[a] + 8 >= n);
+        let entries = self.near_start[cb] as usize..self.near_start[cb + 1] as usize;
+        for near in &self.near[entries] {
+            let cell = &self.cells[near.cell as usize];
+            let w = near.window.map(usize::from);
+            // The block's nodes inside the brick: per axis, d with 0 ≤ w − 3 + d < 8 (all of
+            // them when mirror images may fold back into the brick).
+            let (lo, hi) = if reflects {
+                ([0; 3], [3; 3])
+            } else {
+                (
+                    w.map(|v| 3usize.saturating_sub(v)),
+                    w.map(|v| (11 - v).min(3)),
+                )
+            };
+            let mut contribution = [0.0; 27];
+            contribute(
+                BlockPart { lo, hi },
+                cell.proxies.0 as usize..cell.proxies.1 as usize,
+                &mut contribution,
+            );
+            if reflects {
+                Self::add_reflected(origin, n, w, &contribution, acc);
+                continue;
+            }
+            for dz in lo[2]..hi[2] {
+                for dy in lo[1]..hi[1] {
+                    let row = 8 * ((w[1] + dy - 3) + 8 * (w[2] + dz - 3)) + w[0] - 3;
+                    for dx in lo[0]..hi[0] {
+                        acc[row + dx] += contribution[dx + 3 * dy + 9 * dz];
                     }
                 }
-            });
+            }
         }
     }
 }
@@ -1715,6 +1909,112 @@ mod tests {
         let lhs: f64 = ru.iter().zip(&v).map(|(a, b)| a * b).sum();
         let rhs: f64 = u.iter().zip(&pv).map(|(a, b)| a * b).sum();
         assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0));
+    }
+
+    /// The screening term applied brick by brick (and the diagonal) against a node-by-node
+    /// reference: every proxy reads χ from the 3×3×3 nodes around its cell and gives back to
+    /// them, mirror nodes folding into the inside nodes they reflect; free and Neumann
+    /// boundaries, proxies in the middle, at the faces, corners and across brick edges.
+    #[test]
+    fn brick_screening_matches_the_node_by_node_sum() {
+        let sparse: Vec<Vec<[i32; 3]>> = (0..=5)
+            .map(|d| {
+                let n = 1 << d;
+                (0..n)
+                    .flat_map(|i| [[i, i / 2, n / 3], [n - 1 - i, i, i / 3], [0, i, n - 1]])
+                    .collect()
+            })
+            .collect();
+        for neumann in [false, true] {
+            for tree in [
+                Octree::build(vec![Vec::new(); 5], 4, neumann),
+                Octree::build(sparse.clone(), 2, neumann),
+            ] {
+                let level = &tree.levels[tree.levels.len() - 1];
+                let h = level.width();
+                // Proxies in the core cells that are inside the cube, one to three per cell.
+                let n = 1i32 << level.depth;
+                // Proxies in cells inside the cube within one node of the core (as the pipeline
+                // keeps them), one to three per cell; some of those cells lie in bricks without
+                // core nodes.
+                let mut proxies = Proxies::default();
+                let near: Vec<u32> = (0..level.len() as u32)
+                    .filter(|&i| level.flags[i as usize] & crate::octree::NEAR != 0)
+                    .collect();
+                for (k, &c) in near.iter().enumerate() {
+                    let coord = level.coord(c);
+                    if coord.iter().any(|&v| v < 0 || v >= n) || k % 3 == 1 {
+                        continue;
+                    }
+                    for j in 0..1 + k % 3 {
+                        let f = |a: usize| ((k * 7 + j * 5 + a * 3) % 10) as f64 / 10.0 + 0.05;
+                        let p = DVec3::new(
+                            (coord[0] as f64 + f(0)) * h,
+                            (coord[1] as f64 + f(1)) * h,
+                            (coord[2] as f64 + f(2)) * h,
+                        );
+                        let (_, stencil) = crate::density::stencil27(p, 1.0 / h);
+                        proxies.cell.push(c);
+                        proxies.weight.push(0.5 + (k % 5) as f64);
+                        proxies.stencil.push(stencil);
+                    }
+                }
+                assert!(!proxies.is_empty());
+                let bricks = CoreBricks::new(level);
+                let cells = ScreeningCells::new(level, &proxies, &bricks);
+                if level.core.len() < level.len() / 2 {
+                    assert!(
+                        !cells.outside_core_bricks.is_empty(),
+                        "the sparse tree has proxy cells in bricks without core nodes"
+                    );
+                }
+                let x: Vec<f64> = (0..level.len())
+                    .map(|i| ((i * 13) % 17) as f64 / 17.0 - 0.4)
+                    .collect();
+                let mut x = x;
+                fill_mirrors(level, &mut x);
+                let alpha = 3.5;
+                let mut got = vec![0.0; level.core.len()];
+                DepthOperator::new(level, &proxies, alpha).apply(&x, &mut got);
+                let mut laplacian = vec![0.0; level.core.len()];
+                DepthOperator::new(level, &proxies, 0.0).apply(&x, &mut laplacian);
+                let mut screened = vec![0.0; level.len()];
+                let mut squares = vec![0.0; level.len()];
+                for q in 0..proxies.len() {
+                    let block = level.block27(proxies.cell[q]);
+                    let st = &proxies.stencil[q];
+                    let b = |slot: usize| st[0][slot % 3] * st[1][slot / 3 % 3] * st[2][slot / 9];
+                    let chi: f64 = (0..27)
+                        .filter(|&s| block[s] != NONE)
+                        .map(|s| x[block[s] as usize] * b(s))
+                        .sum();
+                    for s in 0..27 {
+                        if block[s] != NONE {
+                            screened[block[s] as usize] += proxies.weight[q] * chi * b(s);
+                            squares[block[s] as usize] += proxies.weight[q] * b(s) * b(s);
+                        }
+                    }
+                }
+                for m in &level.mirrors {
+                    screened[m.inside as usize] += screened[m.outside as usize];
+                    squares[m.inside as usize] += squares[m.outside as usize];
+                }
+                let mut op = DepthOperator::new(level, &proxies, alpha);
+                let diagonal = op.diagonal();
+                let lap_diagonal = DepthOperator::new(level, &proxies, 0.0).diagonal();
+                for (k, &c) in level.core.iter().enumerate() {
+                    let want = laplacian[k] + alpha * screened[c as usize];
+                    assert!(
+                        (got[k] - want).abs() < 1e-12 * want.abs().max(1.0),
+                        "neumann {neumann}, node {:?}: {} vs {want}",
+                        level.coord(c),
+                        got[k]
+                    );
+                    let want = lap_diagonal[k] + alpha * squares[c as usize];
+                    assert!((diagonal[k] - want).abs() < 1e-12 * want.abs().max(1.0));
+                }
+            }
+        }
     }
 
     #[test]
