@@ -156,9 +156,8 @@ fn node_status(level: &Level, coarser: Option<&Level>, i: u32) -> Status {
             Status::Leaf
         };
     }
-    let parent = level.parent[i as usize];
-    match coarser {
-        Some(c) if parent != NONE && c.flags[parent as usize] & SPLIT != 0 => Status::Leaf,
+    match coarser.and_then(|c| Some((c, level.parent_in(c, i)?.0))) {
+        Some((c, parent)) if c.flags[parent as usize] & SPLIT != 0 => Status::Leaf,
         _ => Status::Coarser,
     }
 }
@@ -216,7 +215,7 @@ impl Leaves<'_> {
     }
 
     /// The statuses of the cells of a leaf's depth around it. Away from the cube's faces they
-    /// follow the tree's neighbour and parent links (every neighbour of a leaf is in the halo);
+    /// come from the tree's neighbour and parent look-ups (every neighbour of a leaf is in the halo);
     /// next to them, the mirrored lookups of [`Leaves::status`].
     fn block(&self, leaf: &Leaf) -> Block {
         let n = 1i64 << leaf.depth;

@@ -12,10 +12,10 @@
 //!   the coarser solution and the evaluation of χ near the core read only nodes of K_d.
 //!
 //! Nodes of one depth are sorted by Morton key; a [`BrickIndex`] finds a node from its key, and
-//! finds its neighbours from its position in its 8×8×8 brick and the bricks around (kept per
-//! brick, not per node: a node costs its key, flags and parent only), so hot loops count bits
-//! in occupancy masks instead of hashing keys. Node indices can lie just outside [0, 2^d): a node function near
-//! the cube's face reaches beyond it, and with free boundaries (the paper's) that is where its
+//! finds its neighbours and parent from its position in its 8×8×8 brick and the bricks around
+//! (kept per brick, not per node: a node costs its key and flags only), so hot loops count bits
+//! in occupancy masks instead of hashing keys. Node indices can lie just outside [0, 2^d): a
+//! node function near the cube's face reaches beyond it, and with free boundaries (the paper's) that is where its
 //! neighbours live.
 
 use rayon::prelude::*;
@@ -123,9 +123,6 @@ pub struct Level {
     pub keys: Vec<u64>,
     /// `CORE` / `NEAR` / `SPLIT` bits per node.
     pub flags: Vec<u8>,
-    /// Index of the parent (the node at depth d − 1 containing this one) in the coarser level's
-    /// arrays; `NONE` at depth 0.
-    pub parent: Vec<u32>,
     /// Indices of the core nodes, ascending.
     pub core: Vec<u32>,
     /// With Neumann boundaries: every halo node outside the cube, the node it mirrors (its
@@ -176,6 +173,13 @@ impl Level {
                 local,
             },
         ))
+    }
+
+    /// The parent of node `i` (the node of `coarse`, the level above, containing it) and
+    /// where it lies, if it is in K_{d−1}.
+    #[inline]
+    pub fn parent_in(&self, coarse: &Level, i: u32) -> Option<(u32, NodePlace)> {
+        coarse.find_place(self.coord(i).map(|v| v.div_euclid(2)))
     }
 
     /// The coordinate of node `i`.
@@ -536,20 +540,17 @@ impl Octree {
             .collect();
         for d in 1..levels.len() {
             let (coarse, fine) = levels.split_at_mut(d);
-            let coarse = &coarse[d - 1];
-            let fine = &mut fine[0];
-            // Consecutive fine nodes mostly share their parents' brick: look each brick up once.
-            let mut parent = vec![NONE; fine.len()];
-            coarse_parents(coarse, &fine.keys, &mut parent);
-            fine.parent = parent;
-        }
-        levels[0].parent = vec![NONE; levels[0].len()];
-        for d in 1..levels.len() {
-            let (coarse, fine) = levels.split_at_mut(d);
             let (coarse, fine) = (&mut coarse[d - 1], &fine[0]);
-            for &i in &fine.core {
-                // The core of depth d − 1 holds the parents of the core of depth d.
-                coarse.flags[fine.parent[i as usize] as usize] |= SPLIT;
+            // The core of depth d − 1 holds the parents of the core of depth d.
+            let core_keys: Vec<u64> = fine
+                .core
+                .par_iter()
+                .map(|&i| fine.keys[i as usize])
+                .collect();
+            let mut parents = vec![NONE; core_keys.len()];
+            coarse_parents(coarse, &core_keys, &mut parents);
+            for p in parents {
+                coarse.flags[p as usize] |= SPLIT;
             }
         }
         Octree { levels }
@@ -639,7 +640,6 @@ impl Level {
             depth,
             keys,
             flags,
-            parent: Vec::new(),
             core,
             mirrors,
             index,
@@ -1099,7 +1099,7 @@ mod tests {
             NEAR
         );
         assert_eq!(finest.coord(finest.neighbor(i, 1)), [6, 2, 7]);
-        let p = finest.parent[i as usize];
+        let (p, _) = finest.parent_in(&tree.levels[2], i).unwrap();
         assert_eq!(tree.levels[2].coord(p), [2, 1, 3]);
         assert!(tree.levels[2].flags[p as usize] & CORE != 0);
         // Complete to the full depth.

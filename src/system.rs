@@ -1435,18 +1435,11 @@ const PARENT_WEIGHTS: [f64; 8] = {
 /// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:
 /// per axis, child 2m = ¾·parent m + ¼·parent m−1 and child 2m+1 = ¾·parent m + ¼·parent m+1.
 #[inline]
-fn refinement_parents(
-    coarse: &Level,
-    fine: &Level,
-    coarse_cursor: &mut BrickCursor,
-    i: u32,
-) -> [(u32, f64); 8] {
+fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
     let mut out = [(NONE, 0.0); 8];
-    let p = fine.parent[i as usize];
-    if p == NONE {
+    let Some((p, at)) = fine.parent_in(coarse, i) else {
         return out;
-    }
-    let at = coarse.locate(coarse_cursor, p);
+    };
     // The parity of each coordinate is the key's bit of that axis (the key's offset is even).
     let key = fine.keys[i as usize];
     let steps: [[AxisStep; 2]; 3] = std::array::from_fn(|axis| {
@@ -1495,7 +1488,7 @@ fn prolonged_at<const N: usize>(
     scales: [f64; N],
     i: u32,
 ) -> [f64; N] {
-    let parents = refinement_parents(coarse, fine, &mut BrickCursor::default(), i);
+    let parents = refinement_parents(coarse, fine, i);
     std::array::from_fn(|k| {
         parents
             .iter()
@@ -1794,9 +1787,8 @@ mod tests {
                         })
                         .collect();
                     let mut by_node = vec![0.5; coarse.len()];
-                    let mut cursor = BrickCursor::default();
                     for i in 0..fine.len() as u32 {
-                        for (n, w) in refinement_parents(coarse, fine, &mut cursor, i) {
+                        for (n, w) in refinement_parents(coarse, fine, i) {
                             if n != NONE && fine_values[i as usize] != 0.0 {
                                 by_node[n as usize] += w * fine_values[i as usize];
                             }
