@@ -15,8 +15,8 @@
 //! finds its neighbours and parent from its position in its 8×8×8 brick and the bricks around
 //! (kept per brick, not per node: a node costs its key and flags only), so hot loops count bits
 //! in occupancy masks instead of hashing keys. Node indices can lie just outside [0, 2^d): a
-//! node function near the cube's face reaches beyond it, and with free boundaries (the paper's) that is where its
-//! neighbours live.
+//! node function near the cube's face reaches beyond it, and with free boundaries (the
+//! paper's) that is where its neighbours live.
 
 use rayon::prelude::*;
 use std::collections::HashMap;
