@@ -334,94 +334,6 @@ impl AxisStep {
     }
 }
 
-/// The 3×3×3 blocks of the nodes of one brick at a time, from a 10×10×10 table of the node
-/// indices around the brick, filled once per brick (its own nodes walked in key order, and the
-/// one-node margins of the 26 bricks around), instead of 27 searches per node.
-pub struct BlockWindow {
-    slot: usize,
-    nodes: Box<[u32; 1000]>,
-}
-
-impl Default for BlockWindow {
-    fn default() -> Self {
-        BlockWindow {
-            slot: usize::MAX,
-            nodes: Box::new([NONE; 1000]),
-        }
-    }
-}
-
-impl BlockWindow {
-    /// [`Level::block27`] of node `i` at `at` (the same nodes, reached the same way).
-    #[inline]
-    pub fn block27(&mut self, level: &Level, i: u32, at: NodePlace) -> [u32; 27] {
-        if self.slot != at.slot {
-            self.fill(level, at.slot);
-        }
-        let centre = at.local.map(|v| v as usize + 1);
-        let node = |x: usize, y: usize, z: usize| {
-            self.nodes[(centre[0] + x - 1) + 10 * ((centre[1] + y - 1) + 10 * (centre[2] + z - 1))]
-        };
-        let mut out = [NONE; 27];
-        for z in 0..3 {
-            let zn = if z == 1 { i } else { node(1, 1, z) };
-            if zn == NONE {
-                continue;
-            }
-            for y in 0..3 {
-                let yn = if y == 1 { zn } else { node(1, y, z) };
-                if yn == NONE {
-                    continue;
-                }
-                let row = z * 9 + y * 3;
-                out[row] = node(0, y, z);
-                out[row + 1] = yn;
-                out[row + 2] = node(2, y, z);
-            }
-        }
-        out
-    }
-
-    fn fill(&mut self, level: &Level, b: usize) {
-        self.slot = b;
-        self.nodes.fill(NONE);
-        let index = &level.index;
-        let masks = axis_interval_masks();
-        for (around, &slot) in index.around[b].iter().enumerate() {
-            if slot == NONE {
-                continue;
-            }
-            // This brick's offset per axis (−1, 0, 1) and the local range within one node of b.
-            let offset = [around % 3, around / 3 % 3, around / 9].map(|o| o as i32 - 1);
-            let mut region = [u64::MAX; 8];
-            for (axis, &o) in offset.iter().enumerate() {
-                let (lo, hi) = match o {
-                    -1 => (7, 8),
-                    0 => (0, 8),
-                    _ => (0, 1),
-                };
-                for (r, m) in region.iter_mut().zip(&masks[axis][lo][hi]) {
-                    *r &= m;
-                }
-            }
-            let (mut first, occupied) = index.brick(slot as usize);
-            for (word, (&occ, &region)) in occupied.iter().zip(&region).enumerate() {
-                let mut bits = occ & region;
-                while bits != 0 {
-                    let bit = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let node = first + (occ & ((1u64 << bit) - 1)).count_ones();
-                    let l = brick_local(word * 64 + bit);
-                    let w: [usize; 3] =
-                        std::array::from_fn(|a| (l[a] as i32 + 8 * offset[a] + 1) as usize);
-                    self.nodes[w[0] + 10 * (w[1] + 10 * w[2])] = node;
-                }
-                first += occ.count_ones();
-            }
-        }
-    }
-}
-
 /// A node's brick slot and its position (key bits and coordinates 0..8) within the brick.
 #[derive(Debug, Clone, Copy)]
 pub struct NodePlace {
@@ -1139,7 +1051,6 @@ mod tests {
         let sparse = Octree::build(cells, 2, true);
         for level in [&grid.levels[6], &sparse.levels[6]] {
             let mut cursor = BrickCursor::default();
-            let mut window = BlockWindow::default();
             let mut missing = 0;
             for i in 0..level.len() as u32 {
                 let c = level.coord(i);
@@ -1171,7 +1082,6 @@ mod tests {
                 }
                 let block = level.block27_at(i, at);
                 assert_eq!(block, level.block27(i));
-                assert_eq!(block, window.block27(level, i, at));
                 for (slot, &n) in block.iter().enumerate() {
                     let o = [slot % 3, slot / 3 % 3, slot / 9].map(|v| v as i32 - 1);
                     let reached =

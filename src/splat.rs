@@ -15,7 +15,7 @@
 //! node it mirrors inside: along each axis, the first and last node also collect the weight of
 //! their reflection.
 
-use crate::octree::{BlockWindow, BrickCursor, Level, NONE};
+use crate::octree::{brick_local, BrickCursor, Level};
 use crate::system::{cell_of, SharedSlice, CHUNK};
 use crate::Splatting;
 use glam::DVec3;
@@ -55,14 +55,30 @@ pub fn splat_depth(
         })
         .collect();
     by_cell.par_sort_unstable_by_key(|(cell, s)| (*cell, s.sample));
-    // The samples of cell c are by_cell[starts[c]..starts[c + 1]].
-    let mut starts = vec![0u32; level.len() + 1];
-    for &(cell, _) in &by_cell {
-        starts[cell as usize + 1] += 1;
+    // The cells holding samples, each with its range of by_cell, and the cells of brick b as
+    // cells[brick_start[b]..brick_start[b + 1]] (cells in index order are in brick order): a
+    // table per brick, not per node.
+    let mut cells: Vec<(u32, u32, u32)> = Vec::new();
+    for (k, &(cell, _)) in by_cell.iter().enumerate() {
+        match cells.last_mut() {
+            Some((last, _, end)) if *last == cell => *end = k as u32 + 1,
+            _ => cells.push((cell, k as u32, k as u32 + 1)),
+        }
     }
-    for c in 0..level.len() {
-        starts[c + 1] += starts[c];
+    let index = level.bricks();
+    let mut brick_start = vec![0u32; index.brick_count() + 1];
+    let mut cursor = BrickCursor::default();
+    for &(cell, _, _) in &cells {
+        brick_start[level.locate(&mut cursor, cell).slot + 1] += 1;
     }
+    for b in 0..index.brick_count() {
+        brick_start[b + 1] += brick_start[b];
+    }
+    let samples = SampleCells {
+        level,
+        cells: &cells,
+        brick_start: &brick_start,
+    };
 
     // Each core node's sum goes straight into the field: no per-node list of sums beside it.
     let mut field = [
@@ -74,23 +90,26 @@ pub fn splat_depth(
     let shared = [fx, fy, fz].map(|component| SharedSlice::new(component));
     level.core.par_chunks(CHUNK).for_each(|nodes| {
         let mut cursor = BrickCursor::default();
-        let mut window = BlockWindow::default();
+        let mut window = SampleWindow::default();
         for &node in nodes {
             let o = level.coord(node);
             let mut sum = DVec3::ZERO;
             let at = level.locate(&mut cursor, node);
-            for (slot, &cell) in window.block27(level, node, at).iter().enumerate() {
-                if cell == NONE {
-                    continue;
-                }
-                let samples = starts[cell as usize] as usize..starts[cell as usize + 1] as usize;
-                for &(_, s) in &by_cell[samples] {
+            if window.slot != at.slot {
+                samples.fill(&mut window, at.slot);
+            }
+            let l = at.local.map(|v| v as usize);
+            for slot in 0..27 {
+                let (dx, dy, dz) = (slot % 3, slot / 3 % 3, slot / 9);
+                let (start, end) =
+                    window.ranges[(l[0] + dx) + 10 * ((l[1] + dy) + 10 * (l[2] + dz))];
+                for &(_, s) in &by_cell[start as usize..end as usize] {
                     let p = positions[s.sample as usize];
                     let t = p * inv_h;
                     let cell_coord = [
-                        o[0] + (slot % 3) as i32 - 1,
-                        o[1] + ((slot / 3) % 3) as i32 - 1,
-                        o[2] + (slot / 9) as i32 - 1,
+                        o[0] + dx as i32 - 1,
+                        o[1] + dy as i32 - 1,
+                        o[2] + dz as i32 - 1,
                     ];
                     let mut weight = 1.0;
                     for axis in 0..3 {
@@ -108,6 +127,52 @@ pub fn splat_depth(
         }
     });
     field
+}
+
+/// The cells holding samples at one depth (cell index, range of its samples), grouped by brick.
+struct SampleCells<'a> {
+    level: &'a Level,
+    cells: &'a [(u32, u32, u32)],
+    brick_start: &'a [u32],
+}
+
+/// The sample ranges of the cells within one node of one brick: a 10×10×10 table (window
+/// coordinate = brick-local coordinate + 1, x fastest), empty where a cell has no samples.
+struct SampleWindow {
+    slot: usize,
+    ranges: Box<[(u32, u32); 1000]>,
+}
+
+impl Default for SampleWindow {
+    fn default() -> Self {
+        SampleWindow {
+            slot: usize::MAX,
+            ranges: Box::new([(0, 0); 1000]),
+        }
+    }
+}
+
+impl SampleCells<'_> {
+    /// Fills `window` for brick slot `b` from the cells of the 27 bricks around it.
+    fn fill(&self, window: &mut SampleWindow, b: usize) {
+        window.slot = b;
+        window.ranges.fill((0, 0));
+        let around = self.level.bricks().bricks_around27(b);
+        for (slot, brick) in around.iter().enumerate() {
+            let Some(brick) = *brick else { continue };
+            let offset = [slot % 3, slot / 3 % 3, slot / 9];
+            let range = self.brick_start[brick] as usize..self.brick_start[brick + 1] as usize;
+            for &(cell, start, end) in &self.cells[range] {
+                let l = brick_local((self.level.keys[cell as usize] & 511) as usize);
+                // Window coordinate: local + 8·(offset − 1) + 1.
+                let w: [i32; 3] = std::array::from_fn(|a| (l[a] + 8 * offset[a]) as i32 - 7);
+                if w.iter().all(|v| (0..10).contains(v)) {
+                    let w = w.map(|v| v as usize);
+                    window.ranges[w[0] + 10 * (w[1] + 10 * w[2])] = (start, end);
+                }
+            }
+        }
+    }
 }
 
 /// Along one axis: the weight node `i` receives from a sample at `t` (in node widths) in cell
