@@ -259,9 +259,9 @@ pub struct Proxies {
     pub cell: Vec<u32>,
     /// Summed screening weight of the samples of each proxy.
     pub weight: Vec<f64>,
-    /// b(t − centre) for the three nodes per axis around the proxy's cell (cell − 1, cell,
-    /// cell + 1), evaluated at the proxy.
-    pub stencil: Vec<[[f64; 3]; 3]>,
+    /// The proxy's position in its cell, in cell widths (each coordinate in [0, 1]): 12 bytes
+    /// a proxy, where its stencil would take 72 (see [`Proxies::stencil`]).
+    pub offset: Vec<[f32; 3]>,
 }
 
 impl Proxies {
@@ -306,7 +306,7 @@ impl Proxies {
         for piece in pieces {
             proxies.cell.extend(piece.cell);
             proxies.weight.extend(piece.weight);
-            proxies.stencil.extend(piece.stencil);
+            proxies.offset.extend(piece.offset);
         }
         proxies
     }
@@ -344,17 +344,29 @@ impl Proxies {
             if level.flags[idx as usize] & crate::octree::NEAR == 0 {
                 continue;
             }
-            let q = sum_p / sum_w;
-            let (_, stencil) = crate::density::stencil27(q, inv_h);
+            let t = sum_p / sum_w * inv_h;
+            let offset = [t.x, t.y, t.z].map(|v| (v - v.floor()).clamp(0.0, 1.0) as f32);
             proxies.cell.push(idx);
             proxies.weight.push(sum_w);
-            proxies.stencil.push(stencil);
+            proxies.offset.push(offset);
         }
         proxies
     }
 
     pub fn len(&self) -> usize {
         self.cell.len()
+    }
+
+    /// b(t − centre) for the three nodes per axis around proxy `q`'s cell (cell − 1, cell,
+    /// cell + 1), at the proxy: with f its offset in the cell, the degree-2 B-spline gives
+    /// ½(1 − f)², ¾ − (f − ½)² and ½f².
+    #[inline]
+    pub fn stencil(&self, q: usize) -> [[f64; 3]; 3] {
+        self.offset[q].map(|f| {
+            let f = f as f64;
+            let g = 1.0 - f;
+            [0.5 * g * g, 0.75 - (f - 0.5) * (f - 0.5), 0.5 * f * f]
+        })
     }
 
     pub fn is_empty(&self) -> bool {
@@ -525,7 +537,7 @@ impl CoreBricks {
                         }
                         for q in cell.proxies.0 as usize..cell.proxies.1 as usize {
                             let value =
-                                proxies.weight[q] * tensor_contract(&proxies.stencil[q], &x);
+                                proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
                             // SAFETY: each cell lies in one brick, handled by one task.
                             unsafe { *chi.get_mut(q) = value };
                         }
@@ -992,7 +1004,7 @@ impl<'a> DepthOperator<'a> {
                     acc,
                     |part, range, contribution| {
                         for q in range {
-                            tensor_accumulate_part(&proxies.stencil[q], chi[q], part, contribution);
+                            tensor_accumulate_part(&proxies.stencil(q), chi[q], part, contribution);
                         }
                     },
                 );
@@ -1066,7 +1078,7 @@ impl<'a> DepthOperator<'a> {
                     acc,
                     |part, range, contribution| {
                         for q in range {
-                            let squared = proxies.stencil[q].map(|axis| axis.map(|b| b * b));
+                            let squared = proxies.stencil(q).map(|axis| axis.map(|b| b * b));
                             tensor_accumulate_part(&squared, proxies.weight[q], part, contribution);
                         }
                     },
@@ -1284,7 +1296,7 @@ impl ScreeningCells {
                 .map(|n| if n == NONE { 0.0 } else { input[n as usize] });
             let cell = &self.cells[k as usize];
             for q in cell.proxies.0 as usize..cell.proxies.1 as usize {
-                chi[q] = proxies.weight[q] * tensor_contract(&proxies.stencil[q], &x);
+                chi[q] = proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
             }
         }
     }
@@ -1903,6 +1915,36 @@ mod tests {
         assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0));
     }
 
+    /// A proxy's stencil is the B-spline's values at the three nodes around its cell, as
+    /// [`crate::density::stencil27`] evaluates them at the proxy's position.
+    #[test]
+    fn proxy_stencil_is_the_bspline_at_the_proxy() {
+        let inv_h = 16.0;
+        for p in [
+            DVec3::new(0.3, 0.51, 0.77),
+            DVec3::new(0.0, 0.999, 0.5),
+            DVec3::new(0.0625, 0.125, 0.9),
+        ] {
+            let t = p * inv_h;
+            let proxies = Proxies {
+                cell: vec![0],
+                weight: vec![1.0],
+                offset: vec![[t.x, t.y, t.z].map(|v| (v - v.floor()) as f32)],
+            };
+            let (_, want) = crate::density::stencil27(p, inv_h);
+            let got = proxies.stencil(0);
+            for a in 0..3 {
+                for k in 0..3 {
+                    assert!(
+                        (got[a][k] - want[a][k]).abs() < 1e-6,
+                        "{p} axis {a} node {k}"
+                    );
+                }
+                assert!((got[a].iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            }
+        }
+    }
+
     /// The screening term applied brick by brick (and the diagonal) against a node-by-node
     /// reference: every proxy reads χ from the 3×3×3 nodes around its cell and gives back to
     /// them, mirror nodes folding into the inside nodes they reflect; free and Neumann
@@ -1939,16 +1981,10 @@ mod tests {
                         continue;
                     }
                     for j in 0..1 + k % 3 {
-                        let f = |a: usize| ((k * 7 + j * 5 + a * 3) % 10) as f64 / 10.0 + 0.05;
-                        let p = DVec3::new(
-                            (coord[0] as f64 + f(0)) * h,
-                            (coord[1] as f64 + f(1)) * h,
-                            (coord[2] as f64 + f(2)) * h,
-                        );
-                        let (_, stencil) = crate::density::stencil27(p, 1.0 / h);
+                        let f = |a: usize| ((k * 7 + j * 5 + a * 3) % 10) as f32 / 10.0 + 0.05;
                         proxies.cell.push(c);
                         proxies.weight.push(0.5 + (k % 5) as f64);
-                        proxies.stencil.push(stencil);
+                        proxies.offset.push([f(0), f(1), f(2)]);
                     }
                 }
                 assert!(!proxies.is_empty());
@@ -1974,7 +2010,7 @@ mod tests {
                 let mut squares = vec![0.0; level.len()];
                 for q in 0..proxies.len() {
                     let block = level.block27(proxies.cell[q]);
-                    let st = &proxies.stencil[q];
+                    let st = &proxies.stencil(q);
                     let b = |slot: usize| st[0][slot % 3] * st[1][slot / 3 % 3] * st[2][slot / 9];
                     let chi: f64 = (0..27)
                         .filter(|&s| block[s] != NONE)
