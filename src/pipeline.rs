@@ -25,6 +25,9 @@ struct Clock<'p, 'q> {
     progress: &'p mut Progress<'q>,
     started: Instant,
     stats: Stats,
+    /// Seconds of the current stage's time that belong to another stage (see
+    /// [`Clock::done_moving`]).
+    moved: f64,
 }
 
 impl Clock<'_, '_> {
@@ -40,9 +43,19 @@ impl Clock<'_, '_> {
         let now = Instant::now();
         self.stats
             .stage_seconds
-            .push((stage, (now - self.started).as_secs_f64()));
+            .push((stage, (now - self.started).as_secs_f64() - self.moved));
+        self.moved = 0.0;
         self.started = now;
         self.report(stage, 1.0)
+    }
+
+    /// [`Clock::done`], with `seconds` of this stage's time spent on work of the next stage
+    /// (counted there).
+    fn done_moving(&mut self, stage: Stage, seconds: f64) -> Result<()> {
+        self.moved = seconds;
+        self.done(stage)?;
+        self.moved = -seconds;
+        Ok(())
     }
 }
 
@@ -64,6 +77,7 @@ pub(crate) fn run(
         progress: &mut progress,
         started: Instant::now(),
         stats: Stats::default(),
+        moved: 0.0,
     };
     let max_depth = params.depth;
     clock.stats.points = points.len();
@@ -146,45 +160,42 @@ pub(crate) fn run(
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 
-    // 4. Splat: V at each sample's one or two depths (§4.2, §4.5).
-    let mut field_v: Vec<[Vec<f64>; 3]> = pool.install(|| {
-        tree.levels
-            .iter()
-            .zip(&at_depth)
-            .map(|(level, at)| {
-                splat_depth(
-                    level,
-                    &samples.positions,
-                    points.normals(),
-                    at,
-                    params.splatting,
-                    neumann,
-                )
-            })
-            .collect()
-    });
+    // 4. Splat: V at each sample's one or two depths (§4.2, §4.5), finest depth first. The
+    // finest V is needed for nothing but ρ at that depth (no finer depth prolongs it), so the
+    // system's first step runs here: its divergence takes V's three vectors as scratch space
+    // before the coarser depths' V exist (four halo-sized vectors of the finest depth are the
+    // peak of these stages). Its time is counted in the system stage.
+    let splat_at = |d: usize| {
+        let mut v = splat_depth(
+            &tree.levels[d],
+            &samples.positions,
+            points.normals(),
+            &at_depth[d],
+            params.splatting,
+            neumann,
+        );
+        fill_mirrors_field(&tree.levels[d], &mut v);
+        v
+    };
+    let finest = max_depth as usize;
+    let v_finest = pool.install(|| splat_at(finest));
+    let finest_system = Instant::now();
+    let mut rho_finest = pool.install(|| divergence(&tree.levels[finest], v_finest));
+    fill_mirrors(&tree.levels[finest], &mut rho_finest);
+    let finest_system = finest_system.elapsed().as_secs_f64();
+    let mut field_v: Vec<[Vec<f64>; 3]> = pool.install(|| (0..finest).map(splat_at).collect());
+    field_v.push(Default::default());
     drop(at_depth);
-    for (level, v) in tree.levels.iter().zip(field_v.iter_mut()) {
-        fill_mirrors_field(level, v);
-    }
-    clock.done(Stage::Splat)?;
+    clock.done_moving(Stage::Splat, finest_system)?;
 
     // 5. System: ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo, finest first (restriction is exact).
-    // The finest depth's V is needed for nothing else (no finer depth prolongs it): its three
-    // vectors become the divergence's scratch space.
     let mut rho: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
-    for d in (0..=max_depth as usize).rev() {
+    rho.push(rho_finest);
+    for d in (0..finest).rev() {
         let level = &tree.levels[d];
-        let v = if d == max_depth as usize {
-            std::mem::take(&mut field_v[d])
-        } else {
-            field_v[d].clone()
-        };
-        let mut r = pool.install(|| divergence(level, v));
-        if d < max_depth as usize {
-            let finer: &Vec<f64> = rho.last().expect("finer level computed first");
-            restrict_into(level, &tree.levels[d + 1], finer, &mut r);
-        }
+        let mut r = pool.install(|| divergence(level, field_v[d].clone()));
+        let finer: &Vec<f64> = rho.last().expect("finer level computed first");
+        restrict_into(level, &tree.levels[d + 1], finer, &mut r);
         fill_mirrors(level, &mut r);
         rho.push(r);
         clock.report(
