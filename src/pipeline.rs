@@ -9,8 +9,8 @@ use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
 use crate::system::{
-    divergence, fill_mirrors, fill_mirrors_field, prolong, restrict_into, DepthOperator,
-    ProlongedField, Proxies,
+    divergence, divergence_of, divergence_of_prolonged, fill_mirrors, fill_mirrors_field, prolong,
+    restrict_into, DepthOperator, ProlongedField, Proxies,
 };
 use crate::{
     extract, Boundary, DepthSolve, Error, Mesh, Params, PointSet, Progress, Result, Stage, Stats,
@@ -193,7 +193,7 @@ pub(crate) fn run(
     rho.push(rho_finest);
     for d in (0..finest).rev() {
         let level = &tree.levels[d];
-        let mut r = pool.install(|| divergence(level, field_v[d].clone()));
+        let mut r = pool.install(|| divergence_of(level, &field_v[d]));
         let finer: &Vec<f64> = rho.last().expect("finer level computed first");
         restrict_into(level, &tree.levels[d + 1], finer, &mut r);
         fill_mirrors(level, &mut r);
@@ -241,7 +241,8 @@ pub(crate) fn run(
     // the oni's horn that the finest used depth's weight produced.)
     let screening = params.point_weight as f64 * (params.depth as f64).exp2();
     let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
-    let mut coarse_field: [Vec<f64>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    // The coarse right-hand side of the next depth, ⟨∇B_o, coarser V prolonged⟩ on its core.
+    let mut next_coarse_div: Option<Vec<f64>> = None;
     let depths = max_depth + 1;
     for d in 0..=max_depth as usize {
         let depth_started = Instant::now();
@@ -256,41 +257,42 @@ pub(crate) fn run(
             )
         });
         let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
-        // This depth's V and rho are used here for the last time.
+        // This depth's rho is used here for the last time.
         let is_finest = d == max_depth as usize;
-        let mut field = std::mem::take(&mut field_v[d]);
         let rho_here = std::mem::take(&mut rho[d]);
-        let (y, coarse_div) = pool.install(|| {
-            // The coarser solution and V from coarser depths, represented at this depth (F̃
-            // halves in width: ×1/8). The solution's prolongation is stored (it is part of this
-            // depth's coefficients); V's is computed where it is read, brick by brick, by the
-            // divergence and, above the finest depth, by the sweep that adds it to this depth's
-            // V for the next depth, so it never takes three halo vectors.
+        // The coarser solution, represented at this depth (stored: it is part of this depth's
+        // coefficients).
+        let y = pool.install(|| {
             if d == 0 {
-                (vec![0.0; level.len()], vec![0.0; level.core.len()])
+                vec![0.0; level.len()]
             } else {
-                let coarse = &tree.levels[d - 1];
-                let mut y = prolong(coarse, level, &coefficients[d - 1], 1.0);
+                let mut y = prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0);
                 fill_mirrors(level, &mut y);
-                let prolonged = ProlongedField {
-                    coarse,
-                    fine: level,
-                    field: [&coarse_field[0], &coarse_field[1], &coarse_field[2]],
-                    scale: 0.125,
-                };
-                let coarse_div = op.divergence_of_prolonged(&prolonged);
-                if !is_finest {
-                    // V of this depth and all coarser ones, for the next depth.
-                    prolonged.add_to(&mut field);
-                }
-                (y, coarse_div)
+                y
             }
         });
-        // The coarser depths' V is read: it goes before this depth's vectors are allocated (at
-        // the finest depth nothing replaces it).
-        coarse_field = field;
+        let coarse_div = next_coarse_div
+            .take()
+            .unwrap_or_else(|| vec![0.0; level.core.len()]);
         if !is_finest {
-            fill_mirrors_field(level, &mut coarse_field);
+            // V of this depth and all coarser ones (accumulated here by the depth above) is
+            // read for the last time, before this depth's vectors are allocated: prolonged to
+            // the next depth (F̃ halves in width: ×1/8), where its divergence is that depth's
+            // coarse right-hand side, and added to that depth's V (brick by brick, never as
+            // three more halo vectors).
+            let mut field = std::mem::take(&mut field_v[d]);
+            fill_mirrors_field(level, &mut field);
+            let finer = &tree.levels[d + 1];
+            let prolonged = ProlongedField {
+                coarse: level,
+                fine: finer,
+                field: [&field[0], &field[1], &field[2]],
+                scale: 0.125,
+            };
+            next_coarse_div = Some(pool.install(|| divergence_of_prolonged(&prolonged)));
+            if d + 1 < max_depth as usize {
+                pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
+            }
         }
         // b − A·y on the core, computed in A·y's vector.
         let rhs = pool.install(|| {

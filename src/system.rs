@@ -1019,7 +1019,7 @@ impl<'a> DepthOperator<'a> {
     /// (x, y, z at node n) `v(n)` gives: [`divergence`] restricted to the core, computed brick
     /// by brick as (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)). `v` is called
     /// once per node for every brick window it lies in (about 3.4 times on average). The
-    /// pipeline uses [`DepthOperator::divergence_of_prolonged`]; this is the node-by-node
+    /// pipeline uses [`divergence_of_prolonged`]; this is the node-by-node
     /// reference the tests check it and [`divergence`] against.
     #[cfg(test)]
     pub fn divergence_on_core(&mut self, v: impl Fn(usize) -> [f64; 3] + Sync) -> Vec<f64> {
@@ -1028,26 +1028,6 @@ impl<'a> DepthOperator<'a> {
         let mut out = vec![0.0; level.core.len()];
         bricks.divergence(
             |cb, windows, _| bricks.gather(level, cb, &v, windows),
-            1.0 / level.width(),
-            &mut out,
-        );
-        out
-    }
-
-    /// ⟨∇B_o, V⟩ at every core node (in core order) for V a coarser field prolonged to this
-    /// depth ([`divergence`] restricted to the core, brick by brick): each brick's window
-    /// computes the prolongation from the coarse nodes under it, instead of every window node
-    /// finding its eight parents by following links (every node lies in about 3.4 windows).
-    pub fn divergence_of_prolonged(&mut self, field: &ProlongedField<'_>) -> Vec<f64> {
-        let level = self.level;
-        assert!(
-            std::ptr::eq(level, field.fine),
-            "the field must be prolonged to this depth"
-        );
-        let bricks = &self.bricks;
-        let mut out = vec![0.0; level.core.len()];
-        bricks.divergence(
-            |cb, windows, scratch| bricks.gather_prolonged(field, cb, windows, scratch),
             1.0 / level.width(),
             &mut out,
         );
@@ -1414,6 +1394,30 @@ pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
     out
 }
 
+/// [`divergence`] of a field that is kept: two scratch vectors instead of the field's own
+/// (three halo-sized vectors allocated rather than a copy of the field and one more).
+pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
+    let t = tables();
+    let inv_h = 1.0 / level.width();
+    let mut out = vec![0.0; level.len()];
+    let mut a = vec![0.0; level.len()];
+    let mut b = vec![0.0; level.len()];
+    // The same passes on the same values as [`divergence`], so the same bits.
+    pass(level, 2, &t.mass, &v[0], &mut a);
+    pass(level, 1, &t.mass, &a, &mut b);
+    pass(level, 0, &t.advection, &b, &mut out);
+    pass(level, 2, &t.mass, &v[1], &mut a);
+    pass(level, 1, &t.advection, &a, &mut b);
+    pass(level, 0, &t.mass, &b, &mut a);
+    add_into(&mut out, &a);
+    pass(level, 2, &t.advection, &v[2], &mut a);
+    pass(level, 1, &t.mass, &a, &mut b);
+    pass(level, 0, &t.mass, &b, &mut a);
+    add_into(&mut out, &a);
+    out.par_iter_mut().for_each(|o| *o *= inv_h);
+    out
+}
+
 fn add_into(out: &mut [f64], x: &[f64]) {
     out.par_chunks_mut(CHUNK)
         .zip(x.par_chunks(CHUNK))
@@ -1511,9 +1515,25 @@ fn prolonged_at<const N: usize>(
     })
 }
 
+/// ⟨∇B_o, V⟩ at every core node of `field.fine` (in core order) for V a coarser field prolonged
+/// to that depth ([`divergence`] restricted to the core, brick by brick): each core brick's
+/// window computes the prolongation from the coarse nodes under it, instead of every window
+/// node finding its eight parents (every node lies in about 3.4 windows).
+pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Vec<f64> {
+    let level = field.fine;
+    let bricks = CoreBricks::new(level);
+    let mut out = vec![0.0; level.core.len()];
+    bricks.divergence(
+        |cb, windows, scratch| bricks.gather_prolonged(field, cb, windows, scratch),
+        1.0 / level.width(),
+        &mut out,
+    );
+    out
+}
+
 /// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
 /// stored (node by node with [`ProlongedField::at`], brick by brick by
-/// [`DepthOperator::divergence_of_prolonged`] and [`ProlongedField::add_to`]): the value at a
+/// [`divergence_of_prolonged`] and [`ProlongedField::add_to`]): the value at a
 /// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`] would
 /// hold there. Reading it where needed saves three halo-sized vectors.
 pub struct ProlongedField<'a> {
@@ -1757,7 +1777,7 @@ mod tests {
                     let proxies = Proxies::default();
                     let mut op = DepthOperator::new(fine, &proxies, 0.0);
                     let by_node = op.divergence_on_core(|n| prolonged.at(n as u32));
-                    let by_brick = op.divergence_of_prolonged(&prolonged);
+                    let by_brick = divergence_of_prolonged(&prolonged);
                     assert!(!by_node.is_empty());
                     let same = |a: &[f64], b: &[f64], what: &str| {
                         assert_eq!(a.len(), b.len());
@@ -1858,6 +1878,11 @@ mod tests {
                 .collect()
         });
         let full = divergence(level, v.clone());
+        let kept = divergence_of(level, &v);
+        assert!(full
+            .iter()
+            .zip(&kept)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
         let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);
         let on_core = op.divergence_on_core(|n| [v[0][n], v[1][n], v[2][n]]);
