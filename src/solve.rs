@@ -38,8 +38,8 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Σ r_i·(r_i·w_i): rᵀz for the preconditioned residual z = w∘r.
-fn weighted_dot(r: &[f64], w: &[f64]) -> f64 {
-    chunked_sum(r.len(), |i| r[i] * (r[i] * w[i]))
+fn weighted_dot(r: &[f64], w: &[f32]) -> f64 {
+    chunked_sum(r.len(), |i| r[i] * (r[i] * w[i] as f64))
 }
 
 /// One pass of a CG step over the core, chunk by chunk: x += α·p (x and p on K_d), r −= α·A·p,
@@ -53,7 +53,7 @@ fn step(
     p: &[f64],
     r: &mut [f64],
     ap: &[f64],
-    w: &[f64],
+    w: &[f32],
 ) -> (f64, f64) {
     let x = SharedSlice::new(x);
     let partial: Vec<(f64, f64)> = r
@@ -70,7 +70,7 @@ fn step(
             let w = &w[range];
             (
                 r.iter().map(|r| r * r).sum::<f64>(),
-                r.iter().zip(w).map(|(r, w)| r * (r * w)).sum::<f64>(),
+                r.iter().zip(w).map(|(r, &w)| r * (r * w as f64)).sum::<f64>(),
             )
         })
         .collect();
@@ -107,8 +107,10 @@ pub fn conjugate_gradients(
             cancelled: false,
         };
     }
-    let inv_diag: Vec<f64> =
-        pool.install(|| op.diagonal().into_par_iter().map(|d| 1.0 / d).collect());
+    // The Jacobi preconditioner in single precision (a preconditioner only steers the
+    // iteration; half the memory of a core-sized vector).
+    let inv_diag: Vec<f32> =
+        pool.install(|| op.diagonal().into_par_iter().map(|d| (1.0 / d) as f32).collect());
     let level = op.level;
     let mut r = b;
     // The search direction lives on K_d (zero beyond the core and its mirrors), the layout the
@@ -116,7 +118,7 @@ pub fn conjugate_gradients(
     // not stored but recomputed where it is used.
     let mut p = vec![0.0; level.len()];
     let mut rz = pool.install(|| {
-        update_on_core(level, &mut p, |i, _| r[i] * inv_diag[i]);
+        update_on_core(level, &mut p, |i, _| r[i] * inv_diag[i] as f64);
         weighted_dot(&r, &inv_diag)
     });
     let mut ap = vec![0.0; n];
@@ -145,7 +147,7 @@ pub fn conjugate_gradients(
         }
         let beta = rz_new / rz;
         rz = rz_new;
-        pool.install(|| update_on_core(level, &mut p, |i, p| r[i] * inv_diag[i] + beta * p));
+        pool.install(|| update_on_core(level, &mut p, |i, p| r[i] * inv_diag[i] as f64 + beta * p));
     }
     CgOutcome {
         iterations,
