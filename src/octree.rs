@@ -194,7 +194,8 @@ impl Level {
     }
 
     /// The face neighbour of node `i` in direction `dir` (−x, +x, −y, +y, −z, +z), `NONE` when
-    /// outside K_d.
+    /// outside K_d (the node-by-node reference the brick walks are tested against).
+    #[cfg(test)]
     pub fn neighbor(&self, i: u32, dir: usize) -> u32 {
         let mut offset = [0; 3];
         offset[dir / 2] = if dir % 2 == 0 { -1 } else { 1 };
@@ -223,7 +224,7 @@ impl Level {
 
     /// The node `offset` (each component in −8..=8) away from the node at `at`, `NONE` if
     /// outside K_d.
-    #[inline]
+    #[cfg(test)]
     pub fn node_near(&self, at: NodePlace, offset: [i32; 3]) -> u32 {
         let steps: [AxisStep; 3] =
             std::array::from_fn(|axis| AxisStep::new(at.local[axis], offset[axis], axis));
@@ -233,7 +234,8 @@ impl Level {
 
     /// The nodes at −2, −1, +1, +2 along `axis` from the node at `at`, reached as by stepping
     /// from neighbour to neighbour: the one two away is `NONE` when the one between is missing.
-    #[inline]
+    /// (The node-by-node reference of the brick-wise passes' tests.)
+    #[cfg(test)]
     pub fn line4(&self, at: NodePlace, axis: usize) -> [u32; 4] {
         // The node's key bits of the other two axes, with no brick step.
         let across = AxisStep {

@@ -17,7 +17,8 @@
 //! `⟨∇B_o, ∇B_o′⟩ = h (D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)` and `⟨∇B_o, F̃_o′⟩·v = (1/h)(G⊗M⊗M vx + …)`.
 //! For the core (the operator in the solve) the passes run brick by brick on dense 12³ windows
 //! gathered from the halo (`CoreBricks`); for the whole halo (the right-hand side's
-//! divergence, restricted to coarser depths) along the neighbour links. Both are exact wherever
+//! divergence, restricted to coarser depths) on 12×8×8 windows along each axis ([`pass`]).
+//! The screening term runs on the same core windows (`ScreeningCells`). Both are exact wherever
 //! the input is supported on K_d (see [`crate::octree`]): every node a core node's stencil
 //! reaches is in the halo.
 //!
@@ -1598,7 +1599,7 @@ impl ProlongedField<'_> {
 ///
 /// Fine brick by fine brick: the coarse nodes its nodes refine from (a 6×6×6 block) are looked
 /// up once per brick, then every fine node adds to its eight parents, in node order and with
-/// the parents of [`refinement_parents`] (so sums come out the same as node by node).
+/// the parents `refinement_parents` gives (so sums come out the same as node by node).
 pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_out: &mut [f64]) {
     const SIDE: usize = 6;
     let fine_index = fine.bricks();
