@@ -70,7 +70,10 @@ fn step(
             let w = &w[range];
             (
                 r.iter().map(|r| r * r).sum::<f64>(),
-                r.iter().zip(w).map(|(r, &w)| r * (r * w as f64)).sum::<f64>(),
+                r.iter()
+                    .zip(w)
+                    .map(|(r, &w)| r * (r * w as f64))
+                    .sum::<f64>(),
             )
         })
         .collect();
@@ -109,8 +112,12 @@ pub fn conjugate_gradients(
     }
     // The Jacobi preconditioner in single precision (a preconditioner only steers the
     // iteration; half the memory of a core-sized vector).
-    let inv_diag: Vec<f32> =
-        pool.install(|| op.diagonal().into_par_iter().map(|d| (1.0 / d) as f32).collect());
+    let inv_diag: Vec<f32> = pool.install(|| {
+        op.diagonal()
+            .into_par_iter()
+            .map(|d| (1.0 / d) as f32)
+            .collect()
+    });
     let level = op.level;
     let mut r = b;
     // The search direction lives on K_d (zero beyond the core and its mirrors), the layout the
