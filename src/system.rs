@@ -62,23 +62,23 @@ pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mu
                 // Layer = coordinate along `axis` + 2 (0..12); cross = the other two, 8 × 8. Only
                 // entries marked present are read, so the window is never cleared.
                 let mut present = [0u64; 12];
+                // The brick before along `axis` gives its last two layers, the brick itself all
+                // eight, the brick after its first two: (brick, local range, layer shift).
                 let around = index.bricks_around27(b);
                 let sources = [
-                    (around[13 - stride], 6, -6i32),
-                    (Some(b), 0, 2),
-                    (around[13 + stride], 0, 10),
+                    (around[13 - stride], 6..8, -6i32),
+                    (Some(b), 0..8, 2),
+                    (around[13 + stride], 0..2, 10),
                 ];
-                for (slot, from, shift) in sources {
+                for (slot, range, shift) in sources {
                     let Some(slot) = slot else { continue };
-                    let lo = from;
-                    let hi = if shift == 10 { 2 } else { 8 };
                     let walk = if slot == b {
                         BrickNodes::new(index, slot)
                     } else {
-                        BrickNodes::in_half(index, slot, axis, lo >= 4)
+                        BrickNodes::in_half(index, slot, axis, range.start >= 4)
                     };
                     for (node, l) in walk {
-                        if !(lo..hi).contains(&l[axis]) {
+                        if !range.contains(&l[axis]) {
                             continue;
                         }
                         let layer = (l[axis] as i32 + shift) as usize;
@@ -88,6 +88,7 @@ pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mu
                     }
                 }
                 for (node, l) in BrickNodes::new(index, b) {
+                    // (The masks only tell the compiler the indices stay in the window.)
                     let layer = (l[axis] & 7) + 2;
                     let cross = (l[a1] & 7) + 8 * (l[a2] & 7);
                     let has = |layer: usize| present[layer] >> cross & 1 == 1;
@@ -1991,8 +1992,6 @@ mod tests {
                 Octree::build(sparse.clone(), 2, neumann),
             ] {
                 let level = &tree.levels[tree.levels.len() - 1];
-                let h = level.width();
-                // Proxies in the core cells that are inside the cube, one to three per cell.
                 let n = 1i32 << level.depth;
                 // Proxies in cells inside the cube within one node of the core (as the pipeline
                 // keeps them), one to three per cell; some of those cells lie in bricks without
