@@ -749,7 +749,7 @@ impl CoreBricks {
         scratch: &mut BrickScratch,
     ) {
         let (fine, coarse) = (field.fine, field.coarse);
-        let origin = brick_origin(fine, self.around[cb][13] as usize);
+        let origin = fine.bricks().origin(self.around[cb][13] as usize);
         let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
 
         coarse_window(coarse, coarse_origin, field.field, &mut scratch.coarse);
@@ -790,16 +790,6 @@ impl CoreBricks {
             }
         }
     }
-}
-
-/// The origin (fine coordinates, a multiple of 8 per axis) of brick `b` of `level`.
-fn brick_origin(level: &Level, b: usize) -> [i32; 3] {
-    let (first, _) = level.bricks().brick(b);
-    let (c, l) = (
-        level.coord(first),
-        brick_local((level.keys[first as usize] & 511) as usize),
-    );
-    std::array::from_fn(|a| c[a] - l[a] as i32)
 }
 
 /// Fills `window` (per component, 8×8×8, index x + 8y + 64z) with `fields` at the coarse nodes
@@ -898,7 +888,7 @@ fn prolong_by_brick<const C: usize>(
         .for_each_init(
             || std::array::from_fn::<_, C, _>(|_| vec![0.0; 512]),
             |window, b| {
-                let origin = brick_origin(fine, b);
+                let origin = fine.bricks().origin(b);
                 let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
                 coarse_window(coarse, coarse_origin, fields, window);
                 let (mut node, occupied) = index.brick(b);
@@ -1607,7 +1597,6 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
     let coarse_index = coarse.bricks();
     let mut window = [NONE; SIDE * SIDE * SIDE];
     for b in 0..fine_index.brick_count() {
-        let (first, _) = fine_index.brick(b);
         let walk = BrickNodes::new(fine_index, b);
         if walk
             .clone()
@@ -1615,9 +1604,7 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
         {
             continue;
         }
-        let first_local = brick_local((fine.keys[first as usize] & 511) as usize);
-        let fine_origin: [i32; 3] =
-            std::array::from_fn(|a| fine.coord(first)[a] - first_local[a] as i32);
+        let fine_origin = fine_index.origin(b);
         // Window coordinate w along an axis is coarse coordinate origin + w; it spans the two
         // coarse bricks from `coarse_brick`.
         let origin = fine_origin.map(|o| o.div_euclid(2) - 1);
