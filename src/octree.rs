@@ -175,6 +175,20 @@ impl Level {
         ))
     }
 
+    /// For nodes given in ascending order (repeats allowed), where each brick's run starts:
+    /// the nodes of brick slot b are positions `starts[b]..starts[b + 1]` of the sequence.
+    pub fn brick_starts(&self, nodes: impl IntoIterator<Item = u32>) -> Vec<u32> {
+        let mut starts = vec![0u32; self.index.brick_count() + 1];
+        let mut cursor = BrickCursor::default();
+        for node in nodes {
+            starts[self.locate(&mut cursor, node).slot + 1] += 1;
+        }
+        for b in 0..self.index.brick_count() {
+            starts[b + 1] += starts[b];
+        }
+        starts
+    }
+
     /// The parent of node `i` (the node of `coarse`, the level above, containing it) and
     /// where it lies, if it is in K_{d−1}.
     #[inline]

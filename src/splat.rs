@@ -65,15 +65,7 @@ pub fn splat_depth(
             _ => cells.push((cell, k as u32, k as u32 + 1)),
         }
     }
-    let index = level.bricks();
-    let mut brick_start = vec![0u32; index.brick_count() + 1];
-    let mut cursor = BrickCursor::default();
-    for &(cell, _, _) in &cells {
-        brick_start[level.locate(&mut cursor, cell).slot + 1] += 1;
-    }
-    for b in 0..index.brick_count() {
-        brick_start[b + 1] += brick_start[b];
-    }
+    let brick_start = level.brick_starts(cells.iter().map(|&(cell, _, _)| cell));
     let samples = SampleCells {
         level,
         cells: &cells,

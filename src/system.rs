@@ -27,9 +27,7 @@
 //! divergence of finer vector-field coefficients is restricted to coarser nodes. Both are exact.
 
 use crate::bspline::{tables, REFINE};
-use crate::octree::{
-    axis_interval_masks, brick_local, AxisStep, BrickCursor, BrickIndex, Level, NONE,
-};
+use crate::octree::{axis_interval_masks, brick_local, AxisStep, BrickIndex, Level, NONE};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -1175,15 +1173,7 @@ impl ScreeningCells {
             }
         }
         runs.par_sort_unstable();
-        let index = level.bricks();
-        let mut brick_start = vec![0u32; index.brick_count() + 1];
-        let mut cursor = BrickCursor::default();
-        for &(cell, _) in &runs {
-            brick_start[level.locate(&mut cursor, cell).slot + 1] += 1;
-        }
-        for b in 0..index.brick_count() {
-            brick_start[b + 1] += brick_start[b];
-        }
+        let brick_start = level.brick_starts(runs.iter().map(|&(cell, _)| cell));
         let cells = runs
             .iter()
             .map(|&(cell, proxies)| ScreeningCell {
@@ -1191,16 +1181,14 @@ impl ScreeningCells {
                 proxies,
             })
             .collect();
-        let mut has_core = vec![false; index.brick_count()];
+        let mut has_core = vec![false; level.bricks().brick_count()];
         for around in &core_bricks.around {
             has_core[around[13] as usize] = true;
         }
-        let mut cursor = BrickCursor::default();
-        let outside_core_bricks = runs
-            .iter()
-            .enumerate()
-            .filter(|(_, &(cell, _))| !has_core[level.locate(&mut cursor, cell).slot])
-            .map(|(k, &(cell, _))| (cell, k as u32))
+        let outside_core_bricks = (0..has_core.len())
+            .filter(|&b| !has_core[b])
+            .flat_map(|b| brick_start[b]..brick_start[b + 1])
+            .map(|k| (runs[k as usize].0, k))
             .collect();
         let mut cells = ScreeningCells {
             brick_start,
@@ -1667,6 +1655,7 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::octree::BrickCursor;
     use crate::octree::Octree;
 
     /// A complete 16³ grid with free boundaries: its halo reaches two nodes beyond the cube, so
