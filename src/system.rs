@@ -70,12 +70,7 @@ pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mu
                 ];
                 for (slot, range, shift) in sources {
                     let Some(slot) = slot else { continue };
-                    let walk = if slot == b {
-                        BrickNodes::new(index, slot)
-                    } else {
-                        BrickNodes::in_half(index, slot, axis, range.start >= 4)
-                    };
-                    for (node, l) in walk {
+                    for (node, l) in BrickNodes::new(index, slot) {
                         if !range.contains(&l[axis]) {
                             continue;
                         }
@@ -116,8 +111,6 @@ pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mu
 #[derive(Clone)]
 struct BrickNodes<'a> {
     occupied: &'a [u64; 8],
-    /// Bit w: walk word w (the others are skipped, their nodes counted).
-    words: u8,
     word: usize,
     bits: u64,
     node: u32,
@@ -126,40 +119,12 @@ struct BrickNodes<'a> {
 impl<'a> BrickNodes<'a> {
     #[inline(always)]
     fn new(index: &'a BrickIndex, b: usize) -> Self {
-        Self::in_words(index, b, 0xff)
-    }
-
-    /// Only the nodes whose coordinate along `axis` is in the upper half (4..8) of the brick,
-    /// or the lower (0..4): the words of a brick's occupancy split by each axis's top bit.
-    #[inline(always)]
-    fn in_half(index: &'a BrickIndex, b: usize, axis: usize, upper: bool) -> Self {
-        let words = (0..8u8)
-            .filter(|w| (w >> axis & 1 == 1) == upper)
-            .fold(0, |m, w| m | 1 << w);
-        Self::in_words(index, b, words)
-    }
-
-    #[inline(always)]
-    fn in_words(index: &'a BrickIndex, b: usize, words: u8) -> Self {
         let (node, occupied) = index.brick(b);
-        let mut walk = BrickNodes {
+        BrickNodes {
             occupied,
-            words,
             word: 0,
-            bits: 0,
+            bits: occupied[0],
             node,
-        };
-        walk.bits = walk.word_bits(0);
-        walk
-    }
-
-    #[inline(always)]
-    fn word_bits(&mut self, word: usize) -> u64 {
-        if self.words >> word & 1 == 1 {
-            self.occupied[word]
-        } else {
-            self.node += self.occupied[word].count_ones();
-            0
         }
     }
 }
@@ -174,7 +139,7 @@ impl Iterator for BrickNodes<'_> {
             if self.word == 8 {
                 return None;
             }
-            self.bits = self.word_bits(self.word);
+            self.bits = self.occupied[self.word];
         }
         let bit = self.bits.trailing_zeros() as usize;
         self.bits &= self.bits - 1;
@@ -1719,13 +1684,9 @@ mod tests {
         }
     }
 
-    /// The brick-by-brick prolongations (of the coefficients, of V added to a field, and inside
-    /// the coarse divergence's windows), the restriction and the separable passes give the
-    /// node-by-node values bit for bit, with free and
-    /// with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only part of
-    /// the cube refined) as well as complete ones.
-    #[test]
-    fn brick_prolongations_match_node_by_node_prolongation() {
+    /// A complete 16³ tree and a sparse one (only part of the cube refined, down to depth 5),
+    /// with Neumann or free boundaries.
+    fn complete_and_sparse_trees(neumann: bool) -> [Octree; 2] {
         let sparse: Vec<Vec<[i32; 3]>> = (0..=5)
             .map(|d| {
                 let n = 1 << d;
@@ -1734,11 +1695,21 @@ mod tests {
                     .collect()
             })
             .collect();
+        [
+            Octree::build(vec![Vec::new(); 5], 4, neumann),
+            Octree::build(sparse, 2, neumann),
+        ]
+    }
+
+    /// The brick-by-brick prolongations (of the coefficients, of V added to a field, and inside
+    /// the coarse divergence's windows), the restriction and the separable passes give the
+    /// node-by-node values bit for bit, with free and
+    /// with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only part of
+    /// the cube refined) as well as complete ones.
+    #[test]
+    fn brick_prolongations_match_node_by_node_prolongation() {
         for neumann in [false, true] {
-            for tree in [
-                Octree::build(vec![Vec::new(); 5], 4, neumann),
-                Octree::build(sparse.clone(), 2, neumann),
-            ] {
+            for tree in complete_and_sparse_trees(neumann) {
                 for d in 1..tree.levels.len() {
                     let (coarse, fine) = (&tree.levels[d - 1], &tree.levels[d]);
                     let field: [Vec<f64>; 3] = std::array::from_fn(|a| {
@@ -1954,19 +1925,8 @@ mod tests {
     /// boundaries, proxies in the middle, at the faces, corners and across brick edges.
     #[test]
     fn brick_screening_matches_the_node_by_node_sum() {
-        let sparse: Vec<Vec<[i32; 3]>> = (0..=5)
-            .map(|d| {
-                let n = 1 << d;
-                (0..n)
-                    .flat_map(|i| [[i, i / 2, n / 3], [n - 1 - i, i, i / 3], [0, i, n - 1]])
-                    .collect()
-            })
-            .collect();
         for neumann in [false, true] {
-            for tree in [
-                Octree::build(vec![Vec::new(); 5], 4, neumann),
-                Octree::build(sparse.clone(), 2, neumann),
-            ] {
+            for tree in complete_and_sparse_trees(neumann) {
                 let level = &tree.levels[tree.levels.len() - 1];
                 let n = 1i32 << level.depth;
                 // Proxies in cells inside the cube within one node of the core (as the pipeline
