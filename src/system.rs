@@ -26,7 +26,7 @@
 //! cross-depth tables: coarser coefficients are prolonged into the current depth's halo, and the
 //! divergence of finer vector-field coefficients is restricted to coarser nodes. Both are exact.
 
-use crate::bspline::{tables, REFINE};
+use crate::bspline::{tables, Tables, REFINE};
 use crate::octree::{axis_interval_masks, brick_local, AxisStep, BrickIndex, Level, NONE};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -397,6 +397,50 @@ struct BrickScratch {
 }
 
 impl BrickScratch {
+    /// The Laplacian's z-pass (every row of the window at the brick's 8 depths: M and D
+    /// along z) and y-pass (the brick's 8 × 8 rows: M_y M_z and D_y M_z + M_y D_z), leaving
+    /// the x-pass's two inputs in `y`. The same code compiled for AVX-512 where the CPU has it
+    /// (checked at run time): its 12-wide rows take 2 vector operations instead of SSE2's 6
+    /// (0.090 -> 0.060 s per application at depth 10 on the Happy Buddha; AVX2 0.069 s). No
+    /// fused multiply-adds and no reordering, so the values are the same bit for bit.
+    fn laplacian_passes(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has the feature the function is compiled for.
+            unsafe { self.laplacian_passes_avx512(w, t) };
+            return;
+        }
+        self.laplacian_passes_portable(w, t);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn laplacian_passes_avx512(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
+        self.laplacian_passes_portable(w, t);
+    }
+
+    #[inline(always)]
+    fn laplacian_passes_portable(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
+        for zl in 0..8 {
+            for yw in 0..WINDOW {
+                let at = zl * WINDOW + yw;
+                let rows = rows5(w, at, WINDOW);
+                self.z[0][at] = row_sum(&t.mass, rows);
+                self.z[1][at] = row_sum(&t.stiffness, rows);
+            }
+        }
+        for zl in 0..8 {
+            for yl in 0..8 {
+                let (at, z) = (zl * WINDOW + yl, &self.z);
+                let (a, b) = (rows5(&z[0], at, 1), rows5(&z[1], at, 1));
+                let mass_a = row_sum(&t.mass, a);
+                let mixed = add_rows(row_sum(&t.stiffness, a), row_sum(&t.mass, b));
+                self.y[0][zl * 8 + yl] = mass_a;
+                self.y[1][zl * 8 + yl] = mixed;
+            }
+        }
+    }
+
     /// The x-pass at the core nodes: scale·(Σ taps[0]·y₀ + Σ taps[1]·y₁) along x.
     fn x_pass(
         &self,
@@ -508,26 +552,7 @@ impl CoreBricks {
                         }
                     }
                 }
-                // z-pass: every row of the window, at the brick's 8 depths.
-                for zl in 0..8 {
-                    for yw in 0..WINDOW {
-                        let at = zl * WINDOW + yw;
-                        let rows = rows5(w, at, WINDOW);
-                        scratch.z[0][at] = row_sum(&t.mass, rows);
-                        scratch.z[1][at] = row_sum(&t.stiffness, rows);
-                    }
-                }
-                // y-pass: the brick's 8 × 8 rows.
-                for zl in 0..8 {
-                    for yl in 0..8 {
-                        let (at, z) = (zl * WINDOW + yl, &scratch.z);
-                        let (a, b) = (rows5(&z[0], at, 1), rows5(&z[1], at, 1));
-                        let mass_a = row_sum(&t.mass, a);
-                        let mixed = add_rows(row_sum(&t.stiffness, a), row_sum(&t.mass, b));
-                        scratch.y[0][zl * 8 + yl] = mass_a;
-                        scratch.y[1][zl * 8 + yl] = mixed;
-                    }
-                }
+                scratch.laplacian_passes(w, t);
                 scratch.x_pass(core_nodes, [&t.stiffness, &t.mass], h);
             },
         );
