@@ -392,8 +392,9 @@ struct BrickScratch {
     /// (index x + 8y + 64z), when the window is a prolongation
     /// ([`CoreBricks::gather_prolonged`]).
     coarse: [Vec<f64>; 3],
-    /// The screening term at the brick's positions (x + 8y + 64z).
-    screened: Box<[f64; 512]>,
+    /// The screening term at the brick's positions and two nodes around them (index
+    /// [`padded`]`(x, y, z)` for brick-local x, y, z in −2..10).
+    screened: Box<[f64; PADDED]>,
 }
 
 impl BrickScratch {
@@ -619,7 +620,7 @@ impl CoreBricks {
                             z: std::array::from_fn(|_| vec![[0.0; WINDOW]; 8 * WINDOW]),
                             y: std::array::from_fn(|_| vec![[0.0; WINDOW]; 8 * 8]),
                             coarse: std::array::from_fn(|_| vec![0.0; 8 * 8 * 8]),
-                            screened: Box::new([0.0; 512]),
+                            screened: Box::new([0.0; PADDED]),
                         },
                     )
                 },
@@ -1062,19 +1063,13 @@ impl<'a> DepthOperator<'a> {
             |_, scratch, cb, core_nodes| {
                 let acc = &mut scratch.screened;
                 acc.fill(0.0);
-                cells.accumulate(
-                    level,
-                    cb,
-                    &bricks.around[cb],
-                    acc,
-                    |part, range, contribution| {
-                        for q in range {
-                            tensor_accumulate_part(&proxies.stencil(q), chi[q], part, contribution);
-                        }
-                    },
-                );
+                cells.accumulate(level, cb, &bricks.around[cb], acc, |range, contribution| {
+                    for q in range {
+                        tensor_accumulate(&proxies.stencil(q), chi[q], contribution);
+                    }
+                });
                 for (o, [x, y, z]) in core_nodes {
-                    *o += scale * acc[x + 8 * (y + 8 * z)];
+                    *o += scale * acc[padded(x, y, z)];
                 }
             },
         );
@@ -1121,15 +1116,15 @@ impl<'a> DepthOperator<'a> {
                     cb,
                     &self.bricks.around[cb],
                     acc,
-                    |part, range, contribution| {
+                    |range, contribution| {
                         for q in range {
                             let squared = proxies.stencil(q).map(|axis| axis.map(|b| b * b));
-                            tensor_accumulate_part(&squared, proxies.weight[q], part, contribution);
+                            tensor_accumulate(&squared, proxies.weight[q], contribution);
                         }
                     },
                 );
                 for (o, [x, y, z]) in core_nodes {
-                    *o = lap + scale * acc[x + 8 * (y + 8 * z)];
+                    *o = lap + scale * acc[padded(x, y, z)];
                 }
             },
         );
@@ -1152,19 +1147,29 @@ fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27]) -> f64 {
     sum
 }
 
-/// out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] for the slots in
-/// `part` (the transpose of [`tensor_contract`] there).
+/// out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] (the transpose of
+/// [`tensor_contract`]).
 #[inline]
-fn tensor_accumulate_part(st: &[[f64; 3]; 3], w: f64, part: BlockPart, out: &mut [f64; 27]) {
-    for z in part.lo[2]..part.hi[2] {
+fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
+    for z in 0..3 {
         let wz = w * st[2][z];
-        for y in part.lo[1]..part.hi[1] {
+        for y in 0..3 {
             let wzy = wz * st[1][y];
-            for x in part.lo[0]..part.hi[0] {
+            for x in 0..3 {
                 out[9 * z + 3 * y + x] += wzy * st[0][x];
             }
         }
     }
+}
+
+/// A brick's positions with two nodes of padding on each side, [`WINDOW`]³ of them.
+const PADDED: usize = WINDOW * WINDOW * WINDOW;
+
+/// The index of brick-local position (x, y, z) (each in −2..10, shifted by 2) in a padded
+/// brick array.
+#[inline]
+fn padded(x: usize, y: usize, z: usize) -> usize {
+    (x + 2) + WINDOW * ((y + 2) + WINDOW * (z + 2))
 }
 
 /// The cells of K_d holding proxies, grouped by brick, for the screening term
@@ -1184,13 +1189,6 @@ struct ScreeningCells {
     /// The cells (node index and index in `cells`) in bricks without core nodes, whose
     /// proxies no core brick's window covers: found node by node (few, at the core's edge).
     outside_core_bricks: Vec<(u32, u32)>,
-}
-
-/// The part of a 3×3×3 block, lo[a]..hi[a] along each axis a.
-#[derive(Debug, Clone, Copy)]
-struct BlockPart {
-    lo: [usize; 3],
-    hi: [usize; 3],
 }
 
 /// A cell within one node of a core brick: its index in `ScreeningCells::cells` and its
@@ -1217,7 +1215,7 @@ impl ScreeningCells {
         n: i32,
         w: [usize; 3],
         contribution: &[f64; 27],
-        acc: &mut [f64; 512],
+        acc: &mut [f64; PADDED],
     ) {
         for (k, c) in contribution.iter().enumerate() {
             // The block node's brick-local coordinates.
@@ -1232,7 +1230,7 @@ impl ScreeningCells {
                 }
             }
             if node.iter().all(|&v| (0..8).contains(&v)) {
-                acc[node[0] as usize + 8 * (node[1] as usize + 8 * node[2] as usize)] += *c;
+                acc[padded(node[0] as usize, node[1] as usize, node[2] as usize)] += *c;
             }
         }
     }
@@ -1337,18 +1335,19 @@ impl ScreeningCells {
     }
 
     /// For every cell within one node of the brick whose 27 surrounding brick slots are
-    /// `around`, `contribute(part, range of its proxies, contribution)` fills the values of
-    /// `part` of the cell's 3×3×3 node block (x fastest), which are added to `acc` (the brick's
-    /// 8×8×8 positions, x fastest): the part is where the block meets the brick, so over all
-    /// bricks each block node is computed once. With Neumann boundaries a block node beyond the
-    /// cube is the mirror image of one inside, whose folded function collects it instead.
+    /// `around`, `contribute(range of its proxies, contribution)` adds the values of the cell's
+    /// 3×3×3 node block (x fastest) to `contribution`, which is added to `acc` (the brick's
+    /// positions padded by two nodes, see [`padded`]): whole blocks, without bounds to test per
+    /// cell; the padding takes the block nodes beyond the brick, which other bricks compute.
+    /// With Neumann boundaries a block node beyond the cube is the mirror image of one inside,
+    /// whose folded function collects it instead.
     fn accumulate(
         &self,
         level: &Level,
         cb: usize,
         around: &[u32; 27],
-        acc: &mut [f64; 512],
-        mut contribute: impl FnMut(BlockPart, std::ops::Range<usize>, &mut [f64; 27]),
+        acc: &mut [f64; PADDED],
+        mut contribute: impl FnMut(std::ops::Range<usize>, &mut [f64; 27]),
     ) {
         let origin = level.bricks().origin(around[13] as usize);
         let n = 1i32 << level.depth;
@@ -1358,19 +1357,8 @@ impl ScreeningCells {
         for near in &self.near[entries] {
             let cell = &self.cells[near.cell as usize];
             let w = near.window.map(usize::from);
-            // The block's nodes inside the brick: per axis, d with 0 ≤ w − 3 + d < 8 (all of
-            // them when mirror images may fold back into the brick).
-            let (lo, hi) = if reflects {
-                ([0; 3], [3; 3])
-            } else {
-                (
-                    w.map(|v| 3usize.saturating_sub(v)),
-                    w.map(|v| (11 - v).min(3)),
-                )
-            };
             let mut contribution = [0.0; 27];
             contribute(
-                BlockPart { lo, hi },
                 cell.proxies.0 as usize..cell.proxies.1 as usize,
                 &mut contribution,
             );
@@ -1378,11 +1366,13 @@ impl ScreeningCells {
                 Self::add_reflected(origin, n, w, &contribution, acc);
                 continue;
             }
-            for dz in lo[2]..hi[2] {
-                for dy in lo[1]..hi[1] {
-                    let row = 8 * ((w[1] + dy - 3) + 8 * (w[2] + dz - 3)) + w[0] - 3;
-                    for dx in lo[0]..hi[0] {
-                        acc[row + dx] += contribution[dx + 3 * dy + 9 * dz];
+            // Block node d of a cell at window coordinate w (local + 2) is at local w − 3 + d,
+            // padded index w − 1 + d.
+            for (dz, plane) in contribution.chunks_exact(9).enumerate() {
+                for (dy, row) in plane.chunks_exact(3).enumerate() {
+                    let at = w[0] - 1 + WINDOW * ((w[1] - 1 + dy) + WINDOW * (w[2] - 1 + dz));
+                    for (a, c) in acc[at..at + 3].iter_mut().zip(row) {
+                        *a += c;
                     }
                 }
             }
