@@ -4,7 +4,7 @@
 
 use crate::density::{self, DensityField};
 use crate::evaluate::Indicator;
-use crate::octree::Octree;
+use crate::octree::{morton_nested, Octree};
 use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
@@ -59,12 +59,49 @@ impl Clock<'_, '_> {
     }
 }
 
-/// The samples in unit-cube coordinates (their unit normals are the point set's, read where
-/// splatted).
+/// The samples in unit-cube coordinates, in Morton order of their cells at the requested depth
+/// (so also at every coarser depth; ties in input order): the samples of a cell, and of
+/// neighbouring cells mostly, are neighbours in memory for every stage that reads them by cell.
 struct Samples {
     positions: Vec<DVec3>,
+    /// Unit normals (the point set's), until splatted.
+    normals: Vec<[f32; 3]>,
     /// Confidence weights (all 1 unless given).
     confidence: Vec<f64>,
+}
+
+impl Samples {
+    fn in_morton_order(points: &PointSet, map: &UnitCubeMap, depth: u32) -> Samples {
+        let inv_h = (depth as f64).exp2();
+        let unit: Vec<DVec3> = points
+            .positions()
+            .par_iter()
+            .map(|&p| map.to_unit(p))
+            .collect();
+        let mut order: Vec<(u64, u32)> = unit
+            .par_iter()
+            .enumerate()
+            .map(|(s, &p)| {
+                let c = crate::system::cell_of(p, inv_h);
+                (morton_nested(c.map(|v| v.max(0) as u32)), s as u32)
+            })
+            .collect();
+        order.par_sort_unstable();
+        Samples {
+            positions: order.par_iter().map(|&(_, s)| unit[s as usize]).collect(),
+            normals: order
+                .par_iter()
+                .map(|&(_, s)| points.normals()[s as usize])
+                .collect(),
+            confidence: match points.weights() {
+                Some(w) => order
+                    .par_iter()
+                    .map(|&(_, s)| w[s as usize] as f64)
+                    .collect(),
+                None => vec![1.0; points.len()],
+            },
+        }
+    }
 }
 
 pub(crate) fn run(
@@ -83,19 +120,9 @@ pub(crate) fn run(
     clock.stats.points = points.len();
     clock.report(Stage::Points, 0.0)?;
 
-    // 1. Points: into the unit cube.
+    // 1. Points: into the unit cube, in Morton order.
     let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
-    let samples = pool.install(|| Samples {
-        positions: points
-            .positions()
-            .par_iter()
-            .map(|&p| map.to_unit(p))
-            .collect(),
-        confidence: match points.weights() {
-            Some(w) => w.iter().map(|&w| w as f64).collect(),
-            None => vec![1.0; points.len()],
-        },
-    });
+    let mut samples = pool.install(|| Samples::in_morton_order(points, &map, params.depth));
     if samples.confidence.iter().all(|&c| c == 0.0) {
         return Err(Error::NoPositiveWeight);
     }
@@ -169,7 +196,7 @@ pub(crate) fn run(
         let mut v = splat_depth(
             &tree.levels[d],
             &samples.positions,
-            points.normals(),
+            &samples.normals,
             &at_depth[d],
             params.splatting,
             neumann,
@@ -186,6 +213,7 @@ pub(crate) fn run(
     let mut field_v: Vec<[Vec<f64>; 3]> = pool.install(|| (0..finest).map(splat_at).collect());
     field_v.push(Default::default());
     drop(at_depth);
+    samples.normals = Vec::new();
     clock.done_moving(Stage::Splat, finest_system)?;
 
     // 5. System: ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo, finest first (restriction is exact).
@@ -217,19 +245,6 @@ pub(crate) fn run(
         .iter()
         .map(|c| c * total_area / total_confidence)
         .collect();
-    let mut order: Vec<u32> = (0..samples.positions.len() as u32).collect();
-    {
-        let inv_h = (max_depth as f64).exp2();
-        let keys: Vec<u64> = samples
-            .positions
-            .iter()
-            .map(|&p| {
-                let c = crate::system::cell_of(p, inv_h);
-                crate::octree::morton_nested(c.map(|v| v.max(0) as u32))
-            })
-            .collect();
-        pool.install(|| order.par_sort_by_key(|&s| (keys[s as usize], s)));
-    }
     clock.done(Stage::System)?;
 
     // 6. Solve, coarse to fine.
@@ -252,7 +267,6 @@ pub(crate) fn run(
                 level,
                 &samples.positions,
                 &screening_weights,
-                &order,
                 proxy_depth(d as u32, max_depth),
             )
         });

@@ -230,39 +230,35 @@ pub struct Proxies {
 }
 
 impl Proxies {
-    /// Groups samples (in `order`, sorted by Morton key at a depth ≥ `proxy_depth`) into
-    /// proxies at `proxy_depth` ≥ the level's depth. In parallel over pieces of `order` cut
-    /// between groups (a fixed number of samples apart), appended in order.
-    pub fn build(
-        level: &Level,
-        positions: &[DVec3],
-        weights: &[f64],
-        order: &[u32],
-        proxy_depth: u32,
-    ) -> Proxies {
+    /// Groups samples (`positions` sorted by Morton key at a depth ≥ `proxy_depth`, so that the
+    /// samples of a cell are consecutive) into proxies at `proxy_depth` ≥ the level's depth. In
+    /// parallel over pieces cut between groups (a fixed number of samples apart), appended in
+    /// order.
+    pub fn build(level: &Level, positions: &[DVec3], weights: &[f64], proxy_depth: u32) -> Proxies {
         const SAMPLES_PER_PIECE: usize = 1 << 14;
         let inv_proxy_h = (proxy_depth as f64).exp2();
-        let group_of = |s: usize| cell_of(positions[order[s] as usize], inv_proxy_h);
+        let group_of = |s: usize| cell_of(positions[s], inv_proxy_h);
+        let n = positions.len();
         let mut cuts = vec![0];
         while let Some(&last) = cuts.last() {
             let mut cut = last + SAMPLES_PER_PIECE;
-            if cut >= order.len() {
+            if cut >= n {
                 break;
             }
-            while cut < order.len() && group_of(cut) == group_of(cut - 1) {
+            while cut < n && group_of(cut) == group_of(cut - 1) {
                 cut += 1;
             }
             cuts.push(cut);
         }
-        cuts.push(order.len());
+        cuts.push(n);
         let pieces: Vec<Proxies> = cuts
             .par_windows(2)
             .map(|piece| {
+                let range = piece[0]..piece[1];
                 Self::build_piece(
                     level,
-                    positions,
-                    weights,
-                    &order[piece[0]..piece[1]],
+                    &positions[range.clone()],
+                    &weights[range],
                     proxy_depth,
                 )
             })
@@ -276,26 +272,24 @@ impl Proxies {
         proxies
     }
 
-    /// [`Proxies::build`] on a run of `order` that starts and ends between groups.
+    /// [`Proxies::build`] on a run of samples that starts and ends between groups.
     fn build_piece(
         level: &Level,
         positions: &[DVec3],
         weights: &[f64],
-        order: &[u32],
         proxy_depth: u32,
     ) -> Proxies {
         let inv_h = (level.depth as f64).exp2();
         let inv_proxy_h = (proxy_depth as f64).exp2();
         let mut proxies = Proxies::default();
         let mut s = 0;
-        while s < order.len() {
-            let group = cell_of(positions[order[s] as usize], inv_proxy_h);
+        while s < positions.len() {
+            let group = cell_of(positions[s], inv_proxy_h);
             let mut sum_w = 0.0;
             let mut sum_p = DVec3::ZERO;
-            while s < order.len() && cell_of(positions[order[s] as usize], inv_proxy_h) == group {
-                let k = order[s] as usize;
-                sum_w += weights[k];
-                sum_p += positions[k] * weights[k];
+            while s < positions.len() && cell_of(positions[s], inv_proxy_h) == group {
+                sum_w += weights[s];
+                sum_p += positions[s] * weights[s];
                 s += 1;
             }
             if sum_w <= 0.0 {
