@@ -71,6 +71,47 @@ impl Indicator<'_> {
         sum
     }
 
+    /// χ at corner `corner` (x + 2y + 4z) of a cell of the finest depth, from that cell's 27
+    /// nodes (`nodes`, as [`crate::octree::Level::block27_at`] gives them; `p` the corner in
+    /// unit-cube coordinates): the value [`Indicator::value`] gives, bit for bit, when the
+    /// corner's own cell at the finest depth is reached by core functions, `None` otherwise
+    /// (χ there comes from a coarser depth). At a corner the third node per axis of the
+    /// corner's block has weight zero, so the sum runs over the eight nodes that touch it, all
+    /// in the cell's block: the eight corners of a cell need no look-up of their own.
+    pub fn value_at_finest_corner(
+        &self,
+        nodes: &[u32; 27],
+        corner: usize,
+        p: DVec3,
+    ) -> Option<f64> {
+        let depth = self.tree.levels.len() - 1;
+        let level = &self.tree.levels[depth];
+        let c = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
+        let own = nodes[(1 + c[0]) + 3 * (1 + c[1]) + 9 * (1 + c[2])];
+        if own == NONE || level.flags[own as usize] & NEAR == 0 {
+            return None;
+        }
+        let (_, st) = stencil27(p, (depth as f64).exp2());
+        if st.iter().any(|w| w[2] != 0.0) {
+            return None;
+        }
+        let x = &self.coefficients[depth];
+        let mut sum = 0.0;
+        // The slots of `value_in`'s loop over the corner's block, in its order, without those
+        // of weight zero; slot (i, j, k) there is node (c + i, c + j, c + k) of the cell's block.
+        for k in 0..2 {
+            for j in 0..2 {
+                for i in 0..2 {
+                    let n = nodes[(c[0] + i) + 3 * (c[1] + j) + 9 * (c[2] + k)];
+                    if n != NONE {
+                        sum += x[n as usize] * st[0][i] * st[1][j] * st[2][k];
+                    }
+                }
+            }
+        }
+        Some(sum)
+    }
+
     /// ∇χ(p) from the block of a point in p's cell: degree-2 B-splines have continuous first
     /// derivatives.
     pub fn gradient_in(&self, block: &Block, p: DVec3) -> DVec3 {
@@ -105,4 +146,64 @@ fn stencil27_with_slopes(p: DVec3, inv_h: f64) -> ([[f64; 3]; 3], [[f64; 3]; 3])
         }
     }
     (value, slope)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The corners of every cell of the finest depth, read off the cell's 27 nodes, give
+    /// [`Indicator::value`] bit for bit wherever the shortcut applies, on a sparse tree (cells
+    /// at the edge of the refined region fall back) with arbitrary coefficients.
+    #[test]
+    fn corner_values_from_the_cells_nodes_match_the_point_evaluation() {
+        let cells: Vec<Vec<[i32; 3]>> = (0..=5)
+            .map(|d| {
+                let n = 1 << d;
+                (0..n)
+                    .flat_map(|i| [[i, i / 2, n / 3], [n - 1 - i, i, i / 3]])
+                    .collect()
+            })
+            .collect();
+        let tree = Octree::build(cells, 2, true);
+        let coefficients: Vec<Vec<f64>> = tree
+            .levels
+            .iter()
+            .map(|l| {
+                (0..l.len())
+                    .map(|i| ((i * 7919) % 101) as f64 / 7.0 - 6.0)
+                    .collect()
+            })
+            .collect();
+        let chi = Indicator {
+            tree: &tree,
+            coefficients,
+        };
+        let depth = tree.levels.len() - 1;
+        let level = &tree.levels[depth];
+        let h = 1.0 / (1u32 << depth) as f64;
+        let (mut shortcut, mut fallback) = (0, 0);
+        for i in 0..level.len() as u32 {
+            let cell = level.coord(i);
+            let Some((index, at)) = level.find_place(cell) else {
+                continue;
+            };
+            let nodes = level.block27_at(index, at);
+            for corner in 0..8 {
+                let p = DVec3::new(
+                    (cell[0] + (corner & 1) as i32) as f64,
+                    (cell[1] + (corner >> 1 & 1) as i32) as f64,
+                    (cell[2] + (corner >> 2 & 1) as i32) as f64,
+                ) * h;
+                match chi.value_at_finest_corner(&nodes, corner, p) {
+                    Some(v) => {
+                        assert_eq!(v.to_bits(), chi.value(p).to_bits(), "{cell:?} {corner}");
+                        shortcut += 1;
+                    }
+                    None => fallback += 1,
+                }
+            }
+        }
+        assert!(shortcut > 1000 && fallback > 0, "{shortcut} {fallback}");
+    }
 }

@@ -34,8 +34,10 @@
 //! face of the leaf (a neighbour could produce the same diagonal); when no such fan exists a
 //! centre vertex is added. Every mesh edge is then in exactly two triangles and every vertex has
 //! a single fan: a 2-manifold. The surface is followed from the leaves that hold samples, leaf
-//! to leaf through the leaves around every crossed edge, evaluating χ at each corner and edge
-//! midpoint once (and at the centre of the rare ambiguous face with cut edges).
+//! to leaf through the leaves around every crossed edge, each leaf evaluating χ at its corners
+//! and edge midpoints (and at the centre of a rare ambiguous face with cut edges). χ at a point
+//! is a pure function of the point, so the leaves sharing it see the same value; a leaf of the
+//! finest depth reads its corners' values off its own 27 nodes.
 //!
 //! **Vertices.** Each crossed minimal edge's vertex is the root of χ − γ on it; then, unless the
 //! caller asks for vertices on the level set, [`fit_to_surface`] moves every vertex along the
@@ -115,7 +117,7 @@ fn pack(p: Point) -> u64 {
 }
 
 /// Inverse of [`pack`].
-#[inline]
+#[cfg(test)]
 fn unpack(k: u64) -> Point {
     [k & 0xF_FFFF, (k >> 20) & 0xF_FFFF, (k >> 40) & 0xF_FFFF].map(|v| v as i64 - KEY_OFFSET)
 }
@@ -215,9 +217,9 @@ impl Leaves<'_> {
     }
 
     /// The statuses of the cells of a leaf's depth around it. Away from the cube's faces they
-    /// come from the tree's neighbour and parent look-ups (every neighbour of a leaf is in the halo);
-    /// next to them, the mirrored lookups of [`Leaves::status`].
-    fn block(&self, leaf: &Leaf) -> Block {
+    /// come from the tree's neighbour and parent look-ups (every neighbour of a leaf is in the halo),
+    /// with those 27 nodes; next to them, the mirrored lookups of [`Leaves::status`].
+    fn block(&self, leaf: &Leaf) -> (Block, Option<[u32; 27]>) {
         let n = 1i64 << leaf.depth;
         let level = &self.tree.levels[leaf.depth as usize];
         let interior = leaf.cell.iter().all(|&x| x >= 1 && x <= n - 2);
@@ -232,24 +234,29 @@ impl Leaves<'_> {
                     .depth
                     .checked_sub(1)
                     .map(|d| &self.tree.levels[d as usize]);
-                level.block27_at(i, at).map(|j| {
+                let nodes = level.block27_at(i, at);
+                let block = nodes.map(|j| {
                     if j == NONE {
                         Status::Coarser
                     } else {
                         node_status(level, coarser, j)
                     }
-                })
+                });
+                (block, Some(nodes))
             }
-            None => std::array::from_fn(|i| {
-                let offset = [i as i64 % 3 - 1, (i as i64 / 3) % 3 - 1, i as i64 / 9 - 1];
-                if offset == [0, 0, 0] {
-                    return Status::Leaf;
-                }
-                self.status(
-                    leaf.depth,
-                    std::array::from_fn(|a| leaf.cell[a] + offset[a]),
-                )
-            }),
+            None => (
+                std::array::from_fn(|i| {
+                    let offset = [i as i64 % 3 - 1, (i as i64 / 3) % 3 - 1, i as i64 / 9 - 1];
+                    if offset == [0, 0, 0] {
+                        return Status::Leaf;
+                    }
+                    self.status(
+                        leaf.depth,
+                        std::array::from_fn(|a| leaf.cell[a] + offset[a]),
+                    )
+                }),
+                None,
+            ),
         }
     }
 
@@ -545,16 +552,16 @@ pub fn extract(
     let n = 1i64 << finest;
     let h = 1.0 / n as f64;
     let cycles = face_cycles();
+    let unit = |p: Point| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * h;
     let evaluate = |p: Point| -> f64 {
         if p.iter().all(|v| (0..=n).contains(v)) {
-            chi.value(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * h) - isovalue
+            chi.value(unit(p)) - isovalue
         } else {
             // Beyond the cube everything is outside: the surface is closed along the cube's
             // faces where it meets them (vertices on such edges land on the face).
             f64::INFINITY
         }
     };
-    let mut values: KeyMap<f64> = KeyMap::default();
     let mut vertex_of_edge: KeyMap<u32> = KeyMap::default();
     let mut visited: KeyMap<()> = KeyMap::default();
     let mut mesh = RawMesh::default();
@@ -575,39 +582,36 @@ pub fn extract(
     while done < frontier.len() {
         let batch = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
         done += batch.len();
-        // Where each leaf of the wave stands among its neighbours, and its points.
-        let plans: Vec<(Block, [Point; SLOTS], u32)> = batch
+        // Where each leaf of the wave stands among its neighbours, its points and χ − γ there.
+        // A point shared by several leaves is evaluated by each, with the same result (a pure
+        // function of the position): no table of values. The corners of a leaf of the finest
+        // depth come from the leaf's own 27 nodes, which its block looked up anyway.
+        let plans: Vec<(Block, [Point; SLOTS], u32, [f64; SLOTS])> = batch
             .par_iter()
             .map(|leaf| {
-                let block = leaves.block(leaf);
+                let (block, nodes) = leaves.block(leaf);
                 let (points, used) = leaf_points(leaf, &block, finest);
-                (block, points, used)
+                let mut values = [0.0; SLOTS];
+                for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
+                    let from_nodes = match &nodes {
+                        Some(nodes) if leaf.depth == finest && i < 8 => chi
+                            .value_at_finest_corner(nodes, i, unit(points[i]))
+                            .map(|v| v - isovalue),
+                        _ => None,
+                    };
+                    values[i] = from_nodes.unwrap_or_else(|| evaluate(points[i]));
+                }
+                (block, points, used, values)
             })
             .collect();
-        // Evaluate the points this wave needs, in parallel (a pure function of the position).
-        let mut needed: Vec<u64> = plans
-            .par_iter()
-            .flat_map_iter(|(_, points, used)| {
-                (0..SLOTS)
-                    .filter(move |&i| used >> i & 1 == 1)
-                    .map(move |i| pack(points[i]))
-            })
-            .filter(|k| !values.contains_key(k))
-            .collect();
-        needed.par_sort_unstable();
-        needed.dedup();
-        let fresh: Vec<f64> = needed.par_iter().map(|&k| evaluate(unpack(k))).collect();
-        values.extend(needed.into_iter().zip(fresh));
 
         // The surface's loops in each leaf of the wave (independent: in parallel). Face
         // centres, needed only by rare ambiguous faces, are evaluated where they are needed.
         let crossed: Vec<Vec<Vec<Crossing>>> = plans
             .par_iter()
-            .map(|&(_, points, used)| {
-                let mut vals = [0.0; SLOTS];
+            .map(|&(_, points, used, vals)| {
                 let (mut outside, mut inside) = (false, false);
                 for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                    vals[i] = values[&pack(points[i])];
                     outside |= vals[i] >= 0.0;
                     inside |= vals[i] < 0.0;
                 }
@@ -622,7 +626,7 @@ pub fn extract(
         // Number the vertices of newly crossed edges in trace order, and visit the leaves
         // around each of those edges.
         let mut new_edges: Vec<Crossing> = Vec::new();
-        for ((leaf, (block, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
+        for ((leaf, (block, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
             for c in loops.iter().flatten() {
                 let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
                 let mut created = false;
