@@ -71,45 +71,39 @@ impl Indicator<'_> {
         sum
     }
 
-    /// χ at corner `corner` (x + 2y + 4z) of a cell of the finest depth, from that cell's 27
-    /// nodes (`nodes`, as [`crate::octree::Level::block27_at`] gives them; `p` the corner in
-    /// unit-cube coordinates): the value [`Indicator::value`] gives, bit for bit, when the
-    /// corner's own cell at the finest depth is reached by core functions, `None` otherwise
-    /// (χ there comes from a coarser depth). At a corner the third node per axis of the
-    /// corner's block has weight zero, so the sum runs over the eight nodes that touch it, all
-    /// in the cell's block: the eight corners of a cell need no look-up of their own.
-    pub fn value_at_finest_corner(
-        &self,
-        nodes: &[u32; 27],
-        corner: usize,
-        p: DVec3,
-    ) -> Option<f64> {
+    /// χ at the eight corners (x + 2y + 4z) of a cell of the finest depth, from that cell's 27
+    /// nodes (`nodes`, as [`crate::octree::Level::block27_at`] gives them): at each corner the
+    /// value [`Indicator::value`] gives, bit for bit, when the corner's own cell at the finest
+    /// depth is reached by core functions, `None` otherwise (χ there comes from a coarser
+    /// depth). At a corner the B-spline weights per axis of the corner's block are ½, ½ and 0
+    /// (exactly), so the sum runs over the eight nodes that touch the corner, all in the
+    /// cell's block: the corners of a cell need no look-up of their own, and its 27
+    /// coefficients are read once for all of them.
+    pub fn finest_corner_values(&self, nodes: &[u32; 27]) -> [Option<f64>; 8] {
         let depth = self.tree.levels.len() - 1;
-        let level = &self.tree.levels[depth];
-        let c = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
-        let own = nodes[(1 + c[0]) + 3 * (1 + c[1]) + 9 * (1 + c[2])];
-        if own == NONE || level.flags[own as usize] & NEAR == 0 {
-            return None;
-        }
-        let (_, st) = stencil27(p, (depth as f64).exp2());
-        if st.iter().any(|w| w[2] != 0.0) {
-            return None;
-        }
+        let flags = &self.tree.levels[depth].flags;
         let x = &self.coefficients[depth];
-        let mut sum = 0.0;
-        // The slots of `value_in`'s loop over the corner's block, in its order, without those
-        // of weight zero; slot (i, j, k) there is node (c + i, c + j, c + k) of the cell's block.
-        for k in 0..2 {
-            for j in 0..2 {
-                for i in 0..2 {
-                    let n = nodes[(c[0] + i) + 3 * (c[1] + j) + 9 * (c[2] + k)];
-                    if n != NONE {
-                        sum += x[n as usize] * st[0][i] * st[1][j] * st[2][k];
+        let coefficient = nodes.map(|n| (n != NONE).then(|| x[n as usize]));
+        std::array::from_fn(|corner| {
+            let c = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
+            let own = nodes[(1 + c[0]) + 3 * (1 + c[1]) + 9 * (1 + c[2])];
+            if own == NONE || flags[own as usize] & NEAR == 0 {
+                return None;
+            }
+            // `value_in`'s sum over the corner's block, in its order, without the slots of
+            // weight zero; slot (i, j, k) there is node (c + i, c + j, c + k) of the cell's block.
+            let mut sum = 0.0;
+            for k in 0..2 {
+                for j in 0..2 {
+                    for i in 0..2 {
+                        if let Some(x) = coefficient[(c[0] + i) + 3 * (c[1] + j) + 9 * (c[2] + k)] {
+                            sum += x * 0.5 * 0.5 * 0.5;
+                        }
                     }
                 }
             }
-        }
-        Some(sum)
+            Some(sum)
+        })
     }
 
     /// ∇χ(p) from the block of a point in p's cell: degree-2 B-splines have continuous first
@@ -189,13 +183,15 @@ mod tests {
                 continue;
             };
             let nodes = level.block27_at(index, at);
-            for corner in 0..8 {
+            let values = chi.finest_corner_values(&nodes);
+            for (corner, value) in values.into_iter().enumerate() {
                 let p = DVec3::new(
                     (cell[0] + (corner & 1) as i32) as f64,
                     (cell[1] + (corner >> 1 & 1) as i32) as f64,
                     (cell[2] + (corner >> 2 & 1) as i32) as f64,
                 ) * h;
-                match chi.value_at_finest_corner(&nodes, corner, p) {
+                assert_eq!(stencil27(p, 1.0 / h).1, [[0.5, 0.5, 0.0]; 3]);
+                match value {
                     Some(v) => {
                         assert_eq!(v.to_bits(), chi.value(p).to_bits(), "{cell:?} {corner}");
                         shortcut += 1;

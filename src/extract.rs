@@ -552,10 +552,9 @@ pub fn extract(
     let n = 1i64 << finest;
     let h = 1.0 / n as f64;
     let cycles = face_cycles();
-    let unit = |p: Point| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * h;
     let evaluate = |p: Point| -> f64 {
         if p.iter().all(|v| (0..=n).contains(v)) {
-            chi.value(unit(p)) - isovalue
+            chi.value(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * h) - isovalue
         } else {
             // Beyond the cube everything is outside: the surface is closed along the cube's
             // faces where it meets them (vertices on such edges land on the face).
@@ -591,15 +590,16 @@ pub fn extract(
             .map(|leaf| {
                 let (block, nodes) = leaves.block(leaf);
                 let (points, used) = leaf_points(leaf, &block, finest);
+                let corners = match &nodes {
+                    Some(nodes) if leaf.depth == finest => chi.finest_corner_values(nodes),
+                    _ => [None; 8],
+                };
                 let mut values = [0.0; SLOTS];
                 for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                    let from_nodes = match &nodes {
-                        Some(nodes) if leaf.depth == finest && i < 8 => chi
-                            .value_at_finest_corner(nodes, i, unit(points[i]))
-                            .map(|v| v - isovalue),
-                        _ => None,
+                    values[i] = match corners.get(i) {
+                        Some(Some(v)) => v - isovalue,
+                        _ => evaluate(points[i]),
                     };
-                    values[i] = from_nodes.unwrap_or_else(|| evaluate(points[i]));
                 }
                 (block, points, used, values)
             })
