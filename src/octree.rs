@@ -525,45 +525,85 @@ pub fn parent_key(k: u64) -> u64 {
 
 impl Level {
     /// The level whose core is `core` (packed keys, sorted, unique).
+    /// The level whose core is `core` (packed keys, sorted): K_d is the core widened by two
+    /// nodes, NEAR the core widened by one. The widening runs on bit rows of 8×8×8 bricks
+    /// ([`BrickRows`]), and the bricks sorted by key list the nodes in Morton order (a brick's
+    /// positions are its keys' low nine bits): no per-node sort and no per-node look-up.
     fn with_halo(depth: u32, core: &[u64], neumann: bool) -> Level {
-        let near = dilate(core, 1);
-        let halo = dilate(&near, 1);
-        let mut keys: Vec<u64> = halo.par_iter().map(|&k| morton(unpack(k))).collect();
-        drop(halo);
-        keys.par_sort_unstable();
-        let index = BrickIndex::new(&keys);
-        let position = |packed: &[u64]| -> Vec<u32> {
-            packed
-                .par_iter()
-                .map(|&k| index.get(morton(unpack(k))).expect("subset of the halo"))
-                .collect()
-        };
-        let mut flags = vec![0u8; keys.len()];
-        for i in position(&near) {
-            flags[i as usize] |= NEAR;
-        }
-        drop(near);
-        let mut core = position(core);
-        for &i in &core {
-            flags[i as usize] |= CORE;
-        }
-        core.par_sort_unstable();
+        let core_rows = BrickRows::from_packed(core);
+        let near_rows = core_rows.widened();
+        let halo_rows = near_rows.widened();
+        let mut bricks: Vec<(u64, u64)> = halo_rows
+            .rows
+            .keys()
+            .map(|&b| (BrickRows::morton_of(b), b))
+            .collect();
+        bricks.par_sort_unstable();
+        // Per brick, in key order: the occupancy of K_d, NEAR and the core (Morton positions).
+        let masks: Vec<[[u64; 8]; 3]> = bricks
+            .par_iter()
+            .map(|&(_, b)| {
+                [&halo_rows, &near_rows, &core_rows]
+                    .map(|set| set.rows.get(&b).map_or([0; 8], BrickRows::morton_masks))
+            })
+            .collect();
+        drop((core_rows, near_rows, halo_rows));
+
+        let total: usize = masks
+            .iter()
+            .map(|m| m[0].iter().map(|w| w.count_ones() as usize).sum::<usize>())
+            .sum();
+        let mut keys = Vec::with_capacity(total);
+        let mut flags = Vec::with_capacity(total);
+        let mut core = Vec::new();
         let mut mirrors = Vec::new();
-        if neumann {
-            let n = 1i32 << depth;
-            for (i, &k) in keys.iter().enumerate() {
-                if let Some((inside, flips)) = reflect(unmorton(k), n) {
-                    // The reflection of a halo node is within two nodes of the same core nodes.
-                    if let Some(inside) = index.get(morton(inside)) {
-                        mirrors.push(Mirror {
-                            outside: i as u32,
-                            inside,
-                            flips,
-                        });
+        let n = 1i32 << depth;
+        for (&(brick, _), [halo, near, in_core]) in bricks.iter().zip(&masks) {
+            let first = keys.len() as u32;
+            let mut k = first;
+            for word in 0..8 {
+                let mut bits = halo[word];
+                while bits != 0 {
+                    let bit = bits.trailing_zeros();
+                    bits &= bits - 1;
+                    let key = brick << BrickIndex::BRICK_BITS | (word as u64 * 64 + bit as u64);
+                    let mut flag = 0;
+                    if near[word] >> bit & 1 == 1 {
+                        flag |= NEAR;
+                    }
+                    if in_core[word] >> bit & 1 == 1 {
+                        flag |= CORE;
+                        core.push(k);
+                    }
+                    keys.push(key);
+                    flags.push(flag);
+                    k += 1;
+                }
+            }
+            if neumann {
+                // A brick's nodes outside the cube mirror nodes inside; in the same halo,
+                // since the reflection of a halo node is within two nodes of the same core nodes.
+                for i in first..k {
+                    if let Some((inside, flips)) = reflect(unmorton(keys[i as usize]), n) {
+                        mirrors.push((i, morton(inside), flips));
                     }
                 }
             }
         }
+        let index = BrickIndex::from_bricks(
+            bricks.iter().map(|&(b, _)| b).collect(),
+            masks.iter().map(|m| m[0]).collect(),
+        );
+        let mirrors = mirrors
+            .into_iter()
+            .filter_map(|(outside, inside, flips)| {
+                Some(Mirror {
+                    outside,
+                    inside: index.get(inside)?,
+                    flips,
+                })
+            })
+            .collect();
         Level {
             depth,
             keys,
@@ -572,6 +612,129 @@ impl Level {
             mirrors,
             index,
         }
+    }
+}
+
+/// A set of nodes of one depth as bit rows of 8×8×8 bricks: per brick (keyed by its packed
+/// coordinates, the nodes' offset coordinates divided by 8), row y + 8z holds bit x. Widening
+/// the set by one node is then two shifts and ORs per row and axis, with the bits that cross a
+/// brick face carried into the brick beside.
+struct BrickRows {
+    rows: KeyMap<[u8; 64]>,
+}
+
+impl BrickRows {
+    /// The set of the nodes with these packed keys.
+    fn from_packed(keys: &[u64]) -> BrickRows {
+        let mut rows: KeyMap<[u8; 64]> = KeyMap::default();
+        for &k in keys {
+            let c = [0, 1, 2].map(|a| (k >> (a as u32 * BITS)) & ((1 << BITS) - 1));
+            let brick = c[0] >> 3 | (c[1] >> 3) << BITS | (c[2] >> 3) << (2 * BITS);
+            rows.entry(brick).or_insert([0; 64])[(c[1] & 7 | (c[2] & 7) << 3) as usize] |=
+                1 << (c[0] & 7);
+        }
+        BrickRows { rows }
+    }
+
+    /// The Morton key of a brick (the Morton keys of its nodes without their low nine bits).
+    fn morton_of(brick: u64) -> u64 {
+        let mask = (1 << BITS) - 1;
+        spread(brick & mask) | spread(brick >> BITS & mask) << 1 | spread(brick >> (2 * BITS)) << 2
+    }
+
+    /// The brick's occupancy by Morton position (x, y, z bits interleaved from bit 0).
+    fn morton_masks(rows: &[u8; 64]) -> [u64; 8] {
+        let mut mask = [0u64; 8];
+        for p in 0..512 {
+            let [x, y, z] = brick_local(p);
+            mask[p >> 6] |= (((rows[y + 8 * z] >> x) & 1) as u64) << (p & 63);
+        }
+        mask
+    }
+
+    /// The nodes within Chebyshev distance one of the set.
+    fn widened(&self) -> BrickRows {
+        let mut set = BrickRows {
+            rows: self.rows.clone(),
+        };
+        for axis in 0..3 {
+            set = set.widened_along(axis);
+        }
+        set
+    }
+
+    /// The set widened by one node along `axis`.
+    fn widened_along(&self, axis: usize) -> BrickRows {
+        let mut out = self.rows.clone();
+        let step = 1u64 << (axis as u32 * BITS);
+        for (&brick, rows) in &self.rows {
+            let mut widened = *rows;
+            // Rows moved one node towards +axis and −axis (bits leaving the brick dropped),
+            // and the bits that leave it on each side, as rows of the brick beside.
+            let (mut up, mut down) = ([0u8; 64], [0u8; 64]);
+            let (mut carry_up, mut carry_down) = ([0u8; 64], [0u8; 64]);
+            for r in 0..64 {
+                let (y, z) = (r & 7, r >> 3);
+                match axis {
+                    0 => {
+                        up[r] = rows[r] << 1;
+                        down[r] = rows[r] >> 1;
+                        carry_up[r] = rows[r] >> 7;
+                        carry_down[r] = rows[r] << 7;
+                    }
+                    1 => {
+                        if y < 7 {
+                            up[r + 1] = rows[r];
+                        } else {
+                            carry_up[r - 7] = rows[r];
+                        }
+                        if y > 0 {
+                            down[r - 1] = rows[r];
+                        } else {
+                            carry_down[r + 7] = rows[r];
+                        }
+                    }
+                    _ => {
+                        if z < 7 {
+                            up[r + 8] = rows[r];
+                        } else {
+                            carry_up[y] = rows[r];
+                        }
+                        if z > 0 {
+                            down[r - 8] = rows[r];
+                        } else {
+                            carry_down[y + 56] = rows[r];
+                        }
+                    }
+                }
+            }
+            for r in 0..64 {
+                widened[r] |= up[r] | down[r];
+            }
+            let slot = out.get_mut(&brick).expect("a copy of the input");
+            for (o, w) in slot.iter_mut().zip(widened) {
+                *o |= w;
+            }
+            let at_low_end = (brick / step) & ((1 << BITS) - 1) == 0;
+            for (carry, beside) in [
+                (carry_up, brick + step),
+                (carry_down, brick.wrapping_sub(step)),
+            ] {
+                if carry.iter().all(|&r| r == 0) {
+                    continue;
+                }
+                // Halo coordinates stay above −OFFSET (a brick of offset coordinate 0).
+                assert!(
+                    !(at_low_end && beside < brick),
+                    "node coordinate below -OFFSET"
+                );
+                let slot = out.entry(beside).or_insert([0; 64]);
+                for (o, c) in slot.iter_mut().zip(carry) {
+                    *o |= c;
+                }
+            }
+        }
+        BrickRows { rows: out }
     }
 }
 
@@ -604,21 +767,33 @@ impl BrickIndex {
     const BRICK_BITS: u32 = 9;
 
     /// `keys` sorted ascending, unique.
+    #[cfg(test)]
     fn new(keys: &[u64]) -> BrickIndex {
-        let mut index = BrickIndex::default();
-        let mut current = u64::MAX;
-        for (i, &k) in keys.iter().enumerate() {
+        let (mut bricks, mut occupied): (Vec<u64>, Vec<[u64; 8]>) = (Vec::new(), Vec::new());
+        for &k in keys {
             let brick = k >> Self::BRICK_BITS;
-            if brick != current {
-                current = brick;
-                index.slot.insert(brick, index.first.len() as u32);
-                index.bricks.push(brick);
-                index.first.push(i as u32);
-                index.occupied.push([0; 8]);
+            if bricks.last() != Some(&brick) {
+                bricks.push(brick);
+                occupied.push([0; 8]);
             }
             let position = (k & 511) as usize;
-            index.occupied.last_mut().expect("pushed above")[position >> 6] |= 1 << (position & 63);
+            occupied.last_mut().expect("pushed above")[position >> 6] |= 1 << (position & 63);
         }
+        Self::from_bricks(bricks, occupied)
+    }
+
+    /// The index of the nodes in these bricks (keys ascending, each with its occupancy by
+    /// position), numbered in that order.
+    fn from_bricks(bricks: Vec<u64>, occupied: Vec<[u64; 8]>) -> BrickIndex {
+        let mut index = BrickIndex::default();
+        let mut next = 0u32;
+        for (b, (&brick, occupancy)) in bricks.iter().zip(&occupied).enumerate() {
+            index.slot.insert(brick, b as u32);
+            index.first.push(next);
+            next += occupancy.iter().map(|w| w.count_ones()).sum::<u32>();
+        }
+        index.bricks = bricks;
+        index.occupied = occupied;
         index.word_first = index
             .first
             .iter()
@@ -985,6 +1160,59 @@ mod tests {
         }
         for c in [[100, 0, 0], [-5, -5, -5], [36, 30, 0]] {
             assert_eq!(index.get(morton(c)), None);
+        }
+    }
+
+    /// K_d, NEAR and the mirrors that the brick rows give are the core widened by two and by
+    /// one node as [`dilate`] widens packed keys, with each node outside the cube mirrored, on
+    /// sparse trees whose cores reach the cube's faces, with and without Neumann mirrors.
+    #[test]
+    fn brick_row_widening_matches_packed_dilation() {
+        for neumann in [false, true] {
+            let sample_cells: Vec<Vec<Coord>> = (0..=6)
+                .map(|d| {
+                    let n = 1 << d;
+                    (0..n)
+                        .flat_map(|i| [[i, (i * 5) % n, n - 1 - i], [0, i, (i * 3) % n]])
+                        .collect()
+                })
+                .collect();
+            let tree = Octree::build(sample_cells, 2, neumann);
+            for level in &tree.levels {
+                let mut core: Vec<u64> = level.core.iter().map(|&i| pack(level.coord(i))).collect();
+                core.sort_unstable();
+                let near = dilate(&core, 1);
+                let halo = dilate(&near, 1);
+                let morton_sorted = |packed: &[u64]| {
+                    let mut keys: Vec<u64> = packed.iter().map(|&k| morton(unpack(k))).collect();
+                    keys.sort_unstable();
+                    keys
+                };
+                assert_eq!(level.keys, morton_sorted(&halo), "depth {}", level.depth);
+                let flagged = |flag: u8| {
+                    let keys: Vec<u64> = (0..level.len())
+                        .filter(|&i| level.flags[i] & flag != 0)
+                        .map(|i| level.keys[i])
+                        .collect();
+                    keys
+                };
+                assert_eq!(flagged(NEAR), morton_sorted(&near));
+                assert_eq!(flagged(CORE), morton_sorted(&core));
+                let n = 1 << level.depth;
+                let mirrored: Vec<u32> = (0..level.len() as u32)
+                    .filter(|&i| reflect(level.coord(i), n).is_some())
+                    .collect();
+                if neumann {
+                    let outside: Vec<u32> = level.mirrors.iter().map(|m| m.outside).collect();
+                    assert_eq!(outside, mirrored);
+                    for m in &level.mirrors {
+                        let (inside, flips) = reflect(level.coord(m.outside), n).unwrap();
+                        assert_eq!((level.coord(m.inside), m.flips), (inside, flips));
+                    }
+                } else {
+                    assert!(level.mirrors.is_empty());
+                }
+            }
         }
     }
 
