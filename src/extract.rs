@@ -624,16 +624,19 @@ pub fn extract(
             .collect();
 
         // Number the vertices of newly crossed edges in trace order, and visit the leaves
-        // around each of those edges.
+        // around each of those edges. Every crossing's vertex id is kept, in the same order,
+        // for the triangulation.
         let mut new_edges: Vec<Crossing> = Vec::new();
+        let mut crossing_ids: Vec<u32> = Vec::new();
         for ((leaf, (block, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
             for c in loops.iter().flatten() {
                 let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
                 let mut created = false;
-                vertex_of_edge.entry(c.key).or_insert_with(|| {
+                let id = *vertex_of_edge.entry(c.key).or_insert_with(|| {
                     created = true;
                     next_id
                 });
+                crossing_ids.push(id);
                 if !created {
                     continue;
                 }
@@ -658,15 +661,23 @@ pub fn extract(
         // Triangulate each leaf's loops (in parallel), then append in wave order, numbering the
         // centre vertices some loops add after this wave's edge vertices.
         let vertices = &mesh.vertices;
-        let vertex_of_edge = &vertex_of_edge;
+        let mut first_id = Vec::with_capacity(crossed.len());
+        let mut count = 0;
+        for loops in &crossed {
+            first_id.push(count);
+            count += loops.iter().map(Vec::len).sum::<usize>();
+        }
         let fans: Vec<(Vec<[u32; 3]>, Vec<DVec3>)> = crossed
             .par_iter()
-            .map(|loops| {
+            .zip(&first_id)
+            .map(|(loops, &first)| {
                 let (mut triangles, mut centres) = (Vec::new(), Vec::new());
+                let mut next = first;
                 for lp in loops {
-                    let ids: Vec<u32> = lp.iter().map(|c| vertex_of_edge[&c.key]).collect();
+                    let ids = &crossing_ids[next..next + lp.len()];
+                    next += lp.len();
                     let on_faces: Vec<u8> = lp.iter().map(|c| c.faces).collect();
-                    triangulate(&ids, &on_faces, vertices, &mut triangles, &mut centres);
+                    triangulate(ids, &on_faces, vertices, &mut triangles, &mut centres);
                 }
                 (triangles, centres)
             })
