@@ -386,6 +386,8 @@ struct BrickScratch {
     /// (index x + 8y + 64z), when the window is a prolongation
     /// ([`CoreBricks::gather_prolonged`]).
     coarse: [Vec<f64>; 3],
+    /// The prolongation of `coarse` at every position of the window, node or not.
+    prolonged: [Vec<[f64; WINDOW]>; 3],
     /// The screening term at the brick's positions and two nodes around them (index
     /// [`padded`]`(x, y, z)` for brick-local x, y, z in −2..10).
     screened: Box<[f64; PADDED]>,
@@ -614,6 +616,9 @@ impl CoreBricks {
                             z: std::array::from_fn(|_| vec![[0.0; WINDOW]; 8 * WINDOW]),
                             y: std::array::from_fn(|_| vec![[0.0; WINDOW]; 8 * 8]),
                             coarse: std::array::from_fn(|_| vec![0.0; 8 * 8 * 8]),
+                            prolonged: std::array::from_fn(|_| {
+                                vec![[0.0; WINDOW]; WINDOW * WINDOW]
+                            }),
                             screened: Box::new([0.0; PADDED]),
                         },
                     )
@@ -821,41 +826,93 @@ impl CoreBricks {
         let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
 
         coarse_window(coarse, coarse_origin, field.field, &mut scratch.coarse);
+        for c in 0..3 {
+            let [along_x, _] = &mut scratch.y;
+            let [along_y, _, _] = &mut scratch.z;
+            prolong_window(
+                &scratch.coarse[c],
+                along_x,
+                along_y,
+                &mut scratch.prolonged[c],
+                field.scale,
+            );
+        }
 
-        // The fine window.
-        for w in windows.iter_mut() {
-            w.fill([0.0; WINDOW]);
+        // The fine window: the prolongation where K_d has a node, zero elsewhere (beyond the
+        // cube, with Neumann mirrors, a node's value is its mirror image's).
+        let mut present = [0u16; WINDOW * WINDOW];
+        self.for_each_window_group(fine, cb, |_, corners, [x, y, z]| {
+            for (k, row) in [
+                z * WINDOW + y,
+                z * WINDOW + y + 1,
+                (z + 1) * WINDOW + y,
+                (z + 1) * WINDOW + y + 1,
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                present[row] |= ((corners >> (2 * k) & 3) as u16) << x;
+            }
+        });
+        for (window, prolonged) in windows.iter_mut().zip(&scratch.prolonged) {
+            for ((w, p), &bits) in window.iter_mut().zip(prolonged).zip(&present) {
+                *w = std::array::from_fn(|x| if bits >> x & 1 == 1 { p[x] } else { 0.0 });
+            }
         }
         let n = 1i32 << fine.depth;
-        let mirrored = !fine.mirrors.is_empty();
-        let regions = window_regions();
-        let index = fine.bricks();
-        for (slot, &b) in self.around[cb].iter().enumerate() {
-            if b == u32::MAX {
-                continue;
-            }
-            let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| 8 * o);
-            let (first, occupied) = index.brick(b as usize);
-            let mut before = first;
-            for (word, (&occ, &region)) in occupied.iter().zip(&regions[slot]).enumerate() {
-                let mut bits = occ & region;
-                while bits != 0 {
-                    let bit = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    let l = brick_local(word * 64 + bit as usize);
-                    let w: [usize; 3] = std::array::from_fn(|a| l[a] + offset[a] - 6);
+        let at_face = (0..3).any(|a| origin[a] - 2 < 0 || origin[a] + 10 > n);
+        if !fine.mirrors.is_empty() && at_face {
+            self.for_each_window_group(fine, cb, |mut node, corners, [x, y, z]| {
+                for c in (0..8).filter(|c| corners >> c & 1 == 1) {
+                    let w = [x + (c & 1), y + (c >> 1 & 1), z + (c >> 2)];
                     let f: [i32; 3] = std::array::from_fn(|a| origin[a] - 2 + w[a] as i32);
-                    let values = if mirrored && f.iter().any(|&v| v < 0 || v >= n) {
-                        field.at(before + (occ & ((1u64 << bit) - 1)).count_ones())
-                    } else {
-                        prolonged_from_window(&scratch.coarse, coarse_origin, f, field.scale)
-                    };
-                    for (window, v) in windows.iter_mut().zip(values) {
-                        window[w[2] * WINDOW + w[1]][w[0]] = v;
+                    if f.iter().any(|&v| v < 0 || v >= n) {
+                        for (window, v) in windows.iter_mut().zip(field.at(node as u32)) {
+                            window[w[2] * WINDOW + w[1]][w[0]] = v;
+                        }
                     }
+                    node += 1;
                 }
-                before += occ.count_ones();
-            }
+            });
+        }
+    }
+}
+
+/// The prolongation (times `scale`) of a coarse 8×8×8 window (`coarse`, index x + 8y + 64z,
+/// as [`coarse_window`] fills it for a fine brick's window) at every position of the fine
+/// 12×12×12 window, one axis at a time: along each axis fine position w takes ¾ of coarse
+/// position ⌊w/2⌋ + 1 and ¼ of ⌊w/2⌋ (w even) or ⌊w/2⌋ + 2 (w odd), the two-scale relation
+/// ([`refinement_parents`]). `along_x` (8·8 rows) and `along_y` (8·12 rows) are scratch space.
+fn prolong_window(
+    coarse: &[f64],
+    along_x: &mut [[f64; WINDOW]],
+    along_y: &mut [[f64; WINDOW]],
+    out: &mut [[f64; WINDOW]],
+    scale: f64,
+) {
+    let [quarter, three_quarters] = [REFINE[0], REFINE[1]];
+    let partner = |w: usize| if w & 1 == 0 { w >> 1 } else { (w >> 1) + 2 };
+    for (r, row) in along_x[..64].iter_mut().enumerate() {
+        let line = &coarse[8 * r..8 * r + 8];
+        *row = std::array::from_fn(|w| {
+            three_quarters * line[(w >> 1) + 1] + quarter * line[partner(w)]
+        });
+    }
+    for z in 0..8 {
+        for w in 0..WINDOW {
+            let (own, other) = (&along_x[8 * z + (w >> 1) + 1], &along_x[8 * z + partner(w)]);
+            along_y[WINDOW * z + w] =
+                std::array::from_fn(|x| three_quarters * own[x] + quarter * other[x]);
+        }
+    }
+    for w in 0..WINDOW {
+        for y in 0..WINDOW {
+            let (own, other) = (
+                &along_y[WINDOW * ((w >> 1) + 1) + y],
+                &along_y[WINDOW * partner(w) + y],
+            );
+            out[WINDOW * w + y] =
+                std::array::from_fn(|x| (three_quarters * own[x] + quarter * other[x]) * scale);
         }
     }
 }
