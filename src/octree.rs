@@ -246,33 +246,6 @@ impl Level {
             .node_at(at.slot, steps[0].join(steps[1]).join(steps[2]))
     }
 
-    /// The nodes at −2, −1, +1, +2 along `axis` from the node at `at`, reached as by stepping
-    /// from neighbour to neighbour: the one two away is `NONE` when the one between is missing.
-    /// (The node-by-node reference of the brick-wise passes' tests.)
-    #[cfg(test)]
-    pub fn line4(&self, at: NodePlace, axis: usize) -> [u32; 4] {
-        // The node's key bits of the other two axes, with no brick step.
-        let across = AxisStep {
-            brick: 0,
-            bits: at.position & !(spread3(7) << axis),
-        };
-        let local = at.local[axis];
-        let index = &self.index;
-        let m1 = index.node_at(at.slot, across.join(AxisStep::new(local, -1, axis)));
-        let p1 = index.node_at(at.slot, across.join(AxisStep::new(local, 1, axis)));
-        let m2 = if m1 == NONE {
-            NONE
-        } else {
-            index.node_at(at.slot, across.join(AxisStep::new(local, -2, axis)))
-        };
-        let p2 = if p1 == NONE {
-            NONE
-        } else {
-            index.node_at(at.slot, across.join(AxisStep::new(local, 2, axis)))
-        };
-        [m2, m1, p1, p2]
-    }
-
     /// The 3×3×3 block of nodes around node `i` (x fastest); entries outside K_d are `NONE`.
     #[inline]
     pub fn block27(&self, i: u32) -> [u32; 27] {
@@ -1309,21 +1282,6 @@ mod tests {
                     assert_eq!(level.neighbor(i, dir), at_offset(o), "node {c:?} dir {dir}");
                 }
                 let at = level.locate(&mut cursor, i);
-                for axis in 0..3 {
-                    let along = |d: i32| {
-                        let mut o = [0; 3];
-                        o[axis] = d;
-                        at_offset(o)
-                    };
-                    let (m1, p1) = (along(-1), along(1));
-                    let want = [
-                        if m1 == NONE { NONE } else { along(-2) },
-                        m1,
-                        p1,
-                        if p1 == NONE { NONE } else { along(2) },
-                    ];
-                    assert_eq!(level.line4(at, axis), want, "node {c:?} axis {axis}");
-                }
                 let block = level.block27_at(i, at);
                 assert_eq!(block, level.block27(i));
                 for (slot, &n) in block.iter().enumerate() {

@@ -34,78 +34,6 @@ use rayon::prelude::*;
 /// Rows per parallel task: fixed, so results never depend on the thread count.
 pub const CHUNK: usize = 4096;
 
-/// `out[i]` = Σ_δ taps[δ+2] · input[node i shifted by δ along `axis`], for every node of K_d,
-/// where a node two away counts only if the one between is in K_d too (as when stepping from
-/// neighbour to neighbour).
-///
-/// Brick by brick: each brick's values and those of the two layers of the bricks before and
-/// after it along `axis` are laid out in a dense 12 × 8 × 8 window first, walking occupancy
-/// bits in key order (a node's index is one more than the previous one's: no search, no count).
-pub fn pass(level: &Level, axis: usize, taps: &[f64; 5], input: &[f64], out: &mut [f64]) {
-    const BRICKS_PER_TASK: usize = 16;
-    let index = level.bricks();
-    let shared = SharedSlice::new(out);
-    let stride = 3usize.pow(axis as u32);
-    let [a1, a2] = match axis {
-        0 => [1, 2],
-        1 => [0, 2],
-        _ => [0, 1],
-    };
-    (0..index.brick_count())
-        .into_par_iter()
-        .with_min_len(BRICKS_PER_TASK)
-        .for_each_init(
-            || Box::new([0.0f64; 12 * 64]),
-            |window, b| {
-                // Layer = coordinate along `axis` + 2 (0..12); cross = the other two, 8 × 8. Only
-                // entries marked present are read, so the window is never cleared.
-                let mut present = [0u64; 12];
-                // The brick before along `axis` gives its last two layers, the brick itself all
-                // eight, the brick after its first two: (brick, local range, layer shift).
-                let around = index.bricks_around27(b);
-                let sources = [
-                    (around[13 - stride], 6..8, -6i32),
-                    (Some(b), 0..8, 2),
-                    (around[13 + stride], 0..2, 10),
-                ];
-                for (slot, range, shift) in sources {
-                    let Some(slot) = slot else { continue };
-                    for (node, l) in BrickNodes::new(index, slot) {
-                        if !range.contains(&l[axis]) {
-                            continue;
-                        }
-                        let layer = (l[axis] as i32 + shift) as usize;
-                        let cross = l[a1] + 8 * l[a2];
-                        window[layer * 64 + cross] = input[node as usize];
-                        present[layer] |= 1 << cross;
-                    }
-                }
-                for (node, l) in BrickNodes::new(index, b) {
-                    // (The masks only tell the compiler the indices stay in the window.)
-                    let layer = (l[axis] & 7) + 2;
-                    let cross = (l[a1] & 7) + 8 * (l[a2] & 7);
-                    let has = |layer: usize| present[layer] >> cross & 1 == 1;
-                    let value = |layer: usize| window[layer * 64 + cross];
-                    let mut sum = taps[2] * value(layer);
-                    if has(layer - 1) {
-                        sum += taps[1] * value(layer - 1);
-                        if has(layer - 2) {
-                            sum += taps[0] * value(layer - 2);
-                        }
-                    }
-                    if has(layer + 1) {
-                        sum += taps[3] * value(layer + 1);
-                        if has(layer + 2) {
-                            sum += taps[4] * value(layer + 2);
-                        }
-                    }
-                    // SAFETY: every node belongs to one brick, whose task alone writes it.
-                    unsafe { *shared.get_mut(node as usize) = sum };
-                }
-            },
-        );
-}
-
 /// The nodes of one brick in key order, as (node index, brick-local coordinates): a node's
 /// index is one more than the previous one's, not searched or counted.
 #[derive(Clone)]
@@ -515,6 +443,24 @@ impl CoreBricks {
         bricks
     }
 
+    /// Every brick of K_d with all its nodes as the "core": the passes of [`CoreBricks`] then
+    /// give their values at every node of K_d, in K_d's order.
+    fn whole_level(level: &Level) -> CoreBricks {
+        let index = level.bricks();
+        let count = index.brick_count();
+        CoreBricks {
+            around: (0..count)
+                .map(|b| {
+                    index
+                        .bricks_around27(b)
+                        .map(|s| s.map_or(u32::MAX, |s| s as u32))
+                })
+                .collect(),
+            first_core: (0..count).map(|b| index.brick(b).0).collect(),
+            core_mask: (0..count).map(|b| *index.brick(b).1).collect(),
+        }
+    }
+
     /// out[c] = h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)·input at every core node c (in core order), plus,
     /// with `screening` = (cells, proxies, weight α), α·Σ_q W_q B_c(q) χ(q) for χ = input.
     fn laplacian(
@@ -529,7 +475,7 @@ impl CoreBricks {
         let weighted_chi =
             weighted_chi.map(|(cells, proxies, chi)| (cells, proxies, SharedSlice::new(chi)));
         self.for_each_brick(
-            |cb, windows, _| self.gather_values(level, cb, input, windows),
+            |cb, [window], _| self.gather_values(level, cb, input, window),
             out,
             |[w], scratch, cb, core_nodes| {
                 if let Some((cells, proxies, chi)) = &weighted_chi {
@@ -713,17 +659,22 @@ impl CoreBricks {
         level: &Level,
         cb: usize,
         input: &[f64],
-        window: &mut [Vec<[f64; WINDOW]>; 1],
+        window: &mut Vec<[f64; WINDOW]>,
     ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx512f")
             && std::arch::is_x86_feature_detected!("popcnt")
         {
             // SAFETY: the CPU has the features the function is compiled for.
-            unsafe { self.gather_values_avx512(level, cb, input, &mut window[0]) };
+            unsafe { self.gather_values_avx512(level, cb, input, window) };
             return;
         }
-        self.gather(level, cb, &|n| [input[n]], window);
+        self.gather(
+            level,
+            cb,
+            &|n| [input[n]],
+            std::slice::from_mut(window).try_into().unwrap(),
+        );
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -1464,64 +1415,29 @@ impl<'a, T> SharedSlice<'a, T> {
 }
 
 /// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
-/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d. The three components are
-/// taken by value and used as scratch once read: one more halo vector, not three (pass a
-/// clone to keep V).
+/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d. The components are
+/// dropped as soon as they are read: with [`divergence_of`] for a field that is kept.
 pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
-    let t = tables();
-    let inv_h = 1.0 / level.width();
-    let [mut vx, mut vy, vz] = v;
-    let mut out = vec![0.0; level.len()];
-    // x component: G_x M_y M_z (vx is free once the first pass has read it).
-    pass(level, 2, &t.mass, &vx, &mut out);
-    pass(level, 1, &t.mass, &out, &mut vx);
-    pass(level, 0, &t.advection, &vx, &mut out);
-    // y component: M_x G_y M_z, through vx and vy.
-    pass(level, 2, &t.mass, &vy, &mut vx);
-    pass(level, 1, &t.advection, &vx, &mut vy);
-    pass(level, 0, &t.mass, &vy, &mut vx);
-    add_into(&mut out, &vx);
-    // z component: M_x M_y G_z, through vx and vy.
-    pass(level, 2, &t.advection, &vz, &mut vx);
-    pass(level, 1, &t.mass, &vx, &mut vy);
-    pass(level, 0, &t.mass, &vy, &mut vx);
-    add_into(&mut out, &vx);
-    out.par_iter_mut().for_each(|o| *o *= inv_h);
-    out
+    divergence_of(level, &v)
 }
 
-/// [`divergence`] of a field that is kept: two scratch vectors instead of the field's own
-/// (three halo-sized vectors allocated rather than a copy of the field and one more).
+/// [`divergence`] of a field that is kept. Brick by brick over every brick of K_d, on 12³
+/// windows of the three components gathered from the 27 bricks around (values beyond K_d are
+/// zero), as (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)): one sweep and no
+/// halo-sized scratch, where nine axis passes over the whole halo read and wrote it 18 times.
 pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
-    let t = tables();
-    let inv_h = 1.0 / level.width();
+    let bricks = CoreBricks::whole_level(level);
     let mut out = vec![0.0; level.len()];
-    let mut a = vec![0.0; level.len()];
-    let mut b = vec![0.0; level.len()];
-    // The same passes on the same values as [`divergence`], so the same bits.
-    pass(level, 2, &t.mass, &v[0], &mut a);
-    pass(level, 1, &t.mass, &a, &mut b);
-    pass(level, 0, &t.advection, &b, &mut out);
-    pass(level, 2, &t.mass, &v[1], &mut a);
-    pass(level, 1, &t.advection, &a, &mut b);
-    pass(level, 0, &t.mass, &b, &mut a);
-    add_into(&mut out, &a);
-    pass(level, 2, &t.advection, &v[2], &mut a);
-    pass(level, 1, &t.mass, &a, &mut b);
-    pass(level, 0, &t.mass, &b, &mut a);
-    add_into(&mut out, &a);
-    out.par_iter_mut().for_each(|o| *o *= inv_h);
-    out
-}
-
-fn add_into(out: &mut [f64], x: &[f64]) {
-    out.par_chunks_mut(CHUNK)
-        .zip(x.par_chunks(CHUNK))
-        .for_each(|(o, x)| {
-            for (o, x) in o.iter_mut().zip(x) {
-                *o += x;
+    bricks.divergence(
+        |cb, windows, _| {
+            for (window, component) in windows.iter_mut().zip(v) {
+                bricks.gather_values(level, cb, component, window);
             }
-        });
+        },
+        1.0 / level.width(),
+        &mut out,
+    );
+    out
 }
 
 /// The two-scale weight of parent k of a fine node (bit a of k set: the partner along axis a,
@@ -1771,7 +1687,6 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::octree::BrickCursor;
     use crate::octree::Octree;
 
     /// A complete 16³ grid with free boundaries: its halo reaches two nodes beyond the cube, so
@@ -1929,39 +1844,37 @@ mod tests {
                     let mut by_brick = vec![0.5; coarse.len()];
                     restrict_into(coarse, fine, &fine_values, &mut by_brick);
                     same(&by_node, &by_brick, "restrict");
-                    // The separable passes brick by brick against node by node along lines.
-                    let taps = [0.1, -0.7, 1.3, 0.6, -0.2];
-                    for axis in 0..3 {
-                        let mut out = vec![0.0; fine.len()];
-                        pass(fine, axis, &taps, &fine_values, &mut out);
-                        let mut cursor = BrickCursor::default();
-                        let want: Vec<f64> = (0..fine.len() as u32)
-                            .map(|i| {
-                                let line = fine.line4(fine.locate(&mut cursor, i), axis);
-                                let x = |n: u32| {
-                                    if n == NONE {
-                                        0.0
-                                    } else {
-                                        fine_values[n as usize]
-                                    }
-                                };
-                                let mut sum = taps[2] * fine_values[i as usize];
-                                if line[1] != NONE {
-                                    sum += taps[1] * x(line[1]);
-                                    if line[0] != NONE {
-                                        sum += taps[0] * x(line[0]);
-                                    }
-                                }
-                                if line[2] != NONE {
-                                    sum += taps[3] * x(line[2]);
-                                    if line[3] != NONE {
-                                        sum += taps[4] * x(line[3]);
-                                    }
-                                }
-                                sum
-                            })
-                            .collect();
-                        same(&want, &out, "pass");
+                    // The divergence brick by brick against the 125-node sum node by node.
+                    let field: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                        (0..fine.len())
+                            .map(|i| ((i * (a + 2) + 1) % 11) as f64 * 0.37 - 1.7)
+                            .collect()
+                    });
+                    let got = divergence_of(fine, &field);
+                    let t = tables();
+                    for i in 0..fine.len() as u32 {
+                        let o = fine.coord(i);
+                        let mut want = 0.0;
+                        for k in 0..125 {
+                            let d = [k % 5, k / 5 % 5, k / 25];
+                            let Some(j) =
+                                fine.find(std::array::from_fn(|a| o[a] + d[a] as i32 - 2))
+                            else {
+                                continue;
+                            };
+                            let (m, g) = (t.mass, t.advection);
+                            let v = field.each_ref().map(|c| c[j as usize]);
+                            want += g[d[0]] * m[d[1]] * m[d[2]] * v[0]
+                                + m[d[0]] * g[d[1]] * m[d[2]] * v[1]
+                                + m[d[0]] * m[d[1]] * g[d[2]] * v[2];
+                        }
+                        want /= fine.width();
+                        let err = (got[i as usize] - want).abs();
+                        assert!(
+                            err < 1e-9 * (1.0 + want.abs()),
+                            "node {i}: {} vs {want}",
+                            got[i as usize]
+                        );
                     }
                 }
             }
@@ -1991,7 +1904,7 @@ mod tests {
                     let mut fast = [vec![[f64::NAN; WINDOW]; WINDOW * WINDOW]];
                     let mut slow = fast.clone();
                     for cb in 0..bricks.around.len() {
-                        bricks.gather_values(level, cb, &input, &mut fast);
+                        bricks.gather_values(level, cb, &input, &mut fast[0]);
                         bricks.gather(level, cb, &|n| [input[n]], &mut slow);
                         assert_eq!(fast, slow, "depth {} brick {cb}", level.depth);
                     }
