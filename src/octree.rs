@@ -434,8 +434,10 @@ impl Octree {
             }
             cores[d as usize] = keys;
         }
+        // The levels are independent: built side by side (the widening of one level's bricks
+        // is serial).
         let mut levels: Vec<Level> = cores
-            .into_iter()
+            .into_par_iter()
             .enumerate()
             .map(|(d, core)| Level::with_halo(d as u32, &core, neumann))
             .collect();
