@@ -117,7 +117,7 @@ fn pack(p: Point) -> u64 {
 }
 
 /// Inverse of [`pack`].
-#[cfg(test)]
+#[inline]
 fn unpack(k: u64) -> Point {
     [k & 0xF_FFFF, (k >> 20) & 0xF_FFFF, (k >> 40) & 0xF_FFFF].map(|v| v as i64 - KEY_OFFSET)
 }
@@ -561,6 +561,7 @@ pub fn extract(
             f64::INFINITY
         }
     };
+    let mut values: KeyMap<f64> = KeyMap::default();
     let mut vertex_of_edge: KeyMap<u32> = KeyMap::default();
     let mut visited: KeyMap<()> = KeyMap::default();
     let mut mesh = RawMesh::default();
@@ -582,10 +583,12 @@ pub fn extract(
         let batch = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
         done += batch.len();
         // Where each leaf of the wave stands among its neighbours, its points and χ − γ there.
-        // A point shared by several leaves is evaluated by each, with the same result (a pure
-        // function of the position): no table of values. The corners of a leaf of the finest
-        // depth come from the leaf's own 27 nodes, which its block looked up anyway.
-        let plans: Vec<(Block, [Point; SLOTS], u32, [f64; SLOTS])> = batch
+        // The corners of a leaf of the finest depth come from the leaf's own 27 nodes, which
+        // its block looked up anyway (a pure function of the position, so the leaves sharing a
+        // corner get the same value). Every other point (`looked_up`) is evaluated once and
+        // kept in `values`: coarser leaves share their points more, and evaluating them costs
+        // a look-up each.
+        let mut plans: Vec<(Block, [Point; SLOTS], u32, [f64; SLOTS], u32)> = batch
             .par_iter()
             .map(|leaf| {
                 let (block, nodes) = leaves.block(leaf);
@@ -595,21 +598,42 @@ pub fn extract(
                     _ => [None; 8],
                 };
                 let mut values = [0.0; SLOTS];
+                let mut looked_up = 0u32;
                 for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                    values[i] = match corners.get(i) {
-                        Some(Some(v)) => v - isovalue,
-                        _ => evaluate(points[i]),
-                    };
+                    match corners.get(i) {
+                        Some(Some(v)) => values[i] = v - isovalue,
+                        _ => looked_up |= 1 << i,
+                    }
                 }
-                (block, points, used, values)
+                (block, points, used, values, looked_up)
             })
             .collect();
+        let mut needed: Vec<u64> = plans
+            .par_iter()
+            .flat_map_iter(|&(_, points, _, _, looked_up)| {
+                (0..SLOTS)
+                    .filter(move |&i| looked_up >> i & 1 == 1)
+                    .map(move |i| pack(points[i]))
+            })
+            .filter(|k| !values.contains_key(k))
+            .collect();
+        needed.par_sort_unstable();
+        needed.dedup();
+        let fresh: Vec<f64> = needed.par_iter().map(|&k| evaluate(unpack(k))).collect();
+        values.extend(needed.into_iter().zip(fresh));
+        plans
+            .par_iter_mut()
+            .for_each(|(_, points, _, vals, looked_up)| {
+                for i in (0..SLOTS).filter(|&i| *looked_up >> i & 1 == 1) {
+                    vals[i] = values[&pack(points[i])];
+                }
+            });
 
         // The surface's loops in each leaf of the wave (independent: in parallel). Face
         // centres, needed only by rare ambiguous faces, are evaluated where they are needed.
         let crossed: Vec<Vec<Vec<Crossing>>> = plans
             .par_iter()
-            .map(|&(_, points, used, vals)| {
+            .map(|&(_, points, used, vals, _)| {
                 let (mut outside, mut inside) = (false, false);
                 for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
                     outside |= vals[i] >= 0.0;
@@ -628,7 +652,7 @@ pub fn extract(
         // for the triangulation.
         let mut new_edges: Vec<Crossing> = Vec::new();
         let mut crossing_ids: Vec<u32> = Vec::new();
-        for ((leaf, (block, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
+        for ((leaf, (block, _, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
             for c in loops.iter().flatten() {
                 let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
                 let mut created = false;
