@@ -34,10 +34,11 @@
 //! face of the leaf (a neighbour could produce the same diagonal); when no such fan exists a
 //! centre vertex is added. Every mesh edge is then in exactly two triangles and every vertex has
 //! a single fan: a 2-manifold. The surface is followed from the leaves that hold samples, leaf
-//! to leaf through the leaves around every crossed edge, each leaf evaluating χ at its corners
-//! and edge midpoints (and at the centre of a rare ambiguous face with cut edges). χ at a point
-//! is a pure function of the point, so the leaves sharing it see the same value; a leaf of the
-//! finest depth reads its corners' values off its own 27 nodes.
+//! to leaf through the leaves around every crossed edge. A leaf of the finest depth reads χ at
+//! its corners off its own 27 nodes; every other corner and edge midpoint is evaluated once and
+//! kept (and the centre of a rare ambiguous face with cut edges where it is needed). χ at a
+//! point is a pure function of the point, so the leaves sharing it see the same value either
+//! way.
 //!
 //! **Vertices.** Each crossed minimal edge's vertex is the root of χ − γ on it; then, unless the
 //! caller asks for vertices on the level set, [`fit_to_surface`] moves every vertex along the

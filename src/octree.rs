@@ -499,8 +499,7 @@ pub fn parent_key(k: u64) -> u64 {
 }
 
 impl Level {
-    /// The level whose core is `core` (packed keys, sorted, unique).
-    /// The level whose core is `core` (packed keys, sorted): K_d is the core widened by two
+    /// The level whose core is `core` (packed keys, sorted, unique): K_d is the core widened by two
     /// nodes, NEAR the core widened by one. The widening runs on bit rows of 8×8×8 bricks
     /// ([`BrickRows`]), and the bricks sorted by key list the nodes in Morton order (a brick's
     /// positions are its keys' low nine bits): no per-node sort and no per-node look-up.
