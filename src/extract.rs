@@ -271,6 +271,10 @@ impl Leaves<'_> {
 /// The statuses of the 3×3×3 cells of a leaf's depth around it (index (dx+1) + 3(dy+1) + 9(dz+1)).
 type Block = [Status; 27];
 
+/// A leaf planned for tracing: its neighbours' statuses, its points (slots), the slots it
+/// uses, χ − γ at them, and the slots whose values come from the table of evaluated points.
+type Plan = (Block, [Point; SLOTS], u32, [f64; SLOTS], u32);
+
 fn block_index(offset: [i64; 3]) -> usize {
     ((offset[0] + 1) + 3 * (offset[1] + 1) + 9 * (offset[2] + 1)) as usize
 }
@@ -576,20 +580,14 @@ pub fn extract(
         .collect();
     frontier.retain(|leaf| visited.insert(leaves.key(leaf), ()).is_none());
 
-    // Wave by wave, each in batches of a fixed size: the first wave holds every leaf with a
-    // sample, and planning it at once held ~0.6 KB per leaf (bunny depth 10: 400 MB).
-    let mut next_frontier = Vec::new();
-    let mut done = 0;
-    while done < frontier.len() {
-        let batch = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
-        done += batch.len();
-        // Where each leaf of the wave stands among its neighbours, its points and χ − γ there.
-        // The corners of a leaf of the finest depth come from the leaf's own 27 nodes, which
-        // its block looked up anyway (a pure function of the position, so the leaves sharing a
-        // corner get the same value). Every other point (`looked_up`) is evaluated once and
-        // kept in `values`: coarser leaves share their points more, and evaluating them costs
-        // a look-up each.
-        let mut plans: Vec<(Block, [Point; SLOTS], u32, [f64; SLOTS], u32)> = batch
+    // Where each leaf of the wave stands among its neighbours, its points and χ − γ there.
+    // The corners of a leaf of the finest depth come from the leaf's own 27 nodes, which
+    // its block looked up anyway (a pure function of the position, so the leaves sharing a
+    // corner get the same value). Every other point (`looked_up`) is evaluated once and
+    // kept in `values`: coarser leaves share their points more, and evaluating them costs
+    // a look-up each.
+    let plan_batch = |batch: &[Leaf]| -> Vec<Plan> {
+        batch
             .par_iter()
             .map(|leaf| {
                 let (block, nodes) = leaves.block(leaf);
@@ -608,7 +606,19 @@ pub fn extract(
                 }
                 (block, points, used, values, looked_up)
             })
-            .collect();
+            .collect()
+    };
+
+    // Wave by wave, each in batches of a fixed size: the first wave holds every leaf with a
+    // sample, and planning it at once held ~0.6 KB per leaf (bunny depth 10: 400 MB).
+    let mut next_frontier = Vec::new();
+    let mut done = 0;
+    // The next batch of the wave, planned while this one's vertices are numbered.
+    let mut planned: Option<Vec<Plan>> = None;
+    while done < frontier.len() {
+        let batch = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
+        done += batch.len();
+        let mut plans = planned.take().unwrap_or_else(|| plan_batch(batch));
         let mut needed: Vec<u64> = plans
             .par_iter()
             .flat_map_iter(|&(_, points, _, _, looked_up)| {
@@ -650,29 +660,38 @@ pub fn extract(
 
         // Number the vertices of newly crossed edges in trace order, and visit the leaves
         // around each of those edges. Every crossing's vertex id is kept, in the same order,
-        // for the triangulation.
-        let mut new_edges: Vec<Crossing> = Vec::new();
-        let mut crossing_ids: Vec<u32> = Vec::new();
-        for ((leaf, (block, _, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
-            for c in loops.iter().flatten() {
-                let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
-                let mut created = false;
-                let id = *vertex_of_edge.entry(c.key).or_insert_with(|| {
-                    created = true;
-                    next_id
-                });
-                crossing_ids.push(id);
-                if !created {
-                    continue;
-                }
-                new_edges.push(*c);
-                for around in leaves_around(leaf, block, c, finest).into_iter().flatten() {
-                    if visited.insert(leaves.key(&around), ()).is_none() {
-                        next_frontier.push(around);
+        // for the triangulation. This is one thread's work: the next batch of the wave (which
+        // neither reads nor changes these tables) is planned meanwhile.
+        let following = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
+        let number = || {
+            let mut new_edges: Vec<Crossing> = Vec::new();
+            let mut crossing_ids: Vec<u32> = Vec::new();
+            for ((leaf, (block, _, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
+                for c in loops.iter().flatten() {
+                    let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
+                    let mut created = false;
+                    let id = *vertex_of_edge.entry(c.key).or_insert_with(|| {
+                        created = true;
+                        next_id
+                    });
+                    crossing_ids.push(id);
+                    if !created {
+                        continue;
+                    }
+                    new_edges.push(*c);
+                    for around in leaves_around(leaf, block, c, finest).into_iter().flatten() {
+                        if visited.insert(leaves.key(&around), ()).is_none() {
+                            next_frontier.push(around);
+                        }
                     }
                 }
             }
-        }
+            (new_edges, crossing_ids)
+        };
+        let ((new_edges, crossing_ids), next_plans) = rayon::join(number, || {
+            (!following.is_empty()).then(|| plan_batch(following))
+        });
+        planned = next_plans;
         drop(plans);
         // Place the new vertices (independent of each other: in parallel), then triangulate.
         let placed: Vec<(DVec3, DVec3)> = new_edges
