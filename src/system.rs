@@ -669,12 +669,7 @@ impl CoreBricks {
             unsafe { self.gather_values_avx512(level, cb, input, window) };
             return;
         }
-        self.gather(
-            level,
-            cb,
-            &|n| [input[n]],
-            std::slice::from_mut(window).try_into().unwrap(),
-        );
+        self.gather(level, cb, &|n| [input[n]], std::array::from_mut(window));
     }
 
     #[cfg(target_arch = "x86_64")]
