@@ -189,9 +189,9 @@ pub(crate) fn run(
 
     // 4. Splat: V at each sample's one or two depths (§4.2, §4.5), finest depth first. The
     // finest V is needed for nothing but ρ at that depth (no finer depth prolongs it), so the
-    // system's first step runs here: its divergence takes V's three vectors as scratch space
-    // before the coarser depths' V exist (four halo-sized vectors of the finest depth are the
-    // peak of these stages). Its time is counted in the system stage.
+    // system's first step runs here, before the coarser depths' V exist: V's three vectors and
+    // ρ (four halo-sized vectors of the finest depth) are the peak of these stages. Its time is
+    // counted in the system stage.
     let splat_at = |d: usize| {
         let mut v = splat_depth(
             &tree.levels[d],

@@ -15,9 +15,9 @@
 //! Same-depth stencils are tensor products of the 1-D tables of [`crate::bspline`], so they are
 //! applied as three 1-D passes (5 taps each) instead of 125-entry rows:
 //! `⟨∇B_o, ∇B_o′⟩ = h (D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)` and `⟨∇B_o, F̃_o′⟩·v = (1/h)(G⊗M⊗M vx + …)`.
-//! For the core (the operator in the solve) the passes run brick by brick on dense 12³ windows
-//! gathered from the halo (`CoreBricks`); for the whole halo (the right-hand side's
-//! divergence, restricted to coarser depths) on 12×8×8 windows along each axis ([`pass`]).
+//! The passes run brick by brick on dense 12³ windows gathered from the halo (`CoreBricks`):
+//! over the bricks holding core nodes for the operator in the solve, over every brick of K_d
+//! for the right-hand side's divergence on the whole halo (restricted to coarser depths).
 //! The screening term runs on the same core windows (`ScreeningCells`). Both are exact wherever
 //! the input is supported on K_d (see [`crate::octree`]): every node a core node's stencil
 //! reaches is in the halo.
@@ -1410,8 +1410,8 @@ impl<'a, T> SharedSlice<'a, T> {
 }
 
 /// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
-/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d. The components are
-/// dropped as soon as they are read: with [`divergence_of`] for a field that is kept.
+/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d, which is dropped when it
+/// returns; [`divergence_of`] for a field that is kept.
 pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
     divergence_of(level, &v)
 }
