@@ -628,84 +628,68 @@ impl BrickRows {
 
     /// The nodes within Chebyshev distance one of the set.
     fn widened(&self) -> BrickRows {
-        let mut set = BrickRows {
-            rows: self.rows.clone(),
-        };
-        for axis in 0..3 {
-            set = set.widened_along(axis);
-        }
-        set
+        self.widened_along(0).widened_along(1).widened_along(2)
     }
 
     /// The set widened by one node along `axis`.
     fn widened_along(&self, axis: usize) -> BrickRows {
+        let or_into = |rows: &mut [u8; 64], more: &[u8; 64]| {
+            for (r, m) in rows.iter_mut().zip(more) {
+                *r |= m;
+            }
+        };
         let mut out = self.rows.clone();
         let step = 1u64 << (axis as u32 * BITS);
         for (&brick, rows) in &self.rows {
-            let mut widened = *rows;
-            // Rows moved one node towards +axis and −axis (bits leaving the brick dropped),
-            // and the bits that leave it on each side, as rows of the brick beside.
-            let (mut up, mut down) = ([0u8; 64], [0u8; 64]);
+            // The rows moved one node towards +axis and −axis within the brick, and the bits
+            // that leave it on each side, as rows of the brick beside.
+            let mut moved = [0u8; 64];
             let (mut carry_up, mut carry_down) = ([0u8; 64], [0u8; 64]);
             for r in 0..64 {
                 let (y, z) = (r & 7, r >> 3);
                 match axis {
                     0 => {
-                        up[r] = rows[r] << 1;
-                        down[r] = rows[r] >> 1;
+                        moved[r] |= rows[r] << 1 | rows[r] >> 1;
                         carry_up[r] = rows[r] >> 7;
                         carry_down[r] = rows[r] << 7;
                     }
                     1 => {
                         if y < 7 {
-                            up[r + 1] = rows[r];
+                            moved[r + 1] |= rows[r];
                         } else {
                             carry_up[r - 7] = rows[r];
                         }
                         if y > 0 {
-                            down[r - 1] = rows[r];
+                            moved[r - 1] |= rows[r];
                         } else {
                             carry_down[r + 7] = rows[r];
                         }
                     }
                     _ => {
                         if z < 7 {
-                            up[r + 8] = rows[r];
+                            moved[r + 8] |= rows[r];
                         } else {
                             carry_up[y] = rows[r];
                         }
                         if z > 0 {
-                            down[r - 8] = rows[r];
+                            moved[r - 8] |= rows[r];
                         } else {
                             carry_down[y + 56] = rows[r];
                         }
                     }
                 }
             }
-            for r in 0..64 {
-                widened[r] |= up[r] | down[r];
+            or_into(out.get_mut(&brick).expect("a copy of the input"), &moved);
+            if carry_up.iter().any(|&r| r != 0) {
+                or_into(out.entry(brick + step).or_insert([0; 64]), &carry_up);
             }
-            let slot = out.get_mut(&brick).expect("a copy of the input");
-            for (o, w) in slot.iter_mut().zip(widened) {
-                *o |= w;
-            }
-            let at_low_end = (brick / step) & ((1 << BITS) - 1) == 0;
-            for (carry, beside) in [
-                (carry_up, brick + step),
-                (carry_down, brick.wrapping_sub(step)),
-            ] {
-                if carry.iter().all(|&r| r == 0) {
-                    continue;
-                }
+            if carry_down.iter().any(|&r| r != 0) {
                 // Halo coordinates stay above −OFFSET (a brick of offset coordinate 0).
                 assert!(
-                    !(at_low_end && beside < brick),
+                    (brick / step) & ((1 << BITS) - 1) > 0,
                     "node coordinate below -OFFSET"
                 );
-                let slot = out.entry(beside).or_insert([0; 64]);
-                for (o, c) in slot.iter_mut().zip(carry) {
-                    *o |= c;
-                }
+                or_into(out.entry(brick - step).or_insert([0; 64]), &carry_down);
             }
         }
         BrickRows { rows: out }
