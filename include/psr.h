@@ -154,6 +154,12 @@ typedef enum {
      * the message and the input that triggered it.
      */
     PSR_STATUS_INTERNAL_ERROR = 11,
+    /**
+     * The operating system refused to start the solve's worker threads (a thread or process
+     * limit, or no memory for their stacks). Nothing was computed and the handle stays usable:
+     * set fewer threads (psr_reconstructor_set_threads) or free resources and try again.
+     */
+    PSR_STATUS_THREADS_UNAVAILABLE = 12,
 } psr_status;
 
 /**

@@ -37,6 +37,15 @@ pub enum Error {
     },
     /// The caller's progress callback asked to stop.
     Cancelled,
+    /// The operating system refused to start the reconstruction's worker threads (a limit on
+    /// threads or processes, or no memory for their stacks). Nothing was computed; ask for
+    /// fewer threads or free resources and try again.
+    ThreadsUnavailable {
+        /// the worker threads asked for
+        threads: usize,
+        /// the system's reason
+        reason: String,
+    },
     /// A bug in psr: please report it with the input that triggered it.
     Internal(String),
 }
@@ -74,6 +83,10 @@ impl fmt::Display for Error {
                 write!(f, "parameter {name} = {value} is out of range: expected {expected}")
             }
             Error::Cancelled => write!(f, "reconstruction cancelled by the progress callback"),
+            Error::ThreadsUnavailable { threads, reason } => write!(
+                f,
+                "the system refused to start {threads} worker threads ({reason}): set fewer threads or free resources and retry"
+            ),
             Error::Internal(msg) => write!(f, "internal error in psr (a bug, please report it): {msg}"),
         }
     }

@@ -106,6 +106,10 @@ pub enum psr_status {
     /// A bug in psr. If it came from a panic, the handle is now poisoned. Please report it with
     /// the message and the input that triggered it.
     InternalError = 11,
+    /// The operating system refused to start the solve's worker threads (a thread or process
+    /// limit, or no memory for their stacks). Nothing was computed and the handle stays usable:
+    /// set fewer threads (psr_reconstructor_set_threads) or free resources and try again.
+    ThreadsUnavailable = 12,
 }
 
 /// The pipeline stages reported to the progress callback, in order.
@@ -259,6 +263,7 @@ impl Failure {
             Error::DegenerateInput { .. } => psr_status::InvalidArgument,
             Error::InvalidParameter { .. } => psr_status::InvalidParameter,
             Error::Cancelled => psr_status::Cancelled,
+            Error::ThreadsUnavailable { .. } => psr_status::ThreadsUnavailable,
             Error::Internal(_) => psr_status::InternalError,
         };
         Failure::new(status, format!("{function}: {error}"))
@@ -425,6 +430,7 @@ pub extern "C" fn psr_status_string(status: c_int) -> *const c_char {
         9 => "PSR_STATUS_BUFFER_TOO_SMALL\0",
         10 => "PSR_STATUS_HANDLE_POISONED\0",
         11 => "PSR_STATUS_INTERNAL_ERROR\0",
+        12 => "PSR_STATUS_THREADS_UNAVAILABLE\0",
         _ => "PSR_STATUS_UNKNOWN\0",
     };
     name.as_ptr().cast()
@@ -1565,12 +1571,16 @@ mod tests {
             (psr_status::BufferTooSmall, "PSR_STATUS_BUFFER_TOO_SMALL"),
             (psr_status::HandlePoisoned, "PSR_STATUS_HANDLE_POISONED"),
             (psr_status::InternalError, "PSR_STATUS_INTERNAL_ERROR"),
+            (
+                psr_status::ThreadsUnavailable,
+                "PSR_STATUS_THREADS_UNAVAILABLE",
+            ),
         ];
         for (status, name) in all {
             let got = unsafe { CStr::from_ptr(psr_status_string(status as c_int)) };
             assert_eq!(got.to_str().unwrap(), name);
         }
-        for unknown in [-1, 12, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 13, c_int::MAX, c_int::MIN] {
             let got = unsafe { CStr::from_ptr(psr_status_string(unknown)) };
             assert_eq!(got.to_str().unwrap(), "PSR_STATUS_UNKNOWN");
         }

@@ -168,7 +168,10 @@ pub fn reconstruct_with_progress(
             Ok(())
         })
         .build()
-        .map_err(|e| Error::Internal(format!("could not start {threads} worker threads: {e}")))?;
+        .map_err(|e| Error::ThreadsUnavailable {
+            threads,
+            reason: e.to_string(),
+        })?;
     let result = pipeline::run(points, params, &pool, progress);
     drop(pool);
     for worker in workers {

@@ -847,6 +847,7 @@ fn status_numbers_are_stable() {
         (psr_status::BufferTooSmall, 9),
         (psr_status::HandlePoisoned, 10),
         (psr_status::InternalError, 11),
+        (psr_status::ThreadsUnavailable, 12),
     ];
     for (status, number) in expected {
         assert_eq!(status as i32, number, "{status:?}");
