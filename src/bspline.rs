@@ -16,6 +16,7 @@
 //! The tables are integrated exactly (Gauss–Legendre, exact for these piecewise polynomials on
 //! each piece) when first used; no numerical integration happens at reconstruction time.
 
+use glam::DVec3;
 use std::sync::OnceLock;
 
 /// Half-width of the support of b, in node widths.
@@ -100,6 +101,23 @@ fn integrate_piecewise(f: impl Fn(f64) -> f64) -> f64 {
         a += 0.5;
     }
     sum
+}
+
+/// The node coordinates whose functions may be non-zero at `p` (3 per axis) and the function
+/// values, at a depth of width 1/`inv_h`.
+#[inline]
+pub fn stencil27(p: DVec3, inv_h: f64) -> ([i32; 3], [[f64; 3]; 3]) {
+    let t = p * inv_h;
+    let cell = t.floor();
+    let c = [cell.x as i32, cell.y as i32, cell.z as i32];
+    let mut w = [[0.0; 3]; 3];
+    for axis in 0..3 {
+        // Node c−1+k has centre c−½+k; b at t − centre.
+        for (k, slot) in w[axis].iter_mut().enumerate() {
+            *slot = value(t[axis] - (c[axis] as f64 - 0.5 + k as f64));
+        }
+    }
+    (c, w)
 }
 
 #[cfg(test)]

@@ -1,4 +1,4 @@
-//! Stage 3 — kernel density estimation (§4.5).
+//! Stage 2 — kernel density estimation (§4.5).
 //!
 //! Every sample splats a unit weight onto the eight depth-D̂ nodes nearest to it with trilinear
 //! weights; the density at a point is W(q) = Σ_o count_o · B_o(q), which for a surface sampled
@@ -15,7 +15,8 @@
 //!   a sample count (PoissonRecon's `samplesPerNode`) instead of the mean, so uniformly dense
 //!   scans keep their full depth.
 
-use crate::octree::{morton, KeyMap};
+use crate::bspline::stencil27;
+use crate::grid::{morton, KeyMap};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -24,7 +25,7 @@ const PLANE_KERNEL_PEAK: f64 = 115.0 / 192.0;
 
 /// The eight nodes nearest to `p` at a depth of width `h` and their trilinear weights.
 #[inline]
-pub fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
+fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
     let t = p * inv_h - DVec3::splat(0.5);
     let base = t.floor();
     let f = t - base;
@@ -41,23 +42,6 @@ pub fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
         );
     }
     out
-}
-
-/// The node coordinates whose functions may be non-zero at `p` (3 per axis) and the function
-/// values, at a depth of width 1/`inv_h`.
-#[inline]
-pub fn stencil27(p: DVec3, inv_h: f64) -> ([i32; 3], [[f64; 3]; 3]) {
-    let t = p * inv_h;
-    let cell = t.floor();
-    let c = [cell.x as i32, cell.y as i32, cell.z as i32];
-    let mut w = [[0.0; 3]; 3];
-    for axis in 0..3 {
-        // Node c−1+k has centre c−½+k; b at t − centre.
-        for (k, slot) in w[axis].iter_mut().enumerate() {
-            *slot = crate::bspline::value(t[axis] - (c[axis] as f64 - 0.5 + k as f64));
-        }
-    }
-    (c, w)
 }
 
 /// The splatted sample counts at the kernel depth.

@@ -6,9 +6,9 @@
 //! p the deepest depth whose core functions reach p (p's cell has the `NEAR` flag) holds all of
 //! χ(p): no finer node function is non-zero there, and every coarser one is included in z_d.
 
-use crate::density::stencil27;
+use crate::bspline::stencil27;
+use crate::grid::cell_of;
 use crate::octree::{Octree, NEAR, NONE};
-use crate::system::cell_of;
 use glam::DVec3;
 
 /// The solved indicator function.

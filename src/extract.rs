@@ -52,7 +52,8 @@
 //! cube's face: the mesh is always closed.
 
 use crate::evaluate::Indicator;
-use crate::octree::{KeyMap, Level, Octree, CORE, NONE, SPLIT};
+use crate::grid::KeyMap;
+use crate::octree::{Level, Octree, CORE, NONE, SPLIT};
 use glam::DVec3;
 use rayon::prelude::*;
 

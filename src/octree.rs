@@ -1,4 +1,4 @@
-//! Stage 2 — the octree (§4.1), stored linearly one depth at a time.
+//! Stage 3 — the octree (§4.1), stored linearly one depth at a time.
 //!
 //! At each depth d the tree keeps two nested node sets:
 //!
@@ -18,94 +18,12 @@
 //! node function near the cube's face reaches beyond it, and with free boundaries (the
 //! paper's) that is where its neighbours live.
 
+use crate::grid::{compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
+use crate::parallel::DistinctIndices;
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
 
 /// Marks a missing neighbour or parent.
 pub const NONE: u32 = u32::MAX;
-
-/// Coordinates are stored shifted by this much so that halo nodes just outside the cube are
-/// representable as unsigned.
-const OFFSET: i32 = 8;
-const BITS: u32 = 21;
-
-/// The integer index of a node at some depth (may be slightly negative or ≥ 2^d in the halo).
-pub type Coord = [i32; 3];
-
-/// Morton key of a node coordinate (21 bits per axis after the offset).
-#[inline]
-pub fn morton(c: Coord) -> u64 {
-    spread((c[0] + OFFSET) as u64)
-        | (spread((c[1] + OFFSET) as u64) << 1)
-        | (spread((c[2] + OFFSET) as u64) << 2)
-}
-
-/// Morton key of non-negative coordinates without the halo offset, so that the keys of a cell's
-/// descendants at any finer depth are contiguous (sorting points by this key at depth D sorts
-/// them by cell at every coarser depth too).
-#[inline]
-pub fn morton_nested(c: [u32; 3]) -> u64 {
-    spread(c[0] as u64) | (spread(c[1] as u64) << 1) | (spread(c[2] as u64) << 2)
-}
-
-/// Inverse of [`morton`].
-#[inline]
-pub fn unmorton(k: u64) -> Coord {
-    [
-        compact(k) as i32 - OFFSET,
-        compact(k >> 1) as i32 - OFFSET,
-        compact(k >> 2) as i32 - OFFSET,
-    ]
-}
-
-#[inline]
-fn spread(v: u64) -> u64 {
-    let mut x = v & ((1 << BITS) - 1);
-    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
-    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
-    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
-    x
-}
-
-#[inline]
-fn compact(v: u64) -> u64 {
-    let mut x = v & 0x1249_2492_4924_9249;
-    x = (x | (x >> 2)) & 0x10c3_0c30_c30c_30c3;
-    x = (x | (x >> 4)) & 0x100f_00f0_0f00_f00f;
-    x = (x | (x >> 8)) & 0x001f_0000_ff00_00ff;
-    x = (x | (x >> 16)) & 0x001f_0000_0000_ffff;
-    x = (x | (x >> 32)) & ((1 << BITS) - 1);
-    x
-}
-
-/// A multiplicative hasher for Morton keys (they are already well spread; SipHash is slow).
-#[derive(Default, Clone, Copy)]
-pub struct KeyHasher(u64);
-
-impl Hasher for KeyHasher {
-    #[inline]
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    #[inline]
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ b as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        }
-    }
-    #[inline]
-    fn write_u64(&mut self, k: u64) {
-        self.0 = (k ^ (k >> 29))
-            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            .rotate_left(26);
-    }
-}
-
-/// A hash map from Morton keys.
-pub type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
 
 /// Flag bits per node.
 pub const CORE: u8 = 1;
@@ -123,8 +41,9 @@ pub struct Level {
     pub keys: Vec<u64>,
     /// `CORE` / `NEAR` / `SPLIT` bits per node.
     pub flags: Vec<u8>,
-    /// Indices of the core nodes, ascending.
-    pub core: Vec<u32>,
+    /// Indices of the core nodes, ascending (so distinct: the per-node loops write at them in
+    /// parallel).
+    pub core: DistinctIndices,
     /// With Neumann boundaries: every halo node outside the cube, the node it mirrors (its
     /// reflection across the cube's faces, inside the cube) and a bit per reflected axis.
     pub mirrors: Vec<Mirror>,
@@ -582,7 +501,7 @@ impl Level {
             depth,
             keys,
             flags,
-            core,
+            core: DistinctIndices::new(core),
             mirrors,
             index,
         }
@@ -1025,11 +944,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn morton_round_trips_including_halo_coordinates() {
-        for c in [[0, 0, 0], [-2, 5, 7], [65537, -8, 3], [123, 456, 789]] {
-            assert_eq!(unmorton(morton(c)), c);
-        }
-        // Morton order keeps a parent's children contiguous.
+    fn morton_order_keeps_a_parents_children_contiguous() {
         let p = morton([3, 5, 6]);
         for dz in 0..2 {
             for dy in 0..2 {

@@ -4,7 +4,8 @@
 
 use crate::density::{self, DensityField};
 use crate::evaluate::Indicator;
-use crate::octree::{morton_nested, Octree};
+use crate::grid::{cell_of, morton_nested};
+use crate::octree::Octree;
 use crate::points::UnitCubeMap;
 use crate::solve::conjugate_gradients;
 use crate::splat::{splat_depth, DepthSample};
@@ -82,7 +83,7 @@ impl Samples {
             .par_iter()
             .enumerate()
             .map(|(s, &p)| {
-                let c = crate::system::cell_of(p, inv_h);
+                let c = cell_of(p, inv_h);
                 (morton_nested(c.map(|v| v.max(0) as u32)), s as u32)
             })
             .collect();
@@ -178,7 +179,7 @@ pub(crate) fn run(
         .map(|(d, at)| {
             let inv_h = (d as f64).exp2();
             at.iter()
-                .map(|s| crate::system::cell_of(samples.positions[s.sample as usize], inv_h))
+                .map(|s| cell_of(samples.positions[s.sample as usize], inv_h))
                 .collect()
         })
         .collect();
@@ -383,7 +384,7 @@ pub(crate) fn run(
         .positions
         .iter()
         .map(|&p| {
-            let c = crate::system::cell_of(p, inv_h);
+            let c = cell_of(p, inv_h);
             [c[0] as i64, c[1] as i64, c[2] as i64]
         })
         .collect();

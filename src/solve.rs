@@ -10,7 +10,8 @@
 //! is the same bit for bit whatever the number of threads.
 
 use crate::octree::Level;
-use crate::system::{update_on_core, DepthOperator, SharedSlice, CHUNK};
+use crate::parallel::{scatter_by_chunk, CHUNK};
+use crate::system::{update_on_core, DepthOperator};
 use rayon::prelude::*;
 
 /// How one depth's solve ended.
@@ -55,28 +56,23 @@ fn step(
     ap: &[f64],
     w: &[f32],
 ) -> (f64, f64) {
-    let x = SharedSlice::new(x);
-    let partial: Vec<(f64, f64)> = r
-        .par_chunks_mut(CHUNK)
-        .zip(ap.par_chunks(CHUNK))
-        .enumerate()
-        .map(|(c, (r, ap))| {
-            let range = c * CHUNK..c * CHUNK + r.len();
-            for ((r, a), &n) in r.iter_mut().zip(ap).zip(&level.core[range.clone()]) {
-                // SAFETY: core indices are distinct, so each element has one writer.
-                unsafe { *x.get_mut(n as usize) += alpha * p[n as usize] };
-                *r -= alpha * a;
-            }
-            let w = &w[range];
-            (
-                r.iter().map(|r| r * r).sum::<f64>(),
-                r.iter()
-                    .zip(w)
-                    .map(|(r, &w)| r * (r * w as f64))
-                    .sum::<f64>(),
-            )
-        })
-        .collect();
+    let partial: Vec<(f64, f64)> = scatter_by_chunk(&level.core, [x], r, |c, x, r| {
+        let range = c * CHUNK..c * CHUNK + r.len();
+        let nodes = x.indices();
+        for (k, (r, a)) in r.iter_mut().zip(&ap[range.clone()]).enumerate() {
+            let [x] = x.at(k);
+            *x += alpha * p[nodes[k] as usize];
+            *r -= alpha * a;
+        }
+        let w = &w[range];
+        (
+            r.iter().map(|r| r * r).sum::<f64>(),
+            r.iter()
+                .zip(w)
+                .map(|(r, &w)| r * (r * w as f64))
+                .sum::<f64>(),
+        )
+    });
     (
         partial.iter().map(|s| s.0).sum(),
         partial.iter().map(|s| s.1).sum(),

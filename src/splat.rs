@@ -15,8 +15,9 @@
 //! node it mirrors inside: along each axis, the first and last node also collect the weight of
 //! their reflection.
 
+use crate::grid::cell_of;
 use crate::octree::{brick_local, BrickCursor, Level};
-use crate::system::{cell_of, SharedSlice, CHUNK};
+use crate::parallel::scatter_by_chunk;
 use crate::Splatting;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -79,11 +80,10 @@ pub fn splat_depth(
         vec![0.0; level.len()],
     ];
     let [fx, fy, fz] = &mut field;
-    let shared = [fx, fy, fz].map(|component| SharedSlice::new(component));
-    level.core.par_chunks(CHUNK).for_each(|nodes| {
+    scatter_by_chunk(&level.core, [fx, fy, fz], &mut [], |_, writer, _| {
         let mut cursor = BrickCursor::default();
         let mut window = SampleWindow::default();
-        for &node in nodes {
+        for (k, &node) in writer.indices().iter().enumerate() {
             let o = level.coord(node);
             let mut sum = DVec3::ZERO;
             let at = level.locate(&mut cursor, node);
@@ -112,9 +112,8 @@ pub fn splat_depth(
                     sum += normal * (s.mass * weight);
                 }
             }
-            for (component, value) in shared.iter().zip(sum.to_array()) {
-                // SAFETY: core nodes are distinct, so each element has one writer.
-                unsafe { *component.get_mut(node as usize) = value };
+            for (component, value) in writer.at(k).into_iter().zip(sum.to_array()) {
+                *component = value;
             }
         }
     });

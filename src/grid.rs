@@ -1,0 +1,128 @@
+//! Grid keys and cells, shared by every stage: node coordinates, their Morton keys (the order
+//! every depth's nodes are stored in), a hash map keyed by them, and the cell of a point.
+//!
+//! A node of depth d has integer coordinates c (its cell is [c, c + 1)·2^−d of the unit cube);
+//! halo nodes may lie a few nodes outside [0, 2^d), so keys store coordinates shifted by
+//! [`OFFSET`].
+
+use glam::DVec3;
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// Coordinates are stored shifted by this much so that halo nodes just outside the cube are
+/// representable as unsigned.
+pub(crate) const OFFSET: i32 = 8;
+/// Bits per axis in a key.
+pub(crate) const BITS: u32 = 21;
+
+/// The integer index of a node at some depth (may be slightly negative or ≥ 2^d in the halo).
+pub type Coord = [i32; 3];
+
+/// Morton key of a node coordinate (21 bits per axis after the offset).
+#[inline]
+pub fn morton(c: Coord) -> u64 {
+    spread((c[0] + OFFSET) as u64)
+        | (spread((c[1] + OFFSET) as u64) << 1)
+        | (spread((c[2] + OFFSET) as u64) << 2)
+}
+
+/// Morton key of non-negative coordinates without the halo offset, so that the keys of a cell's
+/// descendants at any finer depth are contiguous (sorting points by this key at depth D sorts
+/// them by cell at every coarser depth too).
+#[inline]
+pub fn morton_nested(c: [u32; 3]) -> u64 {
+    spread(c[0] as u64) | (spread(c[1] as u64) << 1) | (spread(c[2] as u64) << 2)
+}
+
+/// Inverse of [`morton`].
+#[inline]
+pub fn unmorton(k: u64) -> Coord {
+    [
+        compact(k) as i32 - OFFSET,
+        compact(k >> 1) as i32 - OFFSET,
+        compact(k >> 2) as i32 - OFFSET,
+    ]
+}
+
+/// The low [`BITS`] bits of `v` spread to every third bit (bit i to bit 3i).
+#[inline]
+pub(crate) fn spread(v: u64) -> u64 {
+    let mut x = v & ((1 << BITS) - 1);
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// Inverse of [`spread`].
+#[inline]
+pub(crate) fn compact(v: u64) -> u64 {
+    let mut x = v & 0x1249_2492_4924_9249;
+    x = (x | (x >> 2)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x >> 4)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x >> 8)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x >> 16)) & 0x001f_0000_0000_ffff;
+    x = (x | (x >> 32)) & ((1 << BITS) - 1);
+    x
+}
+
+/// A multiplicative hasher for Morton keys (they are already well spread; SipHash is slow).
+#[derive(Default, Clone, Copy)]
+pub struct KeyHasher(u64);
+
+impl Hasher for KeyHasher {
+    #[inline]
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    #[inline]
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        }
+    }
+    #[inline]
+    fn write_u64(&mut self, k: u64) {
+        self.0 = (k ^ (k >> 29))
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(26);
+    }
+}
+
+/// A hash map from Morton keys.
+pub type KeyMap<V> = HashMap<u64, V, BuildHasherDefault<KeyHasher>>;
+
+/// The node cell containing `p` at the depth of inverse width `inv_h`.
+#[inline]
+pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
+    let t = (p * inv_h).floor();
+    [t.x as i32, t.y as i32, t.z as i32]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morton_round_trips_including_halo_coordinates() {
+        for c in [[0, 0, 0], [-2, 5, 7], [65537, -8, 3], [123, 456, 789]] {
+            assert_eq!(unmorton(morton(c)), c);
+        }
+    }
+
+    #[test]
+    fn nested_keys_of_a_cells_descendants_are_contiguous() {
+        let parent = morton_nested([3, 5, 6]);
+        for child in 0..8u32 {
+            let c = [6 + (child & 1), 10 + (child >> 1 & 1), 12 + (child >> 2)];
+            assert_eq!(morton_nested(c) >> 3, parent);
+        }
+    }
+
+    #[test]
+    fn cells_floor_towards_negative_infinity() {
+        assert_eq!(cell_of(DVec3::new(0.5, 0.0, -0.01), 4.0), [2, 0, -1]);
+    }
+}

@@ -1,0 +1,242 @@
+//! Parallel primitives shared by the stages: fixed chunking, so that results never depend on
+//! the number of threads, and the disjoint writes the stages make from several threads at
+//! once.
+//!
+//! This file and `system/simd.rs` hold the crate's `unsafe` code outside the C API. Here it is
+//! one pointer, [`SharedSlice`], written through at indices that a safe wrapper has proved
+//! distinct: by a [`DistinctIndices`] list (checked strictly increasing when it is made), or by
+//! handing out the element of one index at a time per task. Callers never write `unsafe`.
+
+use rayon::prelude::*;
+use std::ops::Deref;
+
+/// Elements per parallel task in the per-node loops: fixed, so that every reduction adds the
+/// same partial sums in the same order whatever the thread count.
+pub(crate) const CHUNK: usize = 4096;
+
+/// Indices in strictly increasing order, hence distinct: what makes writes at them from
+/// several threads at once race-free. Checked once, when made.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub(crate) struct DistinctIndices(Vec<u32>);
+
+impl DistinctIndices {
+    /// Wraps `indices`.
+    ///
+    /// # Panics
+    /// If they are not strictly increasing (a bug in the caller: the writes would alias).
+    pub(crate) fn new(indices: Vec<u32>) -> Self {
+        assert!(
+            indices.windows(2).all(|w| w[0] < w[1]),
+            "DistinctIndices::new: indices are not strictly increasing"
+        );
+        DistinctIndices(indices)
+    }
+}
+
+impl Deref for DistinctIndices {
+    type Target = [u32];
+
+    fn deref(&self) -> &[u32] {
+        &self.0
+    }
+}
+
+impl<'a> IntoIterator for &'a DistinctIndices {
+    type Item = &'a u32;
+    type IntoIter = std::slice::Iter<'a, u32>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter()
+    }
+}
+
+/// The elements at one chunk's indices of N output slices, handed out one index at a time (the
+/// `&mut self` borrow keeps any two from being live together).
+pub(crate) struct ChunkWriter<'s, 'a, const N: usize> {
+    indices: &'s [u32],
+    outputs: &'s [SharedSlice<'a, f64>; N],
+}
+
+impl<'s, const N: usize> ChunkWriter<'s, '_, N> {
+    /// This chunk's indices.
+    #[inline]
+    pub(crate) fn indices(&self) -> &'s [u32] {
+        self.indices
+    }
+
+    /// The elements of the N outputs at this chunk's `k`-th index.
+    #[inline]
+    pub(crate) fn at(&mut self, k: usize) -> [&mut f64; N] {
+        let i = self.indices[k] as usize;
+        // SAFETY: `i` belongs to this chunk alone (the indices are distinct and the chunks
+        // partition them), each output is a different slice, and `&mut self` ends the previous
+        // call's borrows before this one's start.
+        self.outputs.each_ref().map(|o| unsafe { o.get_mut(i) })
+    }
+}
+
+/// Runs `task(chunk number, writer, aligned chunk)` for every chunk of [`CHUNK`] consecutive
+/// entries of `indices`, in parallel, and returns the tasks' results in chunk order. The writer
+/// gives the elements of `scattered` at the chunk's indices; `aligned` (the same length as
+/// `indices`, or empty) is cut into the matching chunks of positions.
+///
+/// # Panics
+/// If `aligned` is neither empty nor as long as `indices`, or an index lies beyond an output.
+pub(crate) fn scatter_by_chunk<const N: usize, R: Send>(
+    indices: &DistinctIndices,
+    scattered: [&mut [f64]; N],
+    aligned: &mut [f64],
+    task: impl Fn(usize, &mut ChunkWriter<'_, '_, N>, &mut [f64]) -> R + Sync,
+) -> Vec<R> {
+    assert!(aligned.is_empty() || aligned.len() == indices.len());
+    let outputs = scattered.map(SharedSlice::new);
+    let run = |c: usize, aligned: &mut [f64]| {
+        let start = c * CHUNK;
+        let end = indices.len().min(start + CHUNK);
+        let mut writer = ChunkWriter {
+            indices: &indices[start..end],
+            outputs: &outputs,
+        };
+        task(c, &mut writer, aligned)
+    };
+    let chunks = indices.len().div_ceil(CHUNK);
+    if aligned.is_empty() {
+        (0..chunks)
+            .into_par_iter()
+            .map(|c| run(c, &mut []))
+            .collect()
+    } else {
+        aligned
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, aligned)| run(c, aligned))
+            .collect()
+    }
+}
+
+/// `f(position, &mut x[indices[position]])` for every position, in parallel chunks.
+pub(crate) fn for_each_indexed(
+    indices: &DistinctIndices,
+    x: &mut [f64],
+    f: impl Fn(usize, &mut f64) + Sync,
+) {
+    scatter_by_chunk(indices, [x], &mut [], |c, writer, _| {
+        for k in 0..writer.indices().len() {
+            let [v] = writer.at(k);
+            f(c * CHUNK + k, v);
+        }
+    });
+}
+
+/// `slice` cut into the parts `ranges` gives (ascending and disjoint; gaps between them are
+/// left out), for tasks that each own one part.
+///
+/// # Panics
+/// If the ranges are not ascending and disjoint, or reach beyond `slice`.
+pub(crate) fn split_parts<T>(
+    slice: &mut [T],
+    ranges: impl IntoIterator<Item = std::ops::Range<usize>>,
+) -> Vec<&mut [T]> {
+    let mut parts = Vec::new();
+    let mut rest = slice;
+    let mut at = 0;
+    for range in ranges {
+        assert!(
+            range.start >= at && range.start <= range.end,
+            "parts overlap"
+        );
+        let (_, tail) = std::mem::take(&mut rest).split_at_mut(range.start - at);
+        let (part, tail) = tail.split_at_mut(range.end - range.start);
+        parts.push(part);
+        rest = tail;
+        at = range.end;
+    }
+    parts
+}
+
+/// A slice written from several threads at indices known to be disjoint between threads. Only
+/// the safe wrappers of this module reach its elements.
+struct SharedSlice<'a, T> {
+    start: *mut T,
+    len: usize,
+    _slice: std::marker::PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: elements are only reached through `get_mut`, whose callers (this module's wrappers)
+// guarantee that no two threads use the same index at the same time; T: Send lets the elements
+// be written from other threads.
+unsafe impl<T: Send> Sync for SharedSlice<'_, T> {}
+
+impl<'a, T> SharedSlice<'a, T> {
+    fn new(slice: &'a mut [T]) -> Self {
+        SharedSlice {
+            start: slice.as_mut_ptr(),
+            len: slice.len(),
+            _slice: std::marker::PhantomData,
+        }
+    }
+
+    /// Element `i` (bounds-checked).
+    ///
+    /// # Safety
+    /// No other reference to element `i` may be live while the returned one is.
+    #[inline]
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn get_mut(&self, i: usize) -> &mut T {
+        assert!(i < self.len, "index {i} beyond a slice of {}", self.len);
+        // SAFETY: `i` is in bounds (checked above) and the caller guarantees exclusive access.
+        unsafe { &mut *self.start.add(i) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    #[should_panic(expected = "not strictly increasing")]
+    fn repeated_indices_are_refused() {
+        DistinctIndices::new(vec![1, 4, 4, 7]);
+    }
+
+    #[test]
+    fn scattered_writes_reach_every_index_once_and_results_keep_chunk_order() {
+        let indices = DistinctIndices::new((0..10_000).map(|i| 3 * i + 1).collect());
+        let mut a = vec![0.0; 30_001];
+        let mut b = vec![0.0; 30_001];
+        let mut aligned: Vec<f64> = (0..10_000).map(|i| i as f64).collect();
+        let sums = scatter_by_chunk(&indices, [&mut a, &mut b], &mut aligned, |c, w, al| {
+            for (k, v) in al.iter_mut().enumerate() {
+                let [x, y] = w.at(k);
+                *x += 1.0;
+                *y = *v;
+                *v = -*v;
+            }
+            c
+        });
+        assert_eq!(sums, vec![0, 1, 2]);
+        for i in 0..10_000 {
+            assert_eq!(a[3 * i + 1], 1.0);
+            assert_eq!(b[3 * i + 1], i as f64);
+            assert_eq!(aligned[i], -(i as f64));
+        }
+        assert_eq!(a.iter().sum::<f64>(), 10_000.0);
+    }
+
+    #[test]
+    fn parts_are_the_ranges_asked_for() {
+        let mut v: Vec<u32> = (0..10).collect();
+        let parts = split_parts(&mut v, [1..3, 3..3, 5..9]);
+        assert_eq!(parts.len(), 3);
+        assert_eq!(&*parts[0], &[1, 2]);
+        assert!(parts[1].is_empty());
+        assert_eq!(&*parts[2], &[5, 6, 7, 8]);
+    }
+
+    #[test]
+    #[should_panic(expected = "parts overlap")]
+    fn overlapping_parts_are_refused() {
+        let mut v = [0u8; 10];
+        split_parts(&mut v, [2..5, 4..6]);
+    }
+}

@@ -1,0 +1,79 @@
+//! Right-hand sides: ⟨∇B_o, V⟩, the divergence of the splatted vector field V tested against
+//! each node function, brick by brick; and the Neumann mirrors that make free-space stencils
+//! act as the folded (even) basis at the cube's faces.
+
+use super::bricks::CoreBricks;
+use super::transfer::ProlongedField;
+use crate::octree::Level;
+use crate::parallel::for_each_indexed;
+
+/// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
+/// reflects, so free-space stencils act as the folded (even) basis (no-op with free boundaries).
+pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
+    for m in &level.mirrors {
+        x[m.outside as usize] = x[m.inside as usize];
+    }
+}
+
+/// [`fill_mirrors`] for a vector field: a component normal to a reflecting face changes sign.
+pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
+    for m in &level.mirrors {
+        for (axis, comp) in v.iter_mut().enumerate() {
+            let sign = if m.flips & (1 << axis) != 0 {
+                -1.0
+            } else {
+                1.0
+            };
+            comp[m.outside as usize] = sign * comp[m.inside as usize];
+        }
+    }
+}
+
+/// Sets x[core node i] = f(i, x[core node i]) for every core position i (in parallel, in fixed
+/// chunks), then refills the mirror nodes: how a vector that lives on the core is kept on K_d.
+pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f64 + Sync) {
+    for_each_indexed(&level.core, x, |i, v| *v = f(i, *v));
+    fill_mirrors(level, x);
+}
+
+/// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
+/// functions, §4.1) has coefficients `v` (x, y, z components) on K_d, which is dropped when it
+/// returns; [`divergence_of`] for a field that is kept.
+pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
+    divergence_of(level, &v)
+}
+
+/// [`divergence`] of a field that is kept. Brick by brick over every brick of K_d, on 12³
+/// windows of the three components gathered from the 27 bricks around (values beyond K_d are
+/// zero), as (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)): one sweep and no
+/// halo-sized scratch, where nine axis passes over the whole halo read and wrote it 18 times.
+pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
+    let bricks = CoreBricks::whole_level(level);
+    let mut out = vec![0.0; level.len()];
+    bricks.divergence(
+        |cb, windows, _| {
+            for (window, component) in windows.iter_mut().zip(v) {
+                bricks.gather_values(level, cb, component, window);
+            }
+        },
+        1.0 / level.width(),
+        &mut out,
+    );
+    out
+}
+
+/// ⟨∇B_o, V⟩ at every core node of `field.fine` (in core order) for V a coarser field prolonged
+/// to that depth ([`divergence`] restricted to the core, brick by brick): each core brick's
+/// window computes the prolongation from the coarse nodes under it, instead of every window
+/// node finding its eight parents (every node lies in about 3.4 windows).
+pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Vec<f64> {
+    let level = field.fine;
+    let bricks = CoreBricks::new(level);
+    let mut out = vec![0.0; level.core.len()];
+    bricks.divergence(
+        |cb, windows, scratch| bricks.gather_prolonged(field, cb, windows, scratch),
+        1.0 / level.width(),
+        &mut out,
+    );
+    out
+}

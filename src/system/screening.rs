@@ -1,0 +1,439 @@
+//! The screening term of Kazhdan & Hoppe (2013): α·Σ_q W_q B_o(q) χ(q) at every core node o,
+//! over "proxy" samples q (the weighted mean of the samples in a small cell, with their summed
+//! weight W_q), applied brick by brick on the Laplacian's windows.
+
+use super::bricks::{CoreBricks, WINDOW};
+use crate::grid::cell_of;
+use crate::octree::{brick_local, Level, NEAR, NONE};
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// The screening samples of one depth: the samples grouped by node cell at a finer "proxy
+/// depth" (weighted mean position, summed weight), kept when their cell at this depth lies
+/// within one node of the core (farther ones touch no core node function). Grouping at a finer
+/// depth than the level's own keeps the proxies on the surface: the mean of the samples in a
+/// large cell lies inside a convex surface by about width²/(8·radius).
+#[derive(Debug, Default)]
+pub struct Proxies {
+    /// K_d index of the cell (at this depth) holding each proxy; proxies of one cell are
+    /// consecutive.
+    pub cell: Vec<u32>,
+    /// Summed screening weight of the samples of each proxy.
+    pub weight: Vec<f64>,
+    /// The proxy's position in its cell, in cell widths (each coordinate in [0, 1]): 12 bytes
+    /// a proxy, where its stencil would take 72 (see [`Proxies::stencil`]).
+    pub offset: Vec<[f32; 3]>,
+}
+
+impl Proxies {
+    /// Groups samples (`positions` sorted by Morton key at a depth ≥ `proxy_depth`, so that the
+    /// samples of a cell are consecutive) into proxies at `proxy_depth` ≥ the level's depth. In
+    /// parallel over pieces cut between groups (a fixed number of samples apart), appended in
+    /// order.
+    pub fn build(level: &Level, positions: &[DVec3], weights: &[f64], proxy_depth: u32) -> Proxies {
+        const SAMPLES_PER_PIECE: usize = 1 << 14;
+        let inv_proxy_h = (proxy_depth as f64).exp2();
+        let group_of = |s: usize| cell_of(positions[s], inv_proxy_h);
+        let n = positions.len();
+        let mut cuts = vec![0];
+        while let Some(&last) = cuts.last() {
+            let mut cut = last + SAMPLES_PER_PIECE;
+            if cut >= n {
+                break;
+            }
+            while cut < n && group_of(cut) == group_of(cut - 1) {
+                cut += 1;
+            }
+            cuts.push(cut);
+        }
+        cuts.push(n);
+        let pieces: Vec<Proxies> = cuts
+            .par_windows(2)
+            .map(|piece| {
+                let range = piece[0]..piece[1];
+                Self::build_piece(
+                    level,
+                    &positions[range.clone()],
+                    &weights[range],
+                    proxy_depth,
+                )
+            })
+            .collect();
+        let mut proxies = Proxies::default();
+        for piece in pieces {
+            proxies.cell.extend(piece.cell);
+            proxies.weight.extend(piece.weight);
+            proxies.offset.extend(piece.offset);
+        }
+        proxies
+    }
+
+    /// [`Proxies::build`] on a run of samples that starts and ends between groups.
+    fn build_piece(
+        level: &Level,
+        positions: &[DVec3],
+        weights: &[f64],
+        proxy_depth: u32,
+    ) -> Proxies {
+        let inv_h = (level.depth as f64).exp2();
+        let inv_proxy_h = (proxy_depth as f64).exp2();
+        let mut proxies = Proxies::default();
+        let mut s = 0;
+        while s < positions.len() {
+            let group = cell_of(positions[s], inv_proxy_h);
+            let mut sum_w = 0.0;
+            let mut sum_p = DVec3::ZERO;
+            while s < positions.len() && cell_of(positions[s], inv_proxy_h) == group {
+                sum_w += weights[s];
+                sum_p += positions[s] * weights[s];
+                s += 1;
+            }
+            if sum_w <= 0.0 {
+                continue;
+            }
+            let shift = proxy_depth - level.depth;
+            let cell = [group[0] >> shift, group[1] >> shift, group[2] >> shift];
+            let Some(idx) = level.find(cell) else {
+                continue;
+            };
+            if level.flags[idx as usize] & NEAR == 0 {
+                continue;
+            }
+            let t = sum_p / sum_w * inv_h;
+            let offset = [t.x, t.y, t.z].map(|v| (v - v.floor()).clamp(0.0, 1.0) as f32);
+            proxies.cell.push(idx);
+            proxies.weight.push(sum_w);
+            proxies.offset.push(offset);
+        }
+        proxies
+    }
+
+    pub fn len(&self) -> usize {
+        self.cell.len()
+    }
+
+    /// b(t − centre) for the three nodes per axis around proxy `q`'s cell (cell − 1, cell,
+    /// cell + 1), at the proxy: with f its offset in the cell, the degree-2 B-spline gives
+    /// ½(1 − f)², ¾ − (f − ½)² and ½f².
+    #[inline]
+    pub fn stencil(&self, q: usize) -> [[f64; 3]; 3] {
+        self.offset[q].map(|f| {
+            let f = f as f64;
+            let g = 1.0 - f;
+            [0.5 * g * g, 0.75 - (f - 0.5) * (f - 0.5), 0.5 * f * f]
+        })
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cell.is_empty()
+    }
+}
+
+/// Σ_slot x[slot] · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] (x fastest), one
+/// axis at a time (39 multiplications instead of 81).
+#[inline]
+pub(super) fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27]) -> f64 {
+    let mut sum = 0.0;
+    for (z, plane) in x.chunks_exact(9).enumerate() {
+        let mut plane_sum = 0.0;
+        for (y, row) in plane.chunks_exact(3).enumerate() {
+            plane_sum += st[1][y] * (st[0][0] * row[0] + st[0][1] * row[1] + st[0][2] * row[2]);
+        }
+        sum += st[2][z] * plane_sum;
+    }
+    sum
+}
+
+/// out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] (the transpose of
+/// [`tensor_contract`]).
+#[inline]
+pub(super) fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
+    for z in 0..3 {
+        let wz = w * st[2][z];
+        for y in 0..3 {
+            let wzy = wz * st[1][y];
+            for x in 0..3 {
+                out[9 * z + 3 * y + x] += wzy * st[0][x];
+            }
+        }
+    }
+}
+
+/// A brick's positions with two nodes of padding on each side, [`WINDOW`]³ of them.
+pub(super) const PADDED: usize = WINDOW * WINDOW * WINDOW;
+
+/// The index of brick-local position (x, y, z) (each in −2..10, shifted by 2) in a padded
+/// brick array.
+#[inline]
+pub(super) fn padded(x: usize, y: usize, z: usize) -> usize {
+    (x + 2) + WINDOW * ((y + 2) + WINDOW * (z + 2))
+}
+
+/// The cells of K_d holding proxies, grouped by brick, for the screening term
+/// Σ_q W_q B_o(q) χ(q) at a core node o: a core brick's nodes collect from the cells within one
+/// node of the brick (in its own and the 26 bricks around), each reading χ at its proxies from
+/// the 3×3×3 nodes around it in the brick's input window, which the Laplacian gathered anyway.
+/// No halo-sized sum, no random gather or scatter; a cell near a brick's edge is visited by
+/// each brick it touches (about twice on average).
+///
+/// W_q χ(q) is kept by *slot*: the proxies numbered cell by cell in the cells' order, so that
+/// the proxies of one brick's cells are consecutive and each brick's task owns its range.
+pub(super) struct ScreeningCells {
+    /// Per brick slot of K_d, the range of `cells` in it.
+    brick_start: Vec<u32>,
+    cells: Vec<ScreeningCell>,
+    /// Per core brick (in `CoreBricks` order), the range of `near`.
+    near_start: Vec<u32>,
+    /// The cells within one node of each core brick, with their window coordinates there.
+    near: Vec<NearCell>,
+    /// The cells (node index and index in `cells`) in bricks without core nodes, whose
+    /// proxies no core brick's window covers: found node by node (few, at the core's edge).
+    pub(super) outside_core_bricks: Vec<(u32, u32)>,
+    /// The number of proxies (slots).
+    slots: usize,
+}
+
+/// A cell within one node of a core brick: its index in `ScreeningCells::cells` and its
+/// coordinates in the brick's window (local + 2, so 1..=10).
+#[derive(Debug, Clone, Copy)]
+struct NearCell {
+    cell: u32,
+    window: [u8; 3],
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ScreeningCell {
+    /// The cell's position in its brick (its key's low nine bits).
+    position: u16,
+    /// The range of its proxies.
+    proxies: (u32, u32),
+    /// The slot of its first proxy (its others follow).
+    first_slot: u32,
+}
+
+impl ScreeningCells {
+    /// Adds a cell's block contribution (cell at window coordinates `w`) to the brick at
+    /// `origin`, a block node beyond the cube going to the inside node it mirrors.
+    fn add_reflected(
+        origin: [i32; 3],
+        n: i32,
+        w: [usize; 3],
+        contribution: &[f64; 27],
+        acc: &mut [f64; PADDED],
+    ) {
+        for (k, c) in contribution.iter().enumerate() {
+            // The block node's brick-local coordinates.
+            let mut node = [k % 3, k / 3 % 3, k / 9].map(|d| d as i32);
+            for a in 0..3 {
+                node[a] += w[a] as i32 - 3;
+                let g = origin[a] + node[a];
+                if g < 0 {
+                    node[a] = -1 - g - origin[a];
+                } else if g >= n {
+                    node[a] = 2 * n - 1 - g - origin[a];
+                }
+            }
+            if node.iter().all(|&v| (0..8).contains(&v)) {
+                acc[padded(node[0] as usize, node[1] as usize, node[2] as usize)] += *c;
+            }
+        }
+    }
+
+    pub(super) fn new(
+        level: &Level,
+        proxies: &Proxies,
+        core_bricks: &CoreBricks,
+    ) -> ScreeningCells {
+        // Each cell with its run of proxies (the proxies of one cell are consecutive; were they
+        // not, a cell would just appear twice).
+        let mut runs: Vec<(u32, (u32, u32))> = Vec::new();
+        for (q, &cell) in proxies.cell.iter().enumerate() {
+            match runs.last_mut() {
+                Some((last, range)) if *last == cell => range.1 = q as u32 + 1,
+                _ => runs.push((cell, (q as u32, q as u32 + 1))),
+            }
+        }
+        runs.par_sort_unstable();
+        let brick_start = level.brick_starts(runs.iter().map(|&(cell, _)| cell));
+        let mut slots = 0;
+        let cells = runs
+            .iter()
+            .map(|&(cell, proxies)| {
+                let first_slot = slots;
+                slots += proxies.1 - proxies.0;
+                ScreeningCell {
+                    position: (level.keys[cell as usize] & 511) as u16,
+                    proxies,
+                    first_slot,
+                }
+            })
+            .collect();
+        let mut has_core = vec![false; level.bricks().brick_count()];
+        for around in &core_bricks.around {
+            has_core[around[13] as usize] = true;
+        }
+        let outside_core_bricks = (0..has_core.len())
+            .filter(|&b| !has_core[b])
+            .flat_map(|b| brick_start[b]..brick_start[b + 1])
+            .map(|k| (runs[k as usize].0, k))
+            .collect();
+        let mut cells = ScreeningCells {
+            brick_start,
+            cells,
+            near_start: Vec::new(),
+            near: Vec::new(),
+            outside_core_bricks,
+            slots: slots as usize,
+        };
+        let per_brick: Vec<Vec<NearCell>> = core_bricks
+            .around
+            .par_iter()
+            .map(|around| cells.near_cells(around))
+            .collect();
+        cells.near_start = std::iter::once(0)
+            .chain(per_brick.iter().scan(0u32, |total, near| {
+                *total += near.len() as u32;
+                Some(*total)
+            }))
+            .collect();
+        cells.near = per_brick.into_iter().flatten().collect();
+        cells
+    }
+
+    /// The cells within one node of the brick whose 27 surrounding brick slots are `around`.
+    fn near_cells(&self, around: &[u32; 27]) -> Vec<NearCell> {
+        let mut near = Vec::new();
+        for (slot, &b) in around.iter().enumerate() {
+            if b == u32::MAX {
+                continue;
+            }
+            let offset = [slot % 3, slot / 3 % 3, slot / 9];
+            let range = self.brick_start[b as usize]..self.brick_start[b as usize + 1];
+            for k in range {
+                let l = brick_local(self.cells[k as usize].position as usize);
+                // Window coordinate: local + 8·(offset − 1) + 2; the cell's block meets the
+                // brick (window 2..10) when the cell is at 1..=10.
+                let w: [i32; 3] = std::array::from_fn(|a| (l[a] + 8 * offset[a]) as i32 - 6);
+                if w.iter().all(|v| (1..=10).contains(v)) {
+                    near.push(NearCell {
+                        cell: k,
+                        window: w.map(|v| v as u8),
+                    });
+                }
+            }
+        }
+        near
+    }
+
+    /// The cells in brick slot `b`.
+    pub(super) fn in_brick(&self, b: usize) -> &[ScreeningCell] {
+        &self.cells[self.brick_start[b] as usize..self.brick_start[b + 1] as usize]
+    }
+
+    /// `chi[slot of q]` = W_q χ(q) at the proxies of the cells outside every core brick.
+    pub(super) fn weigh_outside_core_bricks(
+        &self,
+        level: &Level,
+        proxies: &Proxies,
+        input: &[f64],
+        chi: &mut [f64],
+    ) {
+        for &(node, k) in &self.outside_core_bricks {
+            let x = level
+                .block27(node)
+                .map(|n| if n == NONE { 0.0 } else { input[n as usize] });
+            let cell = &self.cells[k as usize];
+            for (slot, q) in cell.slots().zip(cell.proxy_range()) {
+                chi[slot] = proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
+            }
+        }
+    }
+
+    /// For every cell within one node of the brick whose 27 surrounding brick slots are
+    /// `around`, `contribute(cell, contribution)` adds the values of the cell's
+    /// 3×3×3 node block (x fastest) to `contribution`, which is added to `acc` (the brick's
+    /// positions padded by two nodes, see [`padded`]): whole blocks, without bounds to test per
+    /// cell; the padding takes the block nodes beyond the brick, which other bricks compute.
+    /// With Neumann boundaries a block node beyond the cube is the mirror image of one inside,
+    /// whose folded function collects it instead.
+    pub(super) fn accumulate(
+        &self,
+        level: &Level,
+        cb: usize,
+        around: &[u32; 27],
+        acc: &mut [f64; PADDED],
+        mut contribute: impl FnMut(&ScreeningCell, &mut [f64; 27]),
+    ) {
+        let origin = level.bricks().origin(around[13] as usize);
+        let n = 1i32 << level.depth;
+        let reflects =
+            !level.mirrors.is_empty() && (0..3).any(|a| origin[a] == 0 || origin[a] + 8 >= n);
+        let entries = self.near_start[cb] as usize..self.near_start[cb + 1] as usize;
+        for near in &self.near[entries] {
+            let cell = &self.cells[near.cell as usize];
+            let w = near.window.map(usize::from);
+            let mut contribution = [0.0; 27];
+            contribute(cell, &mut contribution);
+            if reflects {
+                Self::add_reflected(origin, n, w, &contribution, acc);
+                continue;
+            }
+            // Block node d of a cell at window coordinate w (local + 2) is at local w − 3 + d,
+            // padded index w − 1 + d.
+            for (dz, plane) in contribution.chunks_exact(9).enumerate() {
+                for (dy, row) in plane.chunks_exact(3).enumerate() {
+                    let at = w[0] - 1 + WINDOW * ((w[1] - 1 + dy) + WINDOW * (w[2] - 1 + dz));
+                    for (a, c) in acc[at..at + 3].iter_mut().zip(row) {
+                        *a += c;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The slots of the proxies of the cells in brick slot `b` (consecutive).
+    pub(super) fn slots_in_brick(&self, b: usize) -> std::ops::Range<usize> {
+        let slot_of = |k: u32| {
+            self.cells
+                .get(k as usize)
+                .map_or(self.slots, |cell| cell.first_slot as usize)
+        };
+        slot_of(self.brick_start[b])..slot_of(self.brick_start[b + 1])
+    }
+
+    /// `chi[slot − first slot of the brick]` = W_q χ(q) at the proxies of the cells in brick
+    /// slot `b`, with χ read from the brick's input window `w` (the Laplacian's).
+    pub(super) fn weigh_in_window(
+        &self,
+        b: usize,
+        proxies: &Proxies,
+        w: &[[f64; WINDOW]],
+        chi: &mut [f64],
+    ) {
+        let first = self.slots_in_brick(b).start;
+        for cell in self.in_brick(b) {
+            let c = brick_local(cell.position as usize).map(|v| v + 2);
+            let mut x = [0.0; 27];
+            for (k, x) in x.chunks_exact_mut(3).enumerate() {
+                let row = &w[(c[2] + k / 3 - 1) * WINDOW + c[1] + k % 3 - 1];
+                x.copy_from_slice(&row[c[0] - 1..c[0] + 2]);
+            }
+            for (slot, q) in cell.slots().zip(cell.proxy_range()) {
+                chi[slot - first] = proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
+            }
+        }
+    }
+}
+
+impl ScreeningCell {
+    /// Its proxies' indices in [`Proxies`].
+    pub(super) fn proxy_range(&self) -> std::ops::Range<usize> {
+        self.proxies.0 as usize..self.proxies.1 as usize
+    }
+
+    /// Its proxies' slots.
+    pub(super) fn slots(&self) -> std::ops::Range<usize> {
+        let first = self.first_slot as usize;
+        first..first + (self.proxies.1 - self.proxies.0) as usize
+    }
+}

@@ -1,0 +1,452 @@
+//! The system's tests: operators against closed forms and node-by-node references.
+
+use super::bricks::{window_regions, CoreBricks, WINDOW};
+use super::screening::ScreeningCells;
+use super::transfer::{prolonged_at, refinement_parents};
+use super::*;
+use crate::bspline::tables;
+use crate::octree::{Level, Octree, NONE};
+use glam::DVec3;
+
+/// A complete 16³ grid with free boundaries: its halo reaches two nodes beyond the cube, so
+/// every core node sees its whole 5³ neighbourhood.
+fn grid() -> Octree {
+    Octree::build(vec![Vec::new(); 5], 4, false)
+}
+
+/// Coefficients on K of the polynomial f in node units (t = p/h = i + ½ at node centres).
+/// Quadratic B-splines reproduce quadratics: Σ_i b(t − t_i)·(t_i² − ¼) = t², Σ_i b(t − t_i)·t_i = t.
+fn coefficients(level: &Level, f: impl Fn([f64; 3]) -> f64) -> Vec<f64> {
+    (0..level.len() as u32)
+        .map(|i| f(level.coord(i).map(|c| c as f64 + 0.5)))
+        .collect()
+}
+
+#[test]
+fn laplacian_of_quadratics_matches_integration_by_parts() {
+    let tree = grid();
+    let level = &tree.levels[4];
+    let h = level.width();
+    let proxies = Proxies::default();
+    let mut op = DepthOperator::new(level, &proxies, 0.0);
+    let mut out = vec![0.0; level.core.len()];
+    // f = x² (unit coordinates) = h²(t² ): coefficients h²(t_i² − ¼). ⟨∇B_o, ∇f⟩ = −∫B_o Δf = −2h³.
+    let x = coefficients(level, |t| h * h * (t[0] * t[0] - 0.25));
+    op.apply(&x, &mut out);
+    for v in &out {
+        assert!(
+            (v + 2.0 * h * h * h).abs() < 1e-12,
+            "{v} vs {}",
+            -2.0 * h * h * h
+        );
+    }
+    // f = x² + y² − 2z² + 3xy is harmonic: ⟨∇B_o, ∇f⟩ = 0.
+    let x = coefficients(level, |t| {
+        h * h
+            * ((t[0] * t[0] - 0.25) + (t[1] * t[1] - 0.25) - 2.0 * (t[2] * t[2] - 0.25)
+                + 3.0 * t[0] * t[1])
+    });
+    op.apply(&x, &mut out);
+    assert!(out.iter().all(|v| v.abs() < 1e-12));
+}
+
+#[test]
+fn divergence_of_a_linear_field_is_its_constant_divergence() {
+    let tree = grid();
+    let level = &tree.levels[4];
+    let h = level.width();
+    // V = (x, 2y, −z): coefficients of the unit-integral F̃_o = B_o/h³ are h³·V(t_i·h).
+    let v = [
+        coefficients(level, |t| h * h * h * (h * t[0])),
+        coefficients(level, |t| h * h * h * (2.0 * h * t[1])),
+        coefficients(level, |t| h * h * h * (-h * t[2])),
+    ];
+    let div = divergence(level, v);
+    // ⟨∇B_o, V⟩ = −∫B_o ∇·V = −(1 + 2 − 1)·h³ at every core node.
+    for &c in &level.core {
+        let got = div[c as usize];
+        assert!((got + 2.0 * h * h * h).abs() < 1e-12, "{got}");
+    }
+}
+
+/// A complete 16³ tree and a sparse one (only part of the cube refined, down to depth 5),
+/// with Neumann or free boundaries.
+fn complete_and_sparse_trees(neumann: bool) -> [Octree; 2] {
+    let sparse: Vec<Vec<[i32; 3]>> = (0..=5)
+        .map(|d| {
+            let n = 1 << d;
+            (0..n)
+                .flat_map(|i| [[i, i / 2, n / 3], [n - 1 - i, i, i / 3], [0, i, n - 1]])
+                .collect()
+        })
+        .collect();
+    [
+        Octree::build(vec![Vec::new(); 5], 4, neumann),
+        Octree::build(sparse, 2, neumann),
+    ]
+}
+
+/// The brick-by-brick prolongations (of the coefficients, of V added to a field, and inside
+/// the coarse divergence's windows), the restriction and the separable passes give the
+/// node-by-node values bit for bit, with free and
+/// with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only part of
+/// the cube refined) as well as complete ones.
+#[test]
+fn brick_prolongations_match_node_by_node_prolongation() {
+    for neumann in [false, true] {
+        for tree in complete_and_sparse_trees(neumann) {
+            for d in 1..tree.levels.len() {
+                let (coarse, fine) = (&tree.levels[d - 1], &tree.levels[d]);
+                let field: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                    (0..coarse.len())
+                        .map(|i| ((i * (a + 5) + 3) % 13) as f64 - 6.5)
+                        .collect()
+                });
+                let prolonged = ProlongedField {
+                    coarse,
+                    fine,
+                    field: [&field[0], &field[1], &field[2]],
+                    scale: 0.125,
+                };
+                let proxies = Proxies::default();
+                let mut op = DepthOperator::new(fine, &proxies, 0.0);
+                let by_node = op.divergence_on_core(|n| prolonged.at(n as u32));
+                let by_brick = divergence_of_prolonged(&prolonged);
+                assert!(!by_node.is_empty());
+                let same = |a: &[f64], b: &[f64], what: &str| {
+                    assert_eq!(a.len(), b.len());
+                    for (a, b) in a.iter().zip(b) {
+                        assert_eq!(
+                            a.to_bits(),
+                            b.to_bits(),
+                            "{what}, depth {d}, neumann {neumann}: {a} vs {b}"
+                        );
+                    }
+                };
+                same(&by_node, &by_brick, "divergence");
+                let by_node: Vec<f64> = (0..fine.len() as u32)
+                    .map(|i| prolonged_at(coarse, fine, [&field[0]], [2.0], i)[0])
+                    .collect();
+                same(&by_node, &prolong(coarse, fine, &field[0], 2.0), "prolong");
+                let base: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                    (0..fine.len()).map(|i| (i % (a + 2)) as f64).collect()
+                });
+                let mut added = base.clone();
+                prolonged.add_to(&mut added);
+                let want: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                    (0..fine.len())
+                        .map(|i| prolonged.at(i as u32)[a] + base[a][i])
+                        .collect()
+                });
+                for a in 0..3 {
+                    same(&want[a], &added[a], "add_to");
+                }
+                // Restriction (the transpose) brick by brick against node by node, with
+                // zeros among the fine values as the pipeline's have.
+                let fine_values: Vec<f64> = (0..fine.len())
+                    .map(|i| {
+                        if i % 5 == 0 {
+                            0.0
+                        } else {
+                            (i % 9) as f64 - 4.0
+                        }
+                    })
+                    .collect();
+                let mut by_node = vec![0.5; coarse.len()];
+                for i in 0..fine.len() as u32 {
+                    for (n, w) in refinement_parents(coarse, fine, i) {
+                        if n != NONE && fine_values[i as usize] != 0.0 {
+                            by_node[n as usize] += w * fine_values[i as usize];
+                        }
+                    }
+                }
+                let mut by_brick = vec![0.5; coarse.len()];
+                restrict_into(coarse, fine, &fine_values, &mut by_brick);
+                same(&by_node, &by_brick, "restrict");
+                // The divergence brick by brick against the 125-node sum node by node.
+                let field: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                    (0..fine.len())
+                        .map(|i| ((i * (a + 2) + 1) % 11) as f64 * 0.37 - 1.7)
+                        .collect()
+                });
+                let got = divergence_of(fine, &field);
+                let t = tables();
+                for i in 0..fine.len() as u32 {
+                    let o = fine.coord(i);
+                    let mut want = 0.0;
+                    for k in 0..125 {
+                        let d = [k % 5, k / 5 % 5, k / 25];
+                        let Some(j) = fine.find(std::array::from_fn(|a| o[a] + d[a] as i32 - 2))
+                        else {
+                            continue;
+                        };
+                        let (m, g) = (t.mass, t.advection);
+                        let v = field.each_ref().map(|c| c[j as usize]);
+                        want += g[d[0]] * m[d[1]] * m[d[2]] * v[0]
+                            + m[d[0]] * g[d[1]] * m[d[2]] * v[1]
+                            + m[d[0]] * m[d[1]] * g[d[2]] * v[2];
+                    }
+                    want /= fine.width();
+                    let err = (got[i as usize] - want).abs();
+                    assert!(
+                        err < 1e-9 * (1.0 + want.abs()),
+                        "node {i}: {} vs {want}",
+                        got[i as usize]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The window of every core brick gathered group by group from a vector (AVX-512's
+/// expanding loads where the CPU has them) equals the node-by-node gather, with and without
+/// mirror nodes, on sparse and complete levels; the windows' parts of the bricks around are
+/// whole 2×2×2 groups, which the group walk relies on.
+#[test]
+fn vector_windows_match_the_node_by_node_gather() {
+    for region in window_regions() {
+        for word in region {
+            assert!(word.to_le_bytes().iter().all(|&b| b == 0 || b == 0xff));
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    if !std::arch::is_x86_feature_detected!("avx512f") {
+        eprintln!("no AVX-512 on this CPU: checking the portable gather against itself");
+    }
+    for neumann in [false, true] {
+        for tree in complete_and_sparse_trees(neumann) {
+            for level in &tree.levels {
+                let input: Vec<f64> = (0..level.len()).map(|i| (i % 97) as f64 + 0.5).collect();
+                let bricks = CoreBricks::new(level);
+                let mut fast = [vec![[f64::NAN; WINDOW]; WINDOW * WINDOW]];
+                let mut slow = fast.clone();
+                for cb in 0..bricks.around.len() {
+                    bricks.gather_values(level, cb, &input, &mut fast[0]);
+                    bricks.gather(level, cb, &|n| [input[n]], &mut slow);
+                    assert_eq!(fast, slow, "depth {} brick {cb}", level.depth);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn divergence_on_core_matches_the_full_divergence() {
+    let tree = grid();
+    let level = &tree.levels[4];
+    let v: [Vec<f64>; 3] = std::array::from_fn(|a| {
+        (0..level.len())
+            .map(|i| ((i * (a + 3)) % 11) as f64 - 5.0)
+            .collect()
+    });
+    let full = divergence(level, v.clone());
+    let kept = divergence_of(level, &v);
+    assert!(full
+        .iter()
+        .zip(&kept)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    let proxies = Proxies::default();
+    let mut op = DepthOperator::new(level, &proxies, 0.0);
+    let on_core = op.divergence_on_core(|n| [v[0][n], v[1][n], v[2][n]]);
+    for (&c, got) in level.core.iter().zip(&on_core) {
+        let want = full[c as usize];
+        assert!(
+            (got - want).abs() < 1e-12 * want.abs().max(1.0),
+            "{got} vs {want}"
+        );
+    }
+}
+
+#[test]
+fn prolongation_reproduces_coarse_quadratics_and_restriction_is_its_transpose() {
+    let tree = grid();
+    let (coarse, fine) = (&tree.levels[3], &tree.levels[4]);
+    let f = |p: [f64; 3]| p[0] * p[0] + 0.5 * p[1] * p[2] - p[2];
+    // Coefficients of f in each depth's basis (unit coordinates p = t·h).
+    let at = |level: &Level| {
+        let h = level.width();
+        coefficients(level, |t| {
+            let p = t.map(|v| v * h);
+            f(p) - 0.25 * h * h // the −¼ correction of the x² term
+        })
+    };
+    let got = prolong(coarse, fine, &at(coarse), 1.0);
+    let want = at(fine);
+    for &c in &fine.core {
+        assert!((got[c as usize] - want[c as usize]).abs() < 1e-12);
+    }
+    // ⟨R u, v⟩ = ⟨u, P v⟩ on vectors supported on the cores.
+    let u: Vec<f64> = (0..fine.len())
+        .map(|i| {
+            if fine.flags[i] & crate::octree::CORE != 0 {
+                (i % 7) as f64
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let v: Vec<f64> = (0..coarse.len())
+        .map(|i| {
+            if coarse.flags[i] & crate::octree::CORE != 0 {
+                (i % 5) as f64 - 2.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut ru = vec![0.0; coarse.len()];
+    restrict_into(coarse, fine, &u, &mut ru);
+    let pv = prolong(coarse, fine, &v, 1.0);
+    let lhs: f64 = ru.iter().zip(&v).map(|(a, b)| a * b).sum();
+    let rhs: f64 = u.iter().zip(&pv).map(|(a, b)| a * b).sum();
+    assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0));
+}
+
+/// A proxy's stencil is the B-spline's values at the three nodes around its cell, as
+/// [`crate::bspline::stencil27`] evaluates them at the proxy's position.
+#[test]
+fn proxy_stencil_is_the_bspline_at_the_proxy() {
+    let inv_h = 16.0;
+    for p in [
+        DVec3::new(0.3, 0.51, 0.77),
+        DVec3::new(0.0, 0.999, 0.5),
+        DVec3::new(0.0625, 0.125, 0.9),
+    ] {
+        let t = p * inv_h;
+        let proxies = Proxies {
+            cell: vec![0],
+            weight: vec![1.0],
+            offset: vec![[t.x, t.y, t.z].map(|v| (v - v.floor()) as f32)],
+        };
+        let (_, want) = crate::bspline::stencil27(p, inv_h);
+        let got = proxies.stencil(0);
+        for a in 0..3 {
+            for k in 0..3 {
+                assert!(
+                    (got[a][k] - want[a][k]).abs() < 1e-6,
+                    "{p} axis {a} node {k}"
+                );
+            }
+            assert!((got[a].iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        }
+    }
+}
+
+/// The screening term applied brick by brick (and the diagonal) against a node-by-node
+/// reference: every proxy reads χ from the 3×3×3 nodes around its cell and gives back to
+/// them, mirror nodes folding into the inside nodes they reflect; free and Neumann
+/// boundaries, proxies in the middle, at the faces, corners and across brick edges.
+#[test]
+fn brick_screening_matches_the_node_by_node_sum() {
+    for neumann in [false, true] {
+        for tree in complete_and_sparse_trees(neumann) {
+            let level = &tree.levels[tree.levels.len() - 1];
+            let n = 1i32 << level.depth;
+            // Proxies in cells inside the cube within one node of the core (as the pipeline
+            // keeps them), one to three per cell; some of those cells lie in bricks without
+            // core nodes.
+            let mut proxies = Proxies::default();
+            let near: Vec<u32> = (0..level.len() as u32)
+                .filter(|&i| level.flags[i as usize] & crate::octree::NEAR != 0)
+                .collect();
+            for (k, &c) in near.iter().enumerate() {
+                let coord = level.coord(c);
+                if coord.iter().any(|&v| v < 0 || v >= n) || k % 3 == 1 {
+                    continue;
+                }
+                for j in 0..1 + k % 3 {
+                    let f = |a: usize| ((k * 7 + j * 5 + a * 3) % 10) as f32 / 10.0 + 0.05;
+                    proxies.cell.push(c);
+                    proxies.weight.push(0.5 + (k % 5) as f64);
+                    proxies.offset.push([f(0), f(1), f(2)]);
+                }
+            }
+            assert!(!proxies.is_empty());
+            let bricks = CoreBricks::new(level);
+            let cells = ScreeningCells::new(level, &proxies, &bricks);
+            if level.core.len() < level.len() / 2 {
+                assert!(
+                    !cells.outside_core_bricks.is_empty(),
+                    "the sparse tree has proxy cells in bricks without core nodes"
+                );
+            }
+            let x: Vec<f64> = (0..level.len())
+                .map(|i| ((i * 13) % 17) as f64 / 17.0 - 0.4)
+                .collect();
+            let mut x = x;
+            fill_mirrors(level, &mut x);
+            let alpha = 3.5;
+            let mut got = vec![0.0; level.core.len()];
+            DepthOperator::new(level, &proxies, alpha).apply(&x, &mut got);
+            let mut laplacian = vec![0.0; level.core.len()];
+            DepthOperator::new(level, &proxies, 0.0).apply(&x, &mut laplacian);
+            let mut screened = vec![0.0; level.len()];
+            let mut squares = vec![0.0; level.len()];
+            for q in 0..proxies.len() {
+                let block = level.block27(proxies.cell[q]);
+                let st = &proxies.stencil(q);
+                let b = |slot: usize| st[0][slot % 3] * st[1][slot / 3 % 3] * st[2][slot / 9];
+                let chi: f64 = (0..27)
+                    .filter(|&s| block[s] != NONE)
+                    .map(|s| x[block[s] as usize] * b(s))
+                    .sum();
+                for s in 0..27 {
+                    if block[s] != NONE {
+                        screened[block[s] as usize] += proxies.weight[q] * chi * b(s);
+                        squares[block[s] as usize] += proxies.weight[q] * b(s) * b(s);
+                    }
+                }
+            }
+            for m in &level.mirrors {
+                screened[m.inside as usize] += screened[m.outside as usize];
+                squares[m.inside as usize] += squares[m.outside as usize];
+            }
+            let mut op = DepthOperator::new(level, &proxies, alpha);
+            let diagonal = op.diagonal();
+            let lap_diagonal = DepthOperator::new(level, &proxies, 0.0).diagonal();
+            for (k, &c) in level.core.iter().enumerate() {
+                let want = laplacian[k] + alpha * screened[c as usize];
+                assert!(
+                    (got[k] - want).abs() < 1e-12 * want.abs().max(1.0),
+                    "neumann {neumann}, node {:?}: {} vs {want}",
+                    level.coord(c),
+                    got[k]
+                );
+                let want = lap_diagonal[k] + alpha * squares[c as usize];
+                assert!((diagonal[k] - want).abs() < 1e-12 * want.abs().max(1.0));
+            }
+        }
+    }
+}
+
+#[test]
+fn neumann_mirrors_make_constants_harmonic_up_to_the_faces() {
+    // With reflected (even) node functions the constant 1 is in the space and has zero
+    // gradient everywhere in the cube, so L·1 vanishes at every node, the face nodes too;
+    // with free boundaries the node functions simply stop and the face nodes feel it.
+    for neumann in [true, false] {
+        let tree = Octree::build(vec![Vec::new(); 4], 3, neumann);
+        let level = &tree.levels[3];
+        let proxies = Proxies::default();
+        let mut op = DepthOperator::new(level, &proxies, 0.0);
+        let mut x: Vec<f64> = (0..level.len())
+            .map(|i| {
+                if level.flags[i] & crate::octree::CORE != 0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        fill_mirrors(level, &mut x);
+        let mut out = vec![0.0; level.core.len()];
+        op.apply(&x, &mut out);
+        let worst = out.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if neumann {
+            assert!(worst < 1e-14, "{worst}");
+        } else {
+            assert!(worst > 1e-3);
+        }
+    }
+}

@@ -1,0 +1,476 @@
+//! Grid transfer between consecutive depths by the two-scale relation
+//! ([`crate::bspline::REFINE`]): coarser coefficients prolonged exactly into a finer halo
+//! (node by node, brick by brick, or inside a brick window), and the transpose, restriction.
+
+use super::bricks::{BrickNodes, BrickScratch, CoreBricks, WINDOW};
+use crate::bspline::REFINE;
+use crate::octree::{axis_interval_masks, brick_local, reflect, AxisStep, Level, NONE};
+use crate::parallel::split_parts;
+use rayon::prelude::*;
+
+/// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
+/// stored (node by node with [`ProlongedField::at`], brick by brick by
+/// [`divergence_of_prolonged`] and [`ProlongedField::add_to`]): the value at a
+/// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`] would
+/// hold there. Reading it where needed saves three halo-sized vectors.
+pub struct ProlongedField<'a> {
+    pub coarse: &'a Level,
+    pub fine: &'a Level,
+    pub field: [&'a [f64]; 3],
+    pub scale: f64,
+}
+
+impl ProlongedField<'_> {
+    /// The three components at fine node `i`.
+    #[inline]
+    pub fn at(&self, i: u32) -> [f64; 3] {
+        let scales = [self.scale; 3];
+        if !self.fine.mirrors.is_empty() {
+            // Neumann: a node outside the cube mirrors its reflection inside, if in K_d.
+            let n = 1i32 << self.fine.depth;
+            if let Some((inside, flips)) = reflect(self.fine.coord(i), n) {
+                if let Some(j) = self.fine.find(inside) {
+                    let v = prolonged_at(self.coarse, self.fine, self.field, scales, j);
+                    return std::array::from_fn(|axis| {
+                        if flips & (1 << axis) != 0 {
+                            -v[axis]
+                        } else {
+                            v[axis]
+                        }
+                    });
+                }
+            }
+        }
+        prolonged_at(self.coarse, self.fine, self.field, scales, i)
+    }
+
+    /// `v[axis][i] +=` the prolonged field at every fine node i (brick by brick).
+    pub fn add_to(&self, v: &mut [Vec<f64>; 3]) {
+        let [vx, vy, vz] = v;
+        let at_mirror = |node: u32| self.at(node);
+        let at_mirror: Option<&(dyn Fn(u32) -> [f64; 3] + Sync)> = if self.fine.mirrors.is_empty() {
+            None
+        } else {
+            Some(&at_mirror)
+        };
+        prolong_by_brick(
+            self.coarse,
+            self.fine,
+            self.field,
+            self.scale,
+            at_mirror,
+            [vx, vy, vz],
+            |x, p| p + x,
+        );
+    }
+}
+
+/// Prolongs coarse coefficients (on K_{d−1}) to the fine halo K_d, exactly: the fine
+/// combination represents the same function wherever the coarse one is complete.
+pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Vec<f64> {
+    let mut out = vec![0.0; fine.len()];
+    prolong_by_brick(coarse, fine, [x], scale, None, [&mut out], |_, v| v);
+    out
+}
+
+impl CoreBricks {
+    /// The window of core brick `cb` for `field` (a coarser field prolonged to this depth),
+    /// with the values [`ProlongedField::at`] gives at each node of the window (zero where the
+    /// fine depth has no node). The fine window covers fine coordinates origin − 2 .. origin + 10
+    /// per axis; their refinement parents (m = ⌊f/2⌋ and its partner m ± 1) lie in the coarse
+    /// coordinates origin/2 − 2 .. origin/2 + 6, gathered once into an 8×8×8 array from the
+    /// eight coarse bricks that cover them. Each window node then sums its eight parents in
+    /// the order and with the weights of [`refinement_parents`]. Nodes beyond the cube (mirrors,
+    /// with Neumann boundaries) take the node-by-node path.
+    pub(super) fn gather_prolonged(
+        &self,
+        field: &ProlongedField<'_>,
+        cb: usize,
+        windows: &mut [Vec<[f64; WINDOW]>; 3],
+        scratch: &mut BrickScratch,
+    ) {
+        let (fine, coarse) = (field.fine, field.coarse);
+        let origin = fine.bricks().origin(self.around[cb][13] as usize);
+        let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
+
+        coarse_window(coarse, coarse_origin, field.field, &mut scratch.coarse);
+        for c in 0..3 {
+            let [along_x, _] = &mut scratch.y;
+            let [along_y, _, _] = &mut scratch.z;
+            prolong_window(
+                &scratch.coarse[c],
+                along_x,
+                along_y,
+                &mut scratch.prolonged[c],
+                field.scale,
+            );
+        }
+
+        // The fine window: the prolongation where K_d has a node, zero elsewhere (beyond the
+        // cube, with Neumann mirrors, a node's value is its mirror image's).
+        let mut present = [0u16; WINDOW * WINDOW];
+        self.for_each_window_group(fine, cb, |_, corners, [x, y, z]| {
+            for (k, row) in [
+                z * WINDOW + y,
+                z * WINDOW + y + 1,
+                (z + 1) * WINDOW + y,
+                (z + 1) * WINDOW + y + 1,
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                present[row] |= ((corners >> (2 * k) & 3) as u16) << x;
+            }
+        });
+        for (window, prolonged) in windows.iter_mut().zip(&scratch.prolonged) {
+            for ((w, p), &bits) in window.iter_mut().zip(prolonged).zip(&present) {
+                *w = std::array::from_fn(|x| if bits >> x & 1 == 1 { p[x] } else { 0.0 });
+            }
+        }
+        let n = 1i32 << fine.depth;
+        let at_face = (0..3).any(|a| origin[a] - 2 < 0 || origin[a] + 10 > n);
+        if !fine.mirrors.is_empty() && at_face {
+            self.for_each_window_group(fine, cb, |mut node, corners, [x, y, z]| {
+                for c in (0..8).filter(|c| corners >> c & 1 == 1) {
+                    let w = [x + (c & 1), y + (c >> 1 & 1), z + (c >> 2)];
+                    let f: [i32; 3] = std::array::from_fn(|a| origin[a] - 2 + w[a] as i32);
+                    if f.iter().any(|&v| v < 0 || v >= n) {
+                        for (window, v) in windows.iter_mut().zip(field.at(node as u32)) {
+                            window[w[2] * WINDOW + w[1]][w[0]] = v;
+                        }
+                    }
+                    node += 1;
+                }
+            });
+        }
+    }
+}
+
+/// The prolongation (times `scale`) of a coarse 8×8×8 window (`coarse`, index x + 8y + 64z,
+/// as [`coarse_window`] fills it for a fine brick's window) at every position of the fine
+/// 12×12×12 window, one axis at a time: along each axis fine position w takes ¾ of coarse
+/// position ⌊w/2⌋ + 1 and ¼ of ⌊w/2⌋ (w even) or ⌊w/2⌋ + 2 (w odd), the two-scale relation
+/// ([`refinement_parents`]). `along_x` (8·8 rows) and `along_y` (8·12 rows) are scratch space.
+fn prolong_window(
+    coarse: &[f64],
+    along_x: &mut [[f64; WINDOW]],
+    along_y: &mut [[f64; WINDOW]],
+    out: &mut [[f64; WINDOW]],
+    scale: f64,
+) {
+    let [quarter, three_quarters] = [REFINE[0], REFINE[1]];
+    let partner = |w: usize| if w & 1 == 0 { w >> 1 } else { (w >> 1) + 2 };
+    for (r, row) in along_x[..64].iter_mut().enumerate() {
+        let line = &coarse[8 * r..8 * r + 8];
+        *row = std::array::from_fn(|w| {
+            three_quarters * line[(w >> 1) + 1] + quarter * line[partner(w)]
+        });
+    }
+    for z in 0..8 {
+        for w in 0..WINDOW {
+            let (own, other) = (&along_x[8 * z + (w >> 1) + 1], &along_x[8 * z + partner(w)]);
+            along_y[WINDOW * z + w] =
+                std::array::from_fn(|x| three_quarters * own[x] + quarter * other[x]);
+        }
+    }
+    for w in 0..WINDOW {
+        for y in 0..WINDOW {
+            let (own, other) = (
+                &along_y[WINDOW * ((w >> 1) + 1) + y],
+                &along_y[WINDOW * partner(w) + y],
+            );
+            out[WINDOW * w + y] =
+                std::array::from_fn(|x| (three_quarters * own[x] + quarter * other[x]) * scale);
+        }
+    }
+}
+
+/// Fills `window` (per component, 8×8×8, index x + 8y + 64z) with `fields` at the coarse nodes
+/// of coordinates `origin` .. `origin` + 8 per axis (zero where `coarse` has no node), from the
+/// eight coarse bricks that cover them (`origin` ≡ 2 mod 4: the window of a fine brick whose
+/// origin is O starts at O/2 − 2, and spans two bricks per axis).
+fn coarse_window<const C: usize>(
+    coarse: &Level,
+    origin: [i32; 3],
+    fields: [&[f64]; C],
+    window: &mut [Vec<f64>; C],
+) {
+    for component in window.iter_mut() {
+        component.fill(0.0);
+    }
+    let index = coarse.bricks();
+    for k in 0..8 {
+        let brick_origin: [i32; 3] =
+            std::array::from_fn(|a| origin[a].div_euclid(8) * 8 + 8 * ((k >> a) & 1) as i32);
+        let Some(slot) = coarse.brick_containing(brick_origin) else {
+            continue;
+        };
+        // The part of this brick inside the window, per axis, in its local coordinates.
+        let mut region = [u64::MAX; 8];
+        for a in 0..3 {
+            let lo = (origin[a] - brick_origin[a]).max(0) as usize;
+            let hi = (origin[a] + 8 - brick_origin[a]).min(8) as usize;
+            for (r, m) in region.iter_mut().zip(&axis_interval_masks()[a][lo][hi]) {
+                *r &= m;
+            }
+        }
+        let (mut node, occupied) = index.brick(slot);
+        for (word, (&occ, &region)) in occupied.iter().zip(&region).enumerate() {
+            let mut bits = occ & region;
+            while bits != 0 {
+                let bit = bits.trailing_zeros();
+                bits &= bits - 1;
+                let n = node + (occ & ((1u64 << bit) - 1)).count_ones();
+                let l = brick_local(word * 64 + bit as usize);
+                let u: [usize; 3] =
+                    std::array::from_fn(|a| (brick_origin[a] + l[a] as i32 - origin[a]) as usize);
+                for (w, values) in window.iter_mut().zip(&fields) {
+                    w[u[2] * 64 + u[1] * 8 + u[0]] = values[n as usize];
+                }
+            }
+            node += occ.count_ones();
+        }
+    }
+}
+
+/// The prolongation (times `scale`) at fine coordinate `f` of the coarse values in `window`
+/// (from [`coarse_window`] at `origin`): its eight refinement parents summed in the order and
+/// with the weights of [`refinement_parents`].
+#[inline]
+fn prolonged_from_window<const C: usize>(
+    window: &[Vec<f64>; C],
+    origin: [i32; 3],
+    f: [i32; 3],
+    scale: f64,
+) -> [f64; C] {
+    // Per axis: the parent's and its partner's place in the window (as flat-index terms), then
+    // parent k's place: bit a of k picks the partner along axis a.
+    let place: [[usize; 2]; 3] = std::array::from_fn(|a| {
+        let own = ((f[a] >> 1) - origin[a]) as usize;
+        let partner = if f[a] & 1 == 1 { own + 1 } else { own - 1 };
+        [own << (3 * a), partner << (3 * a)]
+    });
+    let parents: [usize; 8] =
+        std::array::from_fn(|k| place[0][k & 1] + place[1][(k >> 1) & 1] + place[2][(k >> 2) & 1]);
+    std::array::from_fn(|component| {
+        let values = &window[component][..512];
+        (0..8)
+            .map(|k| PARENT_WEIGHTS[k] * values[parents[k]])
+            .sum::<f64>()
+            * scale
+    })
+}
+
+/// `outputs[c][node] = combine(outputs[c][node], value[c])` for every node of `fine`, with
+/// `value` the prolongation of `fields` (times `scale`) there, brick by brick in parallel: each
+/// fine brick gathers the coarse nodes under it once ([`coarse_window`]). With `at_mirror`,
+/// nodes beyond the cube take `at_mirror(node)` instead. A brick's nodes are consecutive, so
+/// each task owns its brick's part of every output.
+fn prolong_by_brick<const C: usize>(
+    coarse: &Level,
+    fine: &Level,
+    fields: [&[f64]; C],
+    scale: f64,
+    at_mirror: Option<&(dyn Fn(u32) -> [f64; C] + Sync)>,
+    outputs: [&mut [f64]; C],
+    combine: impl Fn(f64, f64) -> f64 + Sync,
+) {
+    let n = 1i32 << fine.depth;
+    let index = fine.bricks();
+    let bricks = || {
+        (0..index.brick_count()).map(|b| {
+            let (first, occupied) = index.brick(b);
+            let count: u32 = occupied.iter().map(|w| w.count_ones()).sum();
+            first as usize..(first + count) as usize
+        })
+    };
+    let mut parts = outputs.map(|output| split_parts(output, bricks()).into_iter());
+    let per_brick: Vec<[&mut [f64]; C]> = (0..index.brick_count())
+        .map(|_| std::array::from_fn(|c| parts[c].next().expect("one part per brick")))
+        .collect();
+    per_brick
+        .into_par_iter()
+        .enumerate()
+        .with_min_len(16)
+        .for_each_init(
+            || std::array::from_fn::<_, C, _>(|_| vec![0.0; 512]),
+            |window, (b, mut out)| {
+                let origin = fine.bricks().origin(b);
+                let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
+                coarse_window(coarse, coarse_origin, fields, window);
+                let (first, occupied) = index.brick(b);
+                let mut node = first;
+                for (word, &occ) in occupied.iter().enumerate() {
+                    let mut bits = occ;
+                    while bits != 0 {
+                        let bit = bits.trailing_zeros();
+                        bits &= bits - 1;
+                        let l = brick_local(word * 64 + bit as usize);
+                        let f: [i32; 3] = std::array::from_fn(|a| origin[a] + l[a] as i32);
+                        let value = match at_mirror {
+                            Some(at) if f.iter().any(|&v| v < 0 || v >= n) => at(node),
+                            _ => prolonged_from_window(window, coarse_origin, f, scale),
+                        };
+                        let k = (node - first) as usize;
+                        for (out, v) in out.iter_mut().zip(value) {
+                            out[k] = combine(out[k], v);
+                        }
+                        node += 1;
+                    }
+                }
+            },
+        );
+}
+
+/// The two-scale weight of parent k of a fine node (bit a of k set: the partner along axis a,
+/// weight ¼; clear: the node's own parent's column, weight ¾), the same for every node.
+pub(super) const PARENT_WEIGHTS: [f64; 8] = {
+    let mut w = [1.0; 8];
+    let mut k = 0;
+    while k < 8 {
+        let mut axis = 0;
+        while axis < 3 {
+            w[k] *= if (k >> axis) & 1 == 1 {
+                REFINE[0]
+            } else {
+                REFINE[1]
+            };
+            axis += 1;
+        }
+        k += 1;
+    }
+    w
+};
+
+/// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:
+/// per axis, child 2m = ¾·parent m + ¼·parent m−1 and child 2m+1 = ¾·parent m + ¼·parent m+1.
+#[inline]
+pub(super) fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32, f64); 8] {
+    let mut out = [(NONE, 0.0); 8];
+    let Some((p, at)) = fine.parent_in(coarse, i) else {
+        return out;
+    };
+    // The parity of each coordinate is the key's bit of that axis (the key's offset is even).
+    let key = fine.keys[i as usize];
+    let steps: [[AxisStep; 2]; 3] = std::array::from_fn(|axis| {
+        let partner = if (key >> axis) & 1 == 0 { -1 } else { 1 };
+        [0, partner].map(|delta| AxisStep::new(at.local[axis], delta, axis))
+    });
+    for k in 0..8 {
+        // Parent k is parent (k without its highest axis bit) stepped along that axis: each
+        // parent reached along x, then y, then z, and missing when the one it steps from is.
+        let node = if k == 0 {
+            p
+        } else {
+            let axis = 7 - (k as u8).leading_zeros() as usize;
+            if out[k & !(1 << axis)].0 == NONE {
+                NONE
+            } else {
+                let step = steps[0][k & 1]
+                    .join(steps[1][k >> 1 & 1])
+                    .join(steps[2][k >> 2 & 1]);
+                coarse.node_after(at, step)
+            }
+        };
+        out[k] = (node, PARENT_WEIGHTS[k]);
+    }
+    out
+}
+
+/// The prolongation of `inputs` (each times its scale) at fine node `i`.
+#[inline]
+pub(super) fn prolonged_at<const N: usize>(
+    coarse: &Level,
+    fine: &Level,
+    inputs: [&[f64]; N],
+    scales: [f64; N],
+    i: u32,
+) -> [f64; N] {
+    let parents = refinement_parents(coarse, fine, i);
+    std::array::from_fn(|k| {
+        parents
+            .iter()
+            .filter(|(n, _)| *n != NONE)
+            .map(|&(n, w)| w * inputs[k][n as usize])
+            .sum::<f64>()
+            * scales[k]
+    })
+}
+
+/// The transpose of [`prolong`]: adds Σ_children w · `fine[child]` to every coarse node.
+///
+/// Fine brick by fine brick: the coarse nodes its nodes refine from (a 6×6×6 block) are looked
+/// up once per brick, then every fine node adds to its eight parents, in node order and with
+/// the parents `refinement_parents` gives (so sums come out the same as node by node).
+pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_out: &mut [f64]) {
+    const SIDE: usize = 6;
+    let fine_index = fine.bricks();
+    let coarse_index = coarse.bricks();
+    let mut window = [NONE; SIDE * SIDE * SIDE];
+    for b in 0..fine_index.brick_count() {
+        let walk = BrickNodes::new(fine_index, b);
+        if walk
+            .clone()
+            .all(|(node, _)| fine_values[node as usize] == 0.0)
+        {
+            continue;
+        }
+        let fine_origin = fine_index.origin(b);
+        // Window coordinate w along an axis is coarse coordinate origin + w; it spans the two
+        // coarse bricks from `coarse_brick`.
+        let origin = fine_origin.map(|o| o.div_euclid(2) - 1);
+        let coarse_brick = origin.map(|o| o.div_euclid(8) * 8);
+        let slots: [Option<usize>; 8] = std::array::from_fn(|k| {
+            coarse.brick_containing(std::array::from_fn(|a| {
+                coarse_brick[a] + 8 * ((k >> a) & 1) as i32
+            }))
+        });
+        for (w, entry) in window.iter_mut().enumerate() {
+            let w = [w % SIDE, w / SIDE % SIDE, w / (SIDE * SIDE)];
+            // The coordinate relative to the first coarse brick of each axis (0..16).
+            let c: [i32; 3] = std::array::from_fn(|a| origin[a] + w[a] as i32 - coarse_brick[a]);
+            let k = (0..3).fold(0, |k, a| k | ((c[a] >= 8) as usize) << a);
+            *entry = slots[k].map_or(NONE, |slot| {
+                coarse_index.node_in(slot, c.map(|v| (v & 7) as usize))
+            });
+        }
+        for (node, l) in walk {
+            let v = fine_values[node as usize];
+            if v == 0.0 {
+                continue;
+            }
+            // Parent at window coordinate l/2 + 1, partners one step towards the node's side.
+            let at = |k: usize| {
+                let c: [usize; 3] = std::array::from_fn(|a| {
+                    let partner = if (k >> a) & 1 == 0 {
+                        0
+                    } else if l[a] & 1 == 0 {
+                        -1
+                    } else {
+                        1
+                    };
+                    (l[a] as i32 / 2 + 1 + partner) as usize
+                });
+                window[c[0] + SIDE * (c[1] + SIDE * c[2])]
+            };
+            let mut parents = [NONE; 8];
+            for k in 0..8 {
+                // Reached as refinement_parents reaches it: missing when the one it steps
+                // from (k without its highest axis bit) is.
+                parents[k] = if k == 0 {
+                    at(0)
+                } else {
+                    let axis = 7 - (k as u8).leading_zeros() as usize;
+                    if parents[k & !(1 << axis)] == NONE {
+                        NONE
+                    } else {
+                        at(k)
+                    }
+                };
+                if parents[k] != NONE {
+                    coarse_out[parents[k] as usize] += PARENT_WEIGHTS[k] * v;
+                }
+            }
+        }
+    }
+}
