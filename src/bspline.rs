@@ -19,9 +19,6 @@
 use glam::DVec3;
 use std::sync::OnceLock;
 
-/// Half-width of the support of b, in node widths.
-pub const SUPPORT_RADIUS: f64 = 1.5;
-
 /// Two-scale relation: a node function at depth d equals the sum over the four child-depth
 /// translates 2i−1, 2i, 2i+1, 2i+2 with these weights (index 0 ↔ offset −1).
 pub const REFINE: [f64; 4] = [0.25, 0.75, 0.75, 0.25];

@@ -7,6 +7,7 @@ use std::fmt;
 
 /// Everything that can go wrong in a reconstruction.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum Error {
     /// No points were given: a reconstruction needs at least one oriented point.
     EmptyInput,

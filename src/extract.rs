@@ -52,7 +52,7 @@
 //! cube's face: the mesh is always closed.
 
 use crate::evaluate::Indicator;
-use crate::grid::KeyMap;
+use crate::grid::{cell_of, KeyMap};
 use crate::octree::{Level, Octree, CORE, NONE, SPLIT};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -537,6 +537,27 @@ fn face_centre(points: &[Point]) -> Point {
             .expect("a face has points");
         (lo + hi) / 2
     })
+}
+
+/// Stage 8: the mesh of {χ = γ} (unit-cube coordinates), traced from the finest-depth cells of
+/// the samples at `positions`, its vertices fitted to the surface ([`fit_to_surface`]) unless
+/// `on_isosurface`.
+pub(crate) fn extract_around_samples(
+    chi: &Indicator<'_>,
+    isovalue: f64,
+    positions: &[DVec3],
+    on_isosurface: bool,
+) -> RawMesh {
+    let inv_h = (chi.tree.max_depth() as f64).exp2();
+    let seeds: Vec<[i64; 3]> = positions
+        .iter()
+        .map(|&p| cell_of(p, inv_h).map(i64::from))
+        .collect();
+    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface);
+    if !on_isosurface {
+        fit_to_surface(&mut mesh);
+    }
+    mesh
 }
 
 /// Leaves planned and traced together (fixed, so the mesh does not depend on the thread count).

@@ -13,122 +13,30 @@
 //! The reconstruction is one straight pipeline; each stage is a module:
 //! points → density → octree → splat → system → solve → isovalue → extract → mesh.
 
-pub mod bspline;
-pub mod density;
-pub mod error;
-pub mod evaluate;
-pub mod extract;
+mod bspline;
+mod density;
+mod error;
+mod evaluate;
+mod extract;
 pub mod ffi;
 mod grid;
-pub mod octree;
+mod isovalue;
+mod mesh;
+mod octree;
 mod parallel;
-pub mod params;
+mod params;
 mod pipeline;
 pub mod ply;
-pub mod points;
-pub mod solve;
-pub mod splat;
-pub mod system;
+mod points;
+mod solve;
+mod splat;
+mod system;
 
 pub use error::{Error, Result};
+pub use mesh::{DepthSolve, Mesh, Stats};
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
+pub use pipeline::{Progress, Stage};
 pub use points::PointSet;
-
-/// The stages of a reconstruction, in order, as reported to progress callbacks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[repr(u32)]
-pub enum Stage {
-    Points = 0,
-    /// The density estimate comes before the octree: each sample's depth decides its nodes.
-    Density = 1,
-    Octree = 2,
-    Splat = 3,
-    System = 4,
-    Solve = 5,
-    Isovalue = 6,
-    Extract = 7,
-    Mesh = 8,
-}
-
-impl Stage {
-    /// All stages in pipeline order.
-    pub const ALL: [Stage; 9] = [
-        Stage::Points,
-        Stage::Density,
-        Stage::Octree,
-        Stage::Splat,
-        Stage::System,
-        Stage::Solve,
-        Stage::Isovalue,
-        Stage::Extract,
-        Stage::Mesh,
-    ];
-
-    /// A short lower-case name ("solve").
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Points => "points",
-            Stage::Octree => "octree",
-            Stage::Density => "density",
-            Stage::Splat => "splat",
-            Stage::System => "system",
-            Stage::Solve => "solve",
-            Stage::Isovalue => "isovalue",
-            Stage::Extract => "extract",
-            Stage::Mesh => "mesh",
-        }
-    }
-}
-
-/// How one depth's linear solve ended.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DepthSolve {
-    pub depth: u32,
-    /// Unknowns (octree nodes) at this depth.
-    pub unknowns: usize,
-    pub iterations: u32,
-    /// ‖b − Ax‖ / ‖b‖ at the end (0 when b = 0).
-    pub relative_residual: f64,
-    /// Wall seconds for this depth (right-hand side, operator set-up and iterations).
-    pub seconds: f64,
-}
-
-/// Figures about a reconstruction, for logs and benchmarks.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Stats {
-    pub points: usize,
-    /// Octree nodes (unknowns) per depth, index = depth.
-    pub nodes_per_depth: Vec<usize>,
-    /// The isovalue γ the surface was extracted at (§4.4).
-    pub isovalue: f64,
-    pub solves: Vec<DepthSolve>,
-    /// Wall seconds spent in each stage, in pipeline order.
-    pub stage_seconds: Vec<(Stage, f64)>,
-}
-
-impl Stats {
-    /// Total octree nodes over all depths.
-    pub fn total_nodes(&self) -> usize {
-        self.nodes_per_depth.iter().sum()
-    }
-}
-
-/// A triangle mesh in the input's coordinates.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Mesh {
-    pub positions: Vec<[f32; 3]>,
-    /// Counter-clockwise seen from outside: normals point out of the reconstructed solid.
-    pub triangles: Vec<[u32; 3]>,
-    /// Sampling density estimate at each vertex (kernel density of §4.5, in samples per
-    /// kernel-depth node): low values mark surface invented far from any sample (for trimming).
-    pub densities: Vec<f32>,
-    pub stats: Stats,
-}
-
-/// A progress callback: receives the stage and the fraction of it done (0..=1) and returns
-/// `true` to go on, `false` to cancel. It is called on the thread that called
-/// [`reconstruct_with_progress`], never concurrently.
-pub type Progress<'a> = &'a mut dyn FnMut(Stage, f32) -> bool;
 
 /// Reconstructs a watertight mesh from oriented points.
 pub fn reconstruct(points: &PointSet, params: &Params) -> Result<Mesh> {

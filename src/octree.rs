@@ -18,8 +18,10 @@
 //! node function near the cube's face reaches beyond it, and with free boundaries (the
 //! paper's) that is where its neighbours live.
 
-use crate::grid::{compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
+use crate::density::DepthSample;
+use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
 use crate::parallel::DistinctIndices;
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// Marks a missing neighbour or parent.
@@ -66,10 +68,6 @@ impl Level {
         self.keys.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.keys.is_empty()
-    }
-
     /// Index of the node with this coordinate, if it is in K_d.
     #[inline]
     pub fn find(&self, c: Coord) -> Option<u32> {
@@ -84,14 +82,7 @@ impl Level {
         let position = (key & 511) as usize;
         let i = self.index.in_brick(slot, position)?;
         let local = brick_local(position).map(|v| v as i32);
-        Some((
-            i,
-            NodePlace {
-                slot,
-                position,
-                local,
-            },
-        ))
+        Some((i, NodePlace { slot, local }))
     }
 
     /// For nodes given in ascending order (repeats allowed), where each brick's run starts:
@@ -144,7 +135,6 @@ impl Level {
         let position = (self.keys[i as usize] & 511) as usize;
         NodePlace {
             slot: self.index.slot_of_node_from(cursor, i),
-            position,
             local: brick_local(position).map(|v| v as i32),
         }
     }
@@ -246,8 +236,6 @@ impl AxisStep {
 #[derive(Debug, Clone, Copy)]
 pub struct NodePlace {
     pub slot: usize,
-    /// The low nine bits of the node's key.
-    pub position: usize,
     pub local: [i32; 3],
 }
 
@@ -376,6 +364,27 @@ impl Octree {
             }
         }
         Octree { levels }
+    }
+
+    /// The tree around the samples splatted at each depth (`at_depth[d]`, see
+    /// [`crate::density::samples_by_depth`]), at `positions` in the unit cube.
+    pub(crate) fn around_samples(
+        at_depth: &[Vec<DepthSample>],
+        positions: &[DVec3],
+        full_depth: u32,
+        neumann: bool,
+    ) -> Octree {
+        let sample_cells: Vec<Vec<Coord>> = at_depth
+            .iter()
+            .enumerate()
+            .map(|(d, at)| {
+                let inv_h = (d as f64).exp2();
+                at.iter()
+                    .map(|s| cell_of(positions[s.sample as usize], inv_h))
+                    .collect()
+            })
+            .collect();
+        Octree::build(sample_cells, full_depth, neumann)
     }
 
     pub fn max_depth(&self) -> u32 {

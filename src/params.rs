@@ -11,6 +11,7 @@ pub const MAX_DEPTH: u32 = 16;
 
 /// What to do at the faces of the bounding cube.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Boundary {
     /// The 2006 paper: node functions are integrated over all of space and simply end a little
     /// beyond the cube, which pulls χ towards 0 there (like a Dirichlet condition one node out).
@@ -23,6 +24,7 @@ pub enum Boundary {
 
 /// How a sample's weighted normal is spread over the nodes of its depth (§4.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Splatting {
     /// Weights b(t) of the node functions themselves, 3 nodes per axis: the vector field's
     /// kernel is then b∗b, smoother than the paper's. Measured at depth 8 on a 100k-point random
@@ -36,6 +38,7 @@ pub enum Splatting {
 
 /// Where the mesh's vertices go (stage 8, extraction).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum VertexPlacement {
     /// Each vertex is found on {χ = γ}, then moved along the surface normal by the mean sag of
     /// the chords around it, so that the flat triangles straddle the curved surface instead of
@@ -53,8 +56,18 @@ pub enum VertexPlacement {
 }
 
 /// Parameters of one reconstruction. `Params::default()` works; every field documents its
-/// default, its range and the equivalent option of the incumbents.
+/// default, its range and the equivalent option of the incumbents. Set fields directly or with
+/// the `with_*` builders:
+///
+/// ```
+/// let params = psr::Params::default().with_depth(10).with_point_weight(2.0);
+/// assert_eq!((params.depth, params.point_weight), (10, 2.0));
+/// ```
+///
+/// New fields may be added in any release (the struct is `#[non_exhaustive]`), so build it
+/// from `Params::default()`, not with a struct literal.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Params {
     /// Maximum octree depth D: the finest cells are 2^-D of the (scaled) bounding cube.
     /// Default 8, range 1..=16. PoissonRecon `--depth`, Open3D `depth`, PCL `setDepth`.
@@ -120,12 +133,76 @@ impl Default for Params {
 }
 
 impl Params {
-    /// Parameters with the given depth and every other field at its default.
-    pub fn with_depth(depth: u32) -> Self {
-        Params {
-            depth,
-            ..Params::default()
-        }
+    /// These parameters with [`Params::depth`] set to `depth`.
+    pub fn with_depth(mut self, depth: u32) -> Self {
+        self.depth = depth;
+        self
+    }
+
+    /// These parameters with [`Params::full_depth`] set to `full_depth`.
+    pub fn with_full_depth(mut self, full_depth: u32) -> Self {
+        self.full_depth = full_depth;
+        self
+    }
+
+    /// These parameters with [`Params::kernel_depth`] set to `kernel_depth`.
+    pub fn with_kernel_depth(mut self, kernel_depth: Option<u32>) -> Self {
+        self.kernel_depth = kernel_depth;
+        self
+    }
+
+    /// These parameters with [`Params::samples_per_node`] set to `samples_per_node`.
+    pub fn with_samples_per_node(mut self, samples_per_node: f32) -> Self {
+        self.samples_per_node = samples_per_node;
+        self
+    }
+
+    /// These parameters with [`Params::scale`] set to `scale`.
+    pub fn with_scale(mut self, scale: f32) -> Self {
+        self.scale = scale;
+        self
+    }
+
+    /// These parameters with [`Params::point_weight`] set to `point_weight`.
+    pub fn with_point_weight(mut self, point_weight: f32) -> Self {
+        self.point_weight = point_weight;
+        self
+    }
+
+    /// These parameters with [`Params::threads`] set to `threads`.
+    pub fn with_threads(mut self, threads: usize) -> Self {
+        self.threads = threads;
+        self
+    }
+
+    /// These parameters with [`Params::max_solver_iterations`] set to `max_solver_iterations`.
+    pub fn with_max_solver_iterations(mut self, max_solver_iterations: u32) -> Self {
+        self.max_solver_iterations = max_solver_iterations;
+        self
+    }
+
+    /// These parameters with [`Params::solver_tolerance`] set to `solver_tolerance`.
+    pub fn with_solver_tolerance(mut self, solver_tolerance: f64) -> Self {
+        self.solver_tolerance = solver_tolerance;
+        self
+    }
+
+    /// These parameters with [`Params::splatting`] set to `splatting`.
+    pub fn with_splatting(mut self, splatting: Splatting) -> Self {
+        self.splatting = splatting;
+        self
+    }
+
+    /// These parameters with [`Params::boundary`] set to `boundary`.
+    pub fn with_boundary(mut self, boundary: Boundary) -> Self {
+        self.boundary = boundary;
+        self
+    }
+
+    /// These parameters with [`Params::vertex_placement`] set to `vertex_placement`.
+    pub fn with_vertex_placement(mut self, vertex_placement: VertexPlacement) -> Self {
+        self.vertex_placement = vertex_placement;
+        self
     }
 
     /// The kernel depth actually used (resolves `None` to depth − 2).

@@ -6,7 +6,9 @@
 //! by a uniform scale, and the inverse map takes mesh vertices back to input coordinates.
 
 use crate::error::{Error, Result};
+use crate::grid::{cell_of, morton_nested};
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Oriented input points: positions, unit normals and optional confidence weights.
 ///
@@ -185,6 +187,67 @@ impl UnitCubeMap {
     /// Unit cube → input coordinates.
     pub fn to_input(&self, q: DVec3) -> DVec3 {
         q * self.size + self.origin
+    }
+}
+
+/// The samples in unit-cube coordinates, in Morton order of their cells at the requested depth
+/// (so also at every coarser depth; ties in input order): the samples of a cell, and of
+/// neighbouring cells mostly, are neighbours in memory for every stage that reads them by cell.
+pub(crate) struct Samples {
+    pub(crate) positions: Vec<DVec3>,
+    /// Unit normals (the point set's), until splatted.
+    pub(crate) normals: Vec<[f32; 3]>,
+    /// Confidence weights (all 1 unless given).
+    pub(crate) confidence: Vec<f64>,
+}
+
+impl Samples {
+    /// The points mapped by `map`, in Morton order at `depth`. Refuses inputs no surface can be
+    /// placed in: every weight zero, or every point at one position.
+    pub(crate) fn in_morton_order(
+        points: &PointSet,
+        map: &UnitCubeMap,
+        depth: u32,
+    ) -> Result<Samples> {
+        let inv_h = (depth as f64).exp2();
+        let unit: Vec<DVec3> = points
+            .positions()
+            .par_iter()
+            .map(|&p| map.to_unit(p))
+            .collect();
+        let mut order: Vec<(u64, u32)> = unit
+            .par_iter()
+            .enumerate()
+            .map(|(s, &p)| {
+                let c = cell_of(p, inv_h);
+                (morton_nested(c.map(|v| v.max(0) as u32)), s as u32)
+            })
+            .collect();
+        order.par_sort_unstable();
+        let samples = Samples {
+            positions: order.par_iter().map(|&(_, s)| unit[s as usize]).collect(),
+            normals: order
+                .par_iter()
+                .map(|&(_, s)| points.normals()[s as usize])
+                .collect(),
+            confidence: match points.weights() {
+                Some(w) => order
+                    .par_iter()
+                    .map(|&(_, s)| w[s as usize] as f64)
+                    .collect(),
+                None => vec![1.0; points.len()],
+            },
+        };
+        if samples.confidence.iter().all(|&c| c == 0.0) {
+            return Err(Error::NoPositiveWeight);
+        }
+        let first = points.positions()[0];
+        if points.positions().iter().all(|p| *p == first) {
+            return Err(Error::DegenerateInput {
+                points: points.len(),
+            });
+        }
+        Ok(samples)
     }
 }
 

@@ -9,10 +9,155 @@
 //! Reductions are computed in fixed chunks whose partial sums are added in order, so the result
 //! is the same bit for bit whatever the number of threads.
 
-use crate::octree::Level;
+use crate::error::{Error, Result};
+use crate::octree::{Level, Octree};
 use crate::parallel::{scatter_by_chunk, CHUNK};
-use crate::system::{update_on_core, DepthOperator};
+use crate::system::{
+    divergence_of_prolonged, fill_mirrors, fill_mirrors_field, prolong, proxy_depth,
+    update_on_core, DepthOperator, ProlongedField, Proxies,
+};
+use crate::{DepthSolve, Params};
+use glam::DVec3;
 use rayon::prelude::*;
+use std::time::Instant;
+
+/// What the solve reads: the right-hand sides and the vector field of every depth, and the
+/// screening samples.
+pub(crate) struct System<'a> {
+    pub(crate) tree: &'a Octree,
+    /// ρ_d on K_d for every depth ([`crate::system::right_hand_sides`]); each is dropped once
+    /// its depth is solved.
+    pub(crate) rho: Vec<Vec<f64>>,
+    /// V_d on K_d for every depth but the finest (whose V was spent on its ρ).
+    pub(crate) field_v: Vec<[Vec<f64>; 3]>,
+    /// The samples in the unit cube (Morton order) and their screening weights.
+    pub(crate) positions: &'a [DVec3],
+    pub(crate) screening_weights: &'a [f64],
+    /// The screening term's weight α_d ([`crate::system::depth_weight`]).
+    pub(crate) screening: f64,
+}
+
+/// Solves the system depth by depth from the root and returns z_d on K_d for every depth: the
+/// coarser solution prolonged to depth d plus the correction solved there. Each depth's
+/// figures are appended to `solves`; `progress(fraction of the whole solve)` is called once
+/// per iteration and may cancel.
+///
+/// Memory: V of each depth (and of all coarser ones, accumulated) is read for the last time
+/// while its depth is solved, prolonged to the next depth where it is that depth's coarse
+/// right-hand side and added to that depth's V, brick by brick; so at most two depths' V are
+/// alive, never a prolonged copy.
+pub(crate) fn cascade(
+    system: System<'_>,
+    params: &Params,
+    pool: &rayon::ThreadPool,
+    progress: &mut dyn FnMut(f32) -> bool,
+    solves: &mut Vec<DepthSolve>,
+) -> Result<Vec<Vec<f64>>> {
+    let System {
+        tree,
+        mut rho,
+        mut field_v,
+        positions,
+        screening_weights,
+        screening,
+    } = system;
+    let max_depth = tree.max_depth();
+    field_v.push(Default::default());
+    let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
+    // The coarse right-hand side of the next depth, ⟨∇B_o, coarser V prolonged⟩ on its core.
+    let mut next_coarse_div: Option<Vec<f64>> = None;
+    let depths = max_depth + 1;
+    for d in 0..=max_depth as usize {
+        let depth_started = Instant::now();
+        let level = &tree.levels[d];
+        let proxies = pool.install(|| {
+            Proxies::build(
+                level,
+                positions,
+                screening_weights,
+                proxy_depth(d as u32, max_depth),
+            )
+        });
+        let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
+        // This depth's rho is used here for the last time.
+        let is_finest = d == max_depth as usize;
+        let rho_here = std::mem::take(&mut rho[d]);
+        // The coarser solution, represented at this depth (stored: it is part of this depth's
+        // coefficients).
+        let y = pool.install(|| {
+            if d == 0 {
+                vec![0.0; level.len()]
+            } else {
+                let mut y = prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0);
+                fill_mirrors(level, &mut y);
+                y
+            }
+        });
+        let coarse_div = next_coarse_div
+            .take()
+            .unwrap_or_else(|| vec![0.0; level.core.len()]);
+        if !is_finest {
+            // V of this depth and all coarser ones (accumulated here by the depth above) is
+            // read for the last time, before this depth's vectors are allocated: prolonged to
+            // the next depth (F̃ halves in width: ×1/8), where its divergence is that depth's
+            // coarse right-hand side, and added to that depth's V (brick by brick, never as
+            // three more halo vectors).
+            let mut field = std::mem::take(&mut field_v[d]);
+            fill_mirrors_field(level, &mut field);
+            let finer = &tree.levels[d + 1];
+            let prolonged = ProlongedField {
+                coarse: level,
+                fine: finer,
+                field: [&field[0], &field[1], &field[2]],
+                scale: 0.125,
+            };
+            next_coarse_div = Some(pool.install(|| divergence_of_prolonged(&prolonged)));
+            if d + 1 < max_depth as usize {
+                pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
+            }
+        }
+        // b − A·y on the core, computed in A·y's vector.
+        let rhs = pool.install(|| {
+            let mut rhs = vec![0.0; level.core.len()];
+            op.apply(&y, &mut rhs);
+            rhs.par_iter_mut()
+                .zip(level.core.par_iter().zip(&coarse_div))
+                .for_each(|(a, (&c, div))| *a = rho_here[c as usize] + div - *a);
+            rhs
+        });
+        drop(rho_here);
+        drop(coarse_div);
+        let base = d as f32 / depths as f32;
+        // The coefficients of this depth: the prolonged coarser solution plus the correction
+        // the solve adds on the core.
+        let mut z = y;
+        let outcome = {
+            let mut keep_going = |f: f32| progress(base + f / depths as f32);
+            conjugate_gradients(
+                pool,
+                &mut op,
+                rhs,
+                &mut z,
+                params.max_solver_iterations,
+                params.solver_tolerance,
+                &mut keep_going,
+            )
+        };
+        if outcome.cancelled {
+            return Err(Error::Cancelled);
+        }
+        fill_mirrors(level, &mut z);
+        coefficients.push(z);
+        solves.push(DepthSolve {
+            depth: d as u32,
+            unknowns: level.core.len(),
+            iterations: outcome.iterations,
+            relative_residual: outcome.relative_residual,
+            seconds: depth_started.elapsed().as_secs_f64(),
+        });
+    }
+    Ok(coefficients)
+}
 
 /// How one depth's solve ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,7 +233,7 @@ fn dot_on_core(level: &Level, p: &[f64], a: &[f64]) -> f64 {
 /// vector on K_d, at the core nodes (its mirror nodes are left to the caller). `b` becomes the
 /// residual, so the solve holds no copy of it and no separate x. `keep_going` is called once
 /// per iteration with the fraction of the iteration budget used; returning false stops.
-pub fn conjugate_gradients(
+fn conjugate_gradients(
     pool: &rayon::ThreadPool,
     op: &mut DepthOperator<'_>,
     b: Vec<f64>,

@@ -15,25 +15,40 @@
 //! node it mirrors inside: along each axis, the first and last node also collect the weight of
 //! their reflection.
 
+use crate::density::DepthSample;
 use crate::grid::cell_of;
 use crate::octree::{brick_local, BrickCursor, Level};
 use crate::parallel::scatter_by_chunk;
-use crate::Splatting;
+use crate::points::Samples;
+use crate::system::fill_mirrors_field;
+use crate::{Boundary, Params, Splatting};
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// One sample's contribution at one depth.
-#[derive(Debug, Clone, Copy)]
-pub struct DepthSample {
-    /// The sample's index (the position and normal it refers to).
-    pub sample: u32,
-    /// Its mass at this depth.
-    pub mass: f64,
+/// The coefficients of V at one depth on K_d, mirror nodes filled (see
+/// [`fill_mirrors_field`]), for the samples `at_depth` with the parameters' splatting weights and
+/// boundary.
+pub(crate) fn splat_level(
+    level: &Level,
+    samples: &Samples,
+    at_depth: &[DepthSample],
+    params: &Params,
+) -> [Vec<f64>; 3] {
+    let mut v = splat_depth(
+        level,
+        &samples.positions,
+        &samples.normals,
+        at_depth,
+        params.splatting,
+        params.boundary == Boundary::Neumann,
+    );
+    fill_mirrors_field(level, &mut v);
+    v
 }
 
 /// The coefficients of V at one depth (x, y and z, one value per node of the level; zero
 /// outside the core), for the samples `at_depth` (any order).
-pub fn splat_depth(
+fn splat_depth(
     level: &Level,
     positions: &[DVec3],
     normals: &[[f32; 3]],

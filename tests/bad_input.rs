@@ -147,7 +147,7 @@ fn invalid_and_all_zero_weights_are_errors() {
 
     let mut zero = PointSet::new();
     zero.extend_weighted(&p, &n, Some(&[0.0; 100])).unwrap();
-    let err = reconstruct(&zero, &Params::with_depth(5)).unwrap_err();
+    let err = reconstruct(&zero, &Params::default().with_depth(5)).unwrap_err();
     eprintln!("all-zero weights: {err}");
     assert_eq!(err, Error::NoPositiveWeight);
     assert_mentions(&err.to_string(), &["every confidence weight is 0"]);
@@ -160,7 +160,7 @@ fn invalid_and_all_zero_weights_are_errors() {
         .map(|i| if i % 2 == 0 { 0.0 } else { 1.0 })
         .collect();
     some_zero.extend_weighted(&p, &n, Some(&w)).unwrap();
-    let mesh = reconstruct(&some_zero, &Params::with_depth(6)).unwrap();
+    let mesh = reconstruct(&some_zero, &Params::default().with_depth(6)).unwrap();
     let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
     assert!(topo.is_closed_manifold() && topo.euler == 2, "{topo}");
 }
@@ -176,144 +176,48 @@ fn invalid_and_all_zero_weights_are_errors() {
 fn out_of_range_parameters_name_the_field() {
     let d = Params::default;
     let cases: Vec<(&str, Params, &str)> = vec![
-        ("depth", Params { depth: 0, ..d() }, "0"),
-        ("depth", Params { depth: 17, ..d() }, "17"),
-        (
-            "full_depth",
-            Params {
-                full_depth: 17,
-                ..d()
-            },
-            "17",
-        ),
+        ("depth", d().with_depth(0), "0"),
+        ("depth", d().with_depth(17), "17"),
+        ("full_depth", d().with_full_depth(17), "17"),
         (
             "kernel_depth",
-            Params {
-                depth: 8,
-                kernel_depth: Some(9),
-                ..d()
-            },
+            d().with_depth(8).with_kernel_depth(Some(9)),
             "9",
         ),
+        ("samples_per_node", d().with_samples_per_node(0.0), "0"),
+        ("samples_per_node", d().with_samples_per_node(0.5), "0.5"),
         (
             "samples_per_node",
-            Params {
-                samples_per_node: 0.0,
-                ..d()
-            },
-            "0",
-        ),
-        (
-            "samples_per_node",
-            Params {
-                samples_per_node: 0.5,
-                ..d()
-            },
-            "0.5",
-        ),
-        (
-            "samples_per_node",
-            Params {
-                samples_per_node: f32::NAN,
-                ..d()
-            },
+            d().with_samples_per_node(f32::NAN),
             "NaN",
         ),
         (
             "samples_per_node",
-            Params {
-                samples_per_node: f32::INFINITY,
-                ..d()
-            },
+            d().with_samples_per_node(f32::INFINITY),
             "inf",
         ),
-        ("scale", Params { scale: 0.5, ..d() }, "0.5"),
-        (
-            "scale",
-            Params {
-                scale: f32::INFINITY,
-                ..d()
-            },
-            "inf",
-        ),
-        (
-            "scale",
-            Params {
-                scale: f32::NAN,
-                ..d()
-            },
-            "NaN",
-        ),
-        (
-            "point_weight",
-            Params {
-                point_weight: -1.0,
-                ..d()
-            },
-            "-1",
-        ),
-        (
-            "point_weight",
-            Params {
-                point_weight: f32::NAN,
-                ..d()
-            },
-            "NaN",
-        ),
-        (
-            "point_weight",
-            Params {
-                point_weight: f32::INFINITY,
-                ..d()
-            },
-            "inf",
-        ),
-        (
-            "threads",
-            Params {
-                threads: 5000,
-                ..d()
-            },
-            "5000",
-        ),
+        ("scale", d().with_scale(0.5), "0.5"),
+        ("scale", d().with_scale(f32::INFINITY), "inf"),
+        ("scale", d().with_scale(f32::NAN), "NaN"),
+        ("point_weight", d().with_point_weight(-1.0), "-1"),
+        ("point_weight", d().with_point_weight(f32::NAN), "NaN"),
+        ("point_weight", d().with_point_weight(f32::INFINITY), "inf"),
+        ("threads", d().with_threads(5000), "5000"),
+        ("solver_tolerance", d().with_solver_tolerance(0.0), "0"),
+        ("solver_tolerance", d().with_solver_tolerance(1.0), "1"),
         (
             "solver_tolerance",
-            Params {
-                solver_tolerance: 0.0,
-                ..d()
-            },
-            "0",
-        ),
-        (
-            "solver_tolerance",
-            Params {
-                solver_tolerance: 1.0,
-                ..d()
-            },
-            "1",
-        ),
-        (
-            "solver_tolerance",
-            Params {
-                solver_tolerance: f64::NAN,
-                ..d()
-            },
+            d().with_solver_tolerance(f64::NAN),
             "NaN",
         ),
         (
             "max_solver_iterations",
-            Params {
-                max_solver_iterations: 0,
-                ..d()
-            },
+            d().with_max_solver_iterations(0),
             "0",
         ),
         (
             "max_solver_iterations",
-            Params {
-                max_solver_iterations: 10_001,
-                ..d()
-            },
+            d().with_max_solver_iterations(10_001),
             "10001",
         ),
     ];
@@ -349,45 +253,18 @@ fn out_of_range_parameters_name_the_field() {
 
     let ok = [
         Params::default(),
-        Params { depth: 1, ..d() },
-        Params { depth: 16, ..d() },
-        Params {
-            full_depth: 0,
-            ..d()
-        },
-        Params {
-            kernel_depth: Some(0),
-            ..d()
-        },
-        Params {
-            kernel_depth: Some(8),
-            ..d()
-        },
-        Params {
-            samples_per_node: 1.0,
-            ..d()
-        },
-        Params { scale: 1.0, ..d() },
-        Params {
-            scale: 100.0,
-            ..d()
-        },
-        Params {
-            point_weight: 0.0,
-            ..d()
-        },
-        Params {
-            solver_tolerance: 1e-12,
-            ..d()
-        },
-        Params {
-            max_solver_iterations: 1,
-            ..d()
-        },
-        Params {
-            max_solver_iterations: 10_000,
-            ..d()
-        },
+        d().with_depth(1),
+        d().with_depth(16),
+        d().with_full_depth(0),
+        d().with_kernel_depth(Some(0)),
+        d().with_kernel_depth(Some(8)),
+        d().with_samples_per_node(1.0),
+        d().with_scale(1.0),
+        d().with_scale(100.0),
+        d().with_point_weight(0.0),
+        d().with_solver_tolerance(1e-12),
+        d().with_max_solver_iterations(1),
+        d().with_max_solver_iterations(10_000),
     ];
     for params in ok {
         assert_eq!(params.validate(), Ok(()), "{params:?}");
@@ -414,7 +291,7 @@ fn closed_in_cube_or_clear_error(
     depth: u32,
 ) -> String {
     let points = PointSet::from_slices(positions, normals).unwrap();
-    let params = Params::with_depth(depth);
+    let params = Params::default().with_depth(depth);
     let outcome = match reconstruct(&points, &params) {
         Ok(mesh) => {
             let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
@@ -429,11 +306,12 @@ fn closed_in_cube_or_clear_error(
             assert_eq!(mesh.densities.len(), mesh.positions.len(), "{label}");
             // Boundary edges: only on the cube's faces (within a quarter of a finest cell, which
             // also covers the f32 rounding of the vertex positions).
-            let map = psr::points::UnitCubeMap::fit(positions, params.scale as f64);
+            let (origin, size) = bounding_cube(positions, params.scale as f64);
             let tolerance = 0.25 * (-(depth as f64)).exp2();
             let on_face = |v: u32| {
-                let q = map.to_unit(mesh.positions[v as usize]);
-                q.min_element() <= tolerance || q.max_element() >= 1.0 - tolerance
+                let p = mesh.positions[v as usize];
+                let q: [f64; 3] = std::array::from_fn(|a| (p[a] as f64 - origin[a]) / size);
+                q.iter().any(|&c| c <= tolerance || c >= 1.0 - tolerance)
             };
             let mut uses = std::collections::HashMap::new();
             for t in &mesh.triangles {
@@ -462,6 +340,24 @@ fn closed_in_cube_or_clear_error(
     outcome
 }
 
+/// The cube psr reconstructs in, as `Params::scale` documents it: centred on the points' bounding
+/// box, with edge `scale` × the box's longest side (> 0 for every input that gives a mesh).
+/// Returns its lowest corner and its edge.
+fn bounding_cube(positions: &[[f32; 3]], scale: f64) -> ([f64; 3], f64) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a] as f64);
+            hi[a] = hi[a].max(p[a] as f64);
+        }
+    }
+    let size = scale * (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+    (
+        std::array::from_fn(|a| (lo[a] + hi[a]) / 2.0 - size / 2.0),
+        size,
+    )
+}
+
 /// Proves: inputs with no volume to enclose, or far fewer distinct points than samples, do not
 /// panic and give either a clear error or a mesh that is closed inside the bounding cube (see
 /// `closed_in_cube_or_clear_error`): 10k copies each of 3 points, 1000 identical points, a
@@ -471,7 +367,7 @@ fn closed_in_cube_or_clear_error(
 fn coincident_points_are_a_clear_error() {
     for n in [1usize, 1000] {
         let points = PointSet::from_slices(&vec![[2.0, -3.0, 4.0]; n], &vec![UP; n]).unwrap();
-        let err = reconstruct(&points, &Params::with_depth(6)).unwrap_err();
+        let err = reconstruct(&points, &Params::default().with_depth(6)).unwrap_err();
         assert_eq!(err, Error::DegenerateInput { points: n });
         assert_mentions(&err.to_string(), &["coincide"]);
     }
@@ -527,7 +423,7 @@ fn degenerate_inputs_do_not_panic() {
         // out as a closed sphere.
         let mesh = reconstruct(
             &PointSet::from_slices(&p, &n).unwrap(),
-            &Params::with_depth(6),
+            &Params::default().with_depth(6),
         )
         .unwrap();
         let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
@@ -561,7 +457,8 @@ fn progress_callback_can_cancel() {
             !stopped
         };
         let err =
-            reconstruct_with_progress(&points, &Params::with_depth(6), &mut callback).unwrap_err();
+            reconstruct_with_progress(&points, &Params::default().with_depth(6), &mut callback)
+                .unwrap_err();
         assert_eq!(err, Error::Cancelled, "stop at {stop_at:?}");
         assert_mentions(&err.to_string(), &["cancelled"]);
         assert!(stopped, "{stop_at:?} was never reported");
@@ -572,15 +469,18 @@ fn progress_callback_can_cancel() {
     }
     // A callback that always continues sees every stage and gets a mesh.
     let mut seen = Vec::new();
-    let mesh =
-        reconstruct_with_progress(&points, &Params::with_depth(6), &mut |stage, fraction| {
+    let mesh = reconstruct_with_progress(
+        &points,
+        &Params::default().with_depth(6),
+        &mut |stage, fraction| {
             assert!((0.0..=1.0).contains(&fraction), "fraction {fraction}");
             if seen.last() != Some(&stage) {
                 seen.push(stage);
             }
             true
-        })
-        .unwrap();
+        },
+    )
+    .unwrap();
     assert!(!mesh.triangles.is_empty());
     eprintln!("stages reported: {seen:?}");
 }

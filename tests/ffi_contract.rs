@@ -85,20 +85,16 @@ fn solve_or_skip(r: *mut psr_reconstructor, test: &str) -> Option<*mut psr_mesh>
 
 /// A small known mesh (a tetrahedron) wrapped as a C handle, for the mesh functions.
 fn tetrahedron() -> *mut psr_mesh {
-    let mesh = psr::Mesh {
-        positions: vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-        ],
-        triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
-        densities: vec![1.0, 2.0, 3.0, 4.0],
-        stats: psr::Stats {
-            isovalue: 0.5,
-            ..Default::default()
-        },
-    };
+    let mut mesh = psr::Mesh::default();
+    mesh.positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    mesh.triangles = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    mesh.densities = vec![1.0, 2.0, 3.0, 4.0];
+    mesh.stats.isovalue = 0.5;
     debug_mesh_new(mesh)
 }
 

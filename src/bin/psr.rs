@@ -99,30 +99,28 @@ struct Args {
 
 impl Args {
     fn params(&self) -> Params {
-        Params {
-            depth: self.depth,
-            full_depth: self.full_depth,
-            kernel_depth: self.kernel_depth,
-            samples_per_node: self.samples_per_node,
-            scale: self.scale,
-            point_weight: self.point_weight,
-            threads: self.threads,
-            max_solver_iterations: self.iters,
-            solver_tolerance: self.tolerance,
-            boundary: match self.boundary {
+        Params::default()
+            .with_depth(self.depth)
+            .with_full_depth(self.full_depth)
+            .with_kernel_depth(self.kernel_depth)
+            .with_samples_per_node(self.samples_per_node)
+            .with_scale(self.scale)
+            .with_point_weight(self.point_weight)
+            .with_threads(self.threads)
+            .with_max_solver_iterations(self.iters)
+            .with_solver_tolerance(self.tolerance)
+            .with_boundary(match self.boundary {
                 BoundaryArg::Neumann => Boundary::Neumann,
                 BoundaryArg::Free => Boundary::Free,
-            },
-            splatting: match self.splatting {
+            })
+            .with_splatting(match self.splatting {
                 SplattingArg::Bspline => Splatting::BSpline,
                 SplattingArg::Trilinear => Splatting::Trilinear,
-            },
-            vertex_placement: match self.vertices {
+            })
+            .with_vertex_placement(match self.vertices {
                 VerticesArg::Fitted => VertexPlacement::Fitted,
                 VerticesArg::OnIsosurface => VertexPlacement::OnIsosurface,
-            },
-            ..Params::default()
-        }
+            })
     }
 }
 

@@ -37,8 +37,8 @@ mod transfer;
 
 pub(crate) use operator::DepthOperator;
 pub(crate) use rhs::{
-    divergence, divergence_of, divergence_of_prolonged, fill_mirrors, fill_mirrors_field,
+    divergence, divergence_of_prolonged, fill_mirrors, fill_mirrors_field, right_hand_sides,
     update_on_core,
 };
-pub(crate) use screening::Proxies;
-pub(crate) use transfer::{prolong, restrict_into, ProlongedField};
+pub(crate) use screening::{depth_weight, proxy_depth, sample_weights, Proxies};
+pub(crate) use transfer::{prolong, ProlongedField};

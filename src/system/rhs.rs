@@ -3,8 +3,9 @@
 //! act as the folded (even) basis at the cube's faces.
 
 use super::bricks::CoreBricks;
-use super::transfer::ProlongedField;
-use crate::octree::Level;
+use super::transfer::{restrict_into, ProlongedField};
+use crate::error::Result;
+use crate::octree::{Level, Octree};
 use crate::parallel::for_each_indexed;
 
 /// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
@@ -76,4 +77,31 @@ pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Vec<f64> {
         &mut out,
     );
     out
+}
+
+/// ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo K_d (index d), finest first: each depth's own
+/// divergence plus the finer depth's ρ restricted (exactly) to it. `rho_finest` is the finest
+/// depth's, computed when its V was splatted (see [`divergence`]); `field_v[d]` is V_d for the
+/// coarser depths. `progress(fraction)` is called after each depth and may stop the work.
+pub(crate) fn right_hand_sides(
+    tree: &Octree,
+    rho_finest: Vec<f64>,
+    field_v: &[[Vec<f64>; 3]],
+    pool: &rayon::ThreadPool,
+    mut progress: impl FnMut(f32) -> Result<()>,
+) -> Result<Vec<Vec<f64>>> {
+    let max_depth = tree.max_depth() as usize;
+    let mut rho: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
+    rho.push(rho_finest);
+    for d in (0..max_depth).rev() {
+        let level = &tree.levels[d];
+        let mut r = pool.install(|| divergence_of(level, &field_v[d]));
+        let finer: &Vec<f64> = rho.last().expect("finer level computed first");
+        restrict_into(level, &tree.levels[d + 1], finer, &mut r);
+        fill_mirrors(level, &mut r);
+        rho.push(r);
+        progress((max_depth - d + 1) as f32 / (max_depth + 1) as f32)?;
+    }
+    rho.reverse();
+    Ok(rho)
 }

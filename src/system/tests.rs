@@ -1,8 +1,9 @@
 //! The system's tests: operators against closed forms and node-by-node references.
 
 use super::bricks::{window_regions, CoreBricks, WINDOW};
+use super::rhs::divergence_of;
 use super::screening::ScreeningCells;
-use super::transfer::{prolonged_at, refinement_parents};
+use super::transfer::{prolonged_at, refinement_parents, restrict_into};
 use super::*;
 use crate::bspline::tables;
 use crate::octree::{Level, Octree, NONE};

@@ -1,0 +1,84 @@
+//! Stage 9 — the mesh: vertices back in input coordinates, with the sampling density at each;
+//! and the types a reconstruction returns.
+
+use crate::density::DensityField;
+use crate::extract::RawMesh;
+use crate::points::UnitCubeMap;
+use crate::Stage;
+use rayon::prelude::*;
+
+/// How one depth's linear solve ended.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct DepthSolve {
+    pub depth: u32,
+    /// Unknowns (octree nodes) at this depth.
+    pub unknowns: usize,
+    pub iterations: u32,
+    /// ‖b − Ax‖ / ‖b‖ at the end (0 when b = 0).
+    pub relative_residual: f64,
+    /// Wall seconds for this depth (right-hand side, operator set-up and iterations).
+    pub seconds: f64,
+}
+
+/// Figures about a reconstruction, for logs and benchmarks.
+#[derive(Debug, Clone, Default, PartialEq)]
+#[non_exhaustive]
+pub struct Stats {
+    pub points: usize,
+    /// Octree nodes (unknowns) per depth, index = depth.
+    pub nodes_per_depth: Vec<usize>,
+    /// The isovalue γ the surface was extracted at (§4.4).
+    pub isovalue: f64,
+    pub solves: Vec<DepthSolve>,
+    /// Wall seconds spent in each stage, in pipeline order.
+    pub stage_seconds: Vec<(Stage, f64)>,
+}
+
+impl Stats {
+    /// Total octree nodes over all depths.
+    pub fn total_nodes(&self) -> usize {
+        self.nodes_per_depth.iter().sum()
+    }
+}
+
+/// A triangle mesh in the input's coordinates.
+#[derive(Debug, Clone, Default, PartialEq)]
+#[non_exhaustive]
+pub struct Mesh {
+    pub positions: Vec<[f32; 3]>,
+    /// Counter-clockwise seen from outside: normals point out of the reconstructed solid.
+    pub triangles: Vec<[u32; 3]>,
+    /// Sampling density estimate at each vertex (kernel density of §4.5, in samples per
+    /// kernel-depth node): low values mark surface invented far from any sample (for trimming).
+    pub densities: Vec<f32>,
+    pub stats: Stats,
+}
+
+/// Stage 9: `raw`'s vertices mapped back to input coordinates by `map`, each with the
+/// sampling density there (`density`, for trimming); its figures are left for the caller.
+pub(crate) fn in_input_coordinates(
+    raw: RawMesh,
+    map: &UnitCubeMap,
+    density: &DensityField,
+) -> Mesh {
+    let positions: Vec<[f32; 3]> = raw
+        .vertices
+        .par_iter()
+        .map(|&v| {
+            let p = map.to_input(v);
+            [p.x as f32, p.y as f32, p.z as f32]
+        })
+        .collect();
+    let densities: Vec<f32> = raw
+        .vertices
+        .par_iter()
+        .map(|&v| density.evaluate(v) as f32)
+        .collect();
+    Mesh {
+        positions,
+        triangles: raw.triangles,
+        densities,
+        stats: Stats::default(),
+    }
+}
