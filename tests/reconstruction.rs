@@ -615,8 +615,9 @@ fn bunny_scans_give_a_closed_mesh_near_the_reference() {
         topo.faces
     );
 
-    let reference = read_ply(&reference).unwrap_or_else(|e| panic!("{e}"));
-    let on_reference = sample_mesh(&reference.positions, &reference.triangles, 200_000, 7);
+    let (reference_positions, reference_triangles) =
+        psr::ply::read_mesh(&reference).unwrap_or_else(|e| panic!("{e}"));
+    let on_reference = sample_mesh(&reference_positions, &reference_triangles, 200_000, 7);
     let d = one_sided_mesh_distance(&on_reference, &mesh.positions, &mesh.triangles);
     eprintln!("bunny depth 8: reference -> mesh {d} (m)");
     assert!(
