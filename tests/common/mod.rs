@@ -16,8 +16,8 @@
 //!   point–triangle distances), [`sample_mesh`], [`chamfer_to_surface`],
 //!   [`one_sided_mesh_distance`].
 //! * Small reference meshes ([`octahedron`], [`icosphere`], [`torus_mesh`]) and the shared data
-//!   directory ([`data_dir`], [`data_file`]). PLY files are read with the library's own reader,
-//!   `psr::ply` (`read_point_cloud`, `read_mesh`).
+//!   directory ([`data_dir`], [`try_data_file`]). PLY files are read with the library's own
+//!   reader, `psr::ply` (`read_point_cloud`, `read_mesh`).
 //!
 //! Points and meshes are passed the way `psr::Mesh` stores them: positions `&[[f32; 3]]` and
 //! counter-clockwise triangles `&[[u32; 3]]` (e.g. `&mesh.positions, &mesh.triangles`).
@@ -310,7 +310,7 @@ pub fn torus_bbox_diagonal(major_radius: f64, minor_radius: f64) -> f64 {
 }
 
 /// Axis-aligned bounding box (min, max) of a point set; `None` when empty.
-pub fn bounding_box<P: AsPoint>(points: &[P]) -> Option<([f64; 3], [f64; 3])> {
+fn bounding_box<P: AsPoint>(points: &[P]) -> Option<([f64; 3], [f64; 3])> {
     let first = points.first()?.point();
     let (lo, hi) = points.iter().fold((first, first), |(lo, hi), p| {
         let p = p.point();
@@ -601,7 +601,7 @@ impl fmt::Display for MeshTopology {
 }
 
 /// Area of the triangle (a, b, c), in f64.
-pub fn triangle_area(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f64 {
+fn triangle_area(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> f64 {
     let (a, b, c) = (v3(a), v3(b), v3(c));
     0.5 * (b - a).cross(c - a).length()
 }
@@ -921,7 +921,7 @@ pub fn sample_mesh(
 // ---------------------------------------------------------------------------------------------
 
 /// The seed [`chamfer_to_surface`] samples the mesh with.
-pub const CHAMFER_MESH_SEED: u64 = 0x00C4_A3F0;
+const CHAMFER_MESH_SEED: u64 = 0x00C4_A3F0;
 
 /// Symmetric Chamfer distance between a mesh and a known surface; see [`chamfer_to_surface`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -970,7 +970,7 @@ impl fmt::Display for Chamfer {
 /// ```
 ///
 /// * M: `n_mesh_samples` points area-uniform on the mesh ([`sample_mesh`], seed
-///   [`CHAMFER_MESH_SEED`]); d(m, S) = `exact_distance(m)`, the exact unsigned distance to S
+///   `CHAMFER_MESH_SEED`); d(m, S) = `exact_distance(m)`, the exact unsigned distance to S
 ///   (e.g. [`sphere_distance`], [`torus_distance`]).
 /// * T: `true_samples`, points area-uniform on S (use a different seed from the reconstruction's
 ///   input so the test does not reward fitting exactly the input points); d(s, mesh) is the
@@ -1244,15 +1244,4 @@ pub fn try_data_file(name: &str) -> Option<PathBuf> {
         );
         None
     }
-}
-
-/// The path of a shared data file; panics with a clear message when it is missing.
-pub fn data_file(name: &str) -> PathBuf {
-    let path = data_dir().join(name);
-    assert!(
-        path.is_file(),
-        "data file {} not found: set PSR_DATA_DIR to the directory holding it",
-        path.display()
-    );
-    path
 }
