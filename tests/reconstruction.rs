@@ -3,7 +3,7 @@
 //! reference mesh, and for determinism and invariance.
 //!
 //! Conventions:
-//! * Accuracy is the symmetric Chamfer distance of `common::chamfer_to_surface` in its averaged
+//! * Accuracy is the symmetric Chamfer distance of `psr_test_support::chamfer_to_surface` in its averaged
 //!   form `relative_average` = (mean mesh→true + mean true→mesh) / 2 / bbox diagonal, the
 //!   convention under which PoissonRecon, Open3D and PCL reach 1.3e-5–2.0e-5 on the 100k-point
 //!   unit sphere at depth 8 (Open3D 0.20: 1.73e-5 on exactly the points of
@@ -14,10 +14,13 @@
 //!   exact geometry were set by measurement (psr at the time of writing, printed by the test
 //!   with `--nocapture`) plus a stated margin.
 
-mod common;
-
-use common::*;
 use psr::{reconstruct, Mesh, Params, PointSet, VertexPlacement};
+use psr_test_support::{
+    bbox_diagonal, chamfer_to_surface, data_dir, jitter_positions, one_sided_mesh_distance,
+    perturb_normals_gaussian, sample_mesh, sample_sphere, sample_sphere_nonuniform, sample_torus,
+    signed_volume, sphere_bbox_diagonal, sphere_distance, surface_area, torus_bbox_diagonal,
+    torus_distance, torus_signed_distance, try_data_file, MeshTopology, Rng,
+};
 use std::f64::consts::PI;
 use std::io::Write;
 use std::time::Instant;

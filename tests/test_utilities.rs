@@ -1,10 +1,8 @@
-//! Tests of the shared test utilities in `tests/common/` themselves: the samplers, the topology
-//! checks and the distances must be right before they can judge a reconstruction. None of these
-//! needs the reconstruction core.
+//! Tests of the shared test utilities (the `psr-test-support` crate in `test-support/`)
+//! themselves: the samplers, the topology checks and the distances must be right before they can
+//! judge a reconstruction. None of these needs the reconstruction core.
 
-mod common;
-
-use common::*;
+use psr_test_support::*;
 
 fn tetrahedron() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     let positions = vec![
