@@ -1905,31 +1905,4 @@ mod tests {
         let message = read_mesh_from(no_faces.as_bytes()).unwrap_err().to_string();
         assert!(message.contains("no 'face' element"), "{message}");
     }
-
-    /// The shared data sets, when this checkout has them beside it.
-    fn shared(name: &str) -> Option<PathBuf> {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data")
-            .join(name);
-        path.exists().then_some(path)
-    }
-
-    #[test]
-    fn reads_the_shared_bunny_files() {
-        if let Some(path) = shared("bunny_scans.reference.ply") {
-            let (positions, triangles) = read_mesh(&path).unwrap();
-            assert_eq!((positions.len(), triangles.len()), (35_947, 69_451));
-        }
-        if let Some(path) = shared("bunny_scans.ply") {
-            let points = read_point_cloud(&path).unwrap();
-            assert_eq!(points.len(), 362_272);
-            assert!(points.colors.is_none() && points.confidence.is_none());
-            let n = points.normals[1000];
-            assert!(((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-4);
-        }
-        if let Some(path) = shared("lion_takanawa_rgb.ply") {
-            let points = read_point_cloud(&path).unwrap();
-            assert_eq!(points.colors.as_ref().map(Vec::len), Some(341_989));
-        }
-    }
 }

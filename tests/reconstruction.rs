@@ -16,13 +16,12 @@
 
 use psr::{reconstruct, Mesh, Params, PointSet, VertexPlacement};
 use psr_test_support::{
-    bbox_diagonal, chamfer_to_surface, data_dir, jitter_positions, one_sided_mesh_distance,
+    bbox_diagonal, chamfer_to_surface, data_or_skip, jitter_positions, one_sided_mesh_distance,
     perturb_normals_gaussian, sample_mesh, sample_sphere, sample_sphere_nonuniform, sample_torus,
     signed_volume, sphere_bbox_diagonal, sphere_distance, surface_area, torus_bbox_diagonal,
-    torus_distance, torus_signed_distance, try_data_file, MeshTopology, Rng,
+    torus_distance, torus_signed_distance, MeshTopology, Rng,
 };
 use std::f64::consts::PI;
-use std::io::Write;
 use std::time::Instant;
 
 /// Area-uniform mesh samples for the mesh → true half of the Chamfer distance (as in the Open3D
@@ -109,33 +108,6 @@ fn mesh_to_mesh(a: &Mesh, b: &Mesh, n: usize) -> (f64, f64) {
     let ab = one_sided_mesh_distance(&on_a, &b.positions, &b.triangles);
     let ba = one_sided_mesh_distance(&on_b, &a.positions, &a.triangles);
     (0.5 * (ab.mean + ba.mean), ab.max.max(ba.max))
-}
-
-/// A line on stderr that the test harness does not capture, so a skipped test is visible in the
-/// normal `cargo test` output.
-fn announce(message: &str) {
-    let _ = writeln!(std::io::stderr(), "{message}");
-}
-
-/// A shared data file, or `None` when it is missing on a developer machine (the test then skips
-/// itself visibly). On CI (`CI` set) a missing file is a failure, so the data cannot silently
-/// drop out of the suite.
-fn data_or_skip(name: &str, test: &str) -> Option<std::path::PathBuf> {
-    if let Some(path) = try_data_file(name) {
-        return Some(path);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!(
-            "{test}: data file {name} not found in {} and CI is set: the shared data must be present \
-             on CI (set PSR_DATA_DIR)",
-            data_dir().display()
-        );
-    }
-    announce(&format!(
-        "SKIPPED: {test}: {name} not found in {} (set PSR_DATA_DIR to run it)",
-        data_dir().display()
-    ));
-    None
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -658,12 +658,13 @@ fn one_sided_distance_statistics() {
 
 #[test]
 fn shared_data_reads_and_the_reference_bunny_is_open() {
-    if let Some(path) = try_data_file("kitten_cgal.ply") {
+    let test = "shared_data_reads_and_the_reference_bunny_is_open";
+    if let Some(path) = data_or_skip("kitten_cgal.ply", test) {
         let kitten = psr::ply::read_point_cloud(&path).unwrap();
         assert_eq!(kitten.positions.len(), 5210);
         assert_eq!(kitten.normals.len(), 5210);
     }
-    if let Some(path) = try_data_file("bunny_scans.reference.ply") {
+    if let Some(path) = data_or_skip("bunny_scans.reference.ply", test) {
         let (positions, triangles) = psr::ply::read_mesh(&path).unwrap();
         assert_eq!((positions.len(), triangles.len()), (35_947, 69_451));
         let topo = MeshTopology::of(&positions, &triangles);
@@ -674,5 +675,23 @@ fn shared_data_reads_and_the_reference_bunny_is_open() {
         // The zippered reference has holes in the bottom.
         assert!(topo.boundary_edges > 0);
         assert!(signed_volume(&positions, &triangles) > 0.0);
+    }
+}
+
+/// The real scans through `psr::ply`: sizes, unit normals, and colours where the file has them.
+/// (Moved here from a unit test in src/ply.rs, which skipped silently without the data.)
+#[test]
+fn shared_scans_read_with_their_normals_and_colours() {
+    let test = "shared_scans_read_with_their_normals_and_colours";
+    if let Some(path) = data_or_skip("bunny_scans.ply", test) {
+        let points = psr::ply::read_point_cloud(&path).unwrap();
+        assert_eq!(points.len(), 362_272);
+        assert!(points.colors.is_none() && points.confidence.is_none());
+        let n = points.normals[1000];
+        assert!(((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-4);
+    }
+    if let Some(path) = data_or_skip("lion_takanawa_rgb.ply", test) {
+        let points = psr::ply::read_point_cloud(&path).unwrap();
+        assert_eq!(points.colors.as_ref().map(Vec::len), Some(341_989));
     }
 }

@@ -14,9 +14,11 @@
 //! * Distances to a triangle mesh: [`MeshDistance`] (a bounding-volume hierarchy with exact
 //!   point–triangle distances), [`sample_mesh`], [`chamfer_to_surface`],
 //!   [`one_sided_mesh_distance`].
-//! * Small reference meshes ([`octahedron`], [`icosphere`], [`torus_mesh`]) and the shared data
-//!   directory ([`data_dir`], [`try_data_file`]). PLY files are read with the library's own
-//!   reader, `psr::ply` (`read_point_cloud`, `read_mesh`).
+//! * Small reference meshes ([`octahedron`], [`icosphere`], [`torus_mesh`]).
+//! * The shared data directory ([`data_dir`]) and the rule for tests that read it
+//!   ([`data_or_skip`]: skip visibly on a developer's machine without the data, fail on CI).
+//!   PLY files are read with the library's own reader, `psr::ply` (`read_point_cloud`,
+//!   `read_mesh`).
 //!
 //! Points and meshes are passed the way `psr::Mesh` stores them: positions `&[[f32; 3]]` and
 //! counter-clockwise triangles `&[[u32; 3]]` (e.g. `&mesh.positions, &mesh.triangles`).
