@@ -3,10 +3,10 @@
 //! reference mesh, and for determinism and invariance.
 //!
 //! Conventions:
-//! * Accuracy is the symmetric Chamfer distance of `psr_test_support::chamfer_to_surface` in its averaged
-//!   form `relative_average` = (mean mesh→true + mean true→mesh) / 2 / bbox diagonal, the
-//!   convention under which PoissonRecon, Open3D and PCL reach 1.3e-5–2.0e-5 on the 100k-point
-//!   unit sphere at depth 8 (Open3D 0.20: 1.73e-5 on exactly the points of
+//! * Accuracy is the symmetric Chamfer distance of `psr_test_support::chamfer_to_surface` in its
+//!   averaged form `relative_average` = (mean mesh→true + mean true→mesh) / 2 / bbox diagonal,
+//!   the convention under which PoissonRecon, Open3D and PCL reach 1.3e-5–2.0e-5 on the
+//!   100k-point unit sphere at depth 8 (Open3D 0.20: 1.73e-5 on exactly the points of
 //!   `sphere_is_a_closed_sphere_and_converges_with_depth`).
 //! * The true-surface samples use a different seed from the reconstruction's input, so the
 //!   Chamfer distance does not reward passing exactly through the input points.
