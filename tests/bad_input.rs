@@ -2,16 +2,14 @@
 //! what is wrong and where (the index, the field), or, for inputs that are unusual but valid,
 //! a closed mesh; nothing panics (a panic fails the test).
 
-mod common;
-
-use common::MeshTopology;
 use psr::{reconstruct, reconstruct_with_progress, Error, Params, PointSet, Stage};
+use psr_test_support::{sample_sphere, MeshTopology, Rng};
 
 const UP: [f32; 3] = [0.0, 0.0, 1.0];
 
 /// A small valid point set: 200 points of the unit sphere with outward normals.
 fn sphere() -> PointSet {
-    let (p, n) = common::sample_sphere(200, 1.0, [0.0; 3], 5);
+    let (p, n) = sample_sphere(200, 1.0, [0.0; 3], 5);
     PointSet::from_slices(&p, &n).unwrap()
 }
 
@@ -135,7 +133,7 @@ fn mismatched_lengths_are_rejected() {
 /// rather than a meaningless mesh; some zero weights among positive ones are fine.
 #[test]
 fn invalid_and_all_zero_weights_are_errors() {
-    let (p, n) = common::sample_sphere(100, 1.0, [0.0; 3], 9);
+    let (p, n) = sample_sphere(100, 1.0, [0.0; 3], 9);
     for bad in [-1.0f32, f32::NAN, f32::INFINITY] {
         let mut w = vec![1.0f32; 100];
         w[42] = bad;
@@ -154,7 +152,7 @@ fn invalid_and_all_zero_weights_are_errors() {
 
     // Half the points at zero weight: those points are simply ignored (2000 points, so the 1000
     // that count still sample the sphere densely enough for a closed mesh at depth 6).
-    let (p, n) = common::sample_sphere(2000, 1.0, [0.0; 3], 10);
+    let (p, n) = sample_sphere(2000, 1.0, [0.0; 3], 10);
     let mut some_zero = PointSet::new();
     let w: Vec<f32> = (0..2000)
         .map(|i| if i % 2 == 0 { 0.0 } else { 1.0 })
@@ -396,7 +394,7 @@ fn degenerate_inputs_do_not_panic() {
     closed_in_cube_or_clear_error("1000 collinear points", &line, &[UP; 1000], 8);
 
     let mut disc = Vec::new();
-    let mut rng = common::Rng::new(12);
+    let mut rng = Rng::new(12);
     while disc.len() < 5000 {
         let (x, y) = (rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0));
         if x * x + y * y <= 1.0 {
@@ -417,7 +415,7 @@ fn degenerate_inputs_do_not_panic() {
         ("sphere of radius 1e-30", 1e-30, [0.0; 3]),
         ("unit sphere at 1e4", 1.0, [1e4, -1e4, 1e4]),
     ] {
-        let (p, n) = common::sample_sphere(2000, radius, center, 13);
+        let (p, n) = sample_sphere(2000, radius, center, 13);
         let outcome = closed_in_cube_or_clear_error(label, &p, &n, 6);
         // A well-sampled sphere is not degenerate: whatever its scale or offset, it must come
         // out as a closed sphere.

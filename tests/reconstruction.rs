@@ -3,10 +3,10 @@
 //! reference mesh, and for determinism and invariance.
 //!
 //! Conventions:
-//! * Accuracy is the symmetric Chamfer distance of `common::chamfer_to_surface` in its averaged
-//!   form `relative_average` = (mean mesh→true + mean true→mesh) / 2 / bbox diagonal, the
-//!   convention under which PoissonRecon, Open3D and PCL reach 1.3e-5–2.0e-5 on the 100k-point
-//!   unit sphere at depth 8 (Open3D 0.20: 1.73e-5 on exactly the points of
+//! * Accuracy is the symmetric Chamfer distance of `psr_test_support::chamfer_to_surface` in its
+//!   averaged form `relative_average` = (mean mesh→true + mean true→mesh) / 2 / bbox diagonal,
+//!   the convention under which PoissonRecon, Open3D and PCL reach 1.3e-5–2.0e-5 on the
+//!   100k-point unit sphere at depth 8 (Open3D 0.20: 1.73e-5 on exactly the points of
 //!   `sphere_is_a_closed_sphere_and_converges_with_depth`).
 //! * The true-surface samples use a different seed from the reconstruction's input, so the
 //!   Chamfer distance does not reward passing exactly through the input points.
@@ -14,12 +14,14 @@
 //!   exact geometry were set by measurement (psr at the time of writing, printed by the test
 //!   with `--nocapture`) plus a stated margin.
 
-mod common;
-
-use common::*;
 use psr::{reconstruct, Mesh, Params, PointSet, VertexPlacement};
+use psr_test_support::{
+    bbox_diagonal, chamfer_to_surface, data_or_skip, jitter_positions, one_sided_mesh_distance,
+    perturb_normals_gaussian, sample_mesh, sample_sphere, sample_sphere_nonuniform, sample_torus,
+    signed_volume, sphere_bbox_diagonal, sphere_distance, surface_area, torus_bbox_diagonal,
+    torus_distance, torus_signed_distance, MeshTopology, Rng,
+};
 use std::f64::consts::PI;
-use std::io::Write;
 use std::time::Instant;
 
 /// Area-uniform mesh samples for the mesh → true half of the Chamfer distance (as in the Open3D
@@ -106,33 +108,6 @@ fn mesh_to_mesh(a: &Mesh, b: &Mesh, n: usize) -> (f64, f64) {
     let ab = one_sided_mesh_distance(&on_a, &b.positions, &b.triangles);
     let ba = one_sided_mesh_distance(&on_b, &a.positions, &a.triangles);
     (0.5 * (ab.mean + ba.mean), ab.max.max(ba.max))
-}
-
-/// A line on stderr that the test harness does not capture, so a skipped test is visible in the
-/// normal `cargo test` output.
-fn announce(message: &str) {
-    let _ = writeln!(std::io::stderr(), "{message}");
-}
-
-/// A shared data file, or `None` when it is missing on a developer machine (the test then skips
-/// itself visibly). On CI (`CI` set) a missing file is a failure, so the data cannot silently
-/// drop out of the suite.
-fn data_or_skip(name: &str, test: &str) -> Option<std::path::PathBuf> {
-    if let Some(path) = try_data_file(name) {
-        return Some(path);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!(
-            "{test}: data file {name} not found in {} and CI is set: the shared data must be present \
-             on CI (set PSR_DATA_DIR)",
-            data_dir().display()
-        );
-    }
-    announce(&format!(
-        "SKIPPED: {test}: {name} not found in {} (set PSR_DATA_DIR to run it)",
-        data_dir().display()
-    ));
-    None
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -571,8 +546,9 @@ fn bunny_scans_give_a_closed_mesh_near_the_reference() {
         topo.faces
     );
 
-    let reference = read_ply(&reference).unwrap_or_else(|e| panic!("{e}"));
-    let on_reference = sample_mesh(&reference.positions, &reference.triangles, 200_000, 7);
+    let (reference_positions, reference_triangles) =
+        psr::ply::read_mesh(&reference).unwrap_or_else(|e| panic!("{e}"));
+    let on_reference = sample_mesh(&reference_positions, &reference_triangles, 200_000, 7);
     let d = one_sided_mesh_distance(&on_reference, &mesh.positions, &mesh.triangles);
     eprintln!("bunny depth 8: reference -> mesh {d} (m)");
     assert!(

@@ -1,10 +1,8 @@
-//! Tests of the shared test utilities in `tests/common/` themselves: the samplers, the topology
-//! checks and the distances must be right before they can judge a reconstruction. None of these
-//! needs the reconstruction core.
+//! Tests of the shared test utilities (the `psr-test-support` crate in `test-support/`)
+//! themselves: the samplers, the topology checks and the distances must be right before they can
+//! judge a reconstruction. None of these needs the reconstruction core.
 
-mod common;
-
-use common::*;
+use psr_test_support::*;
 
 fn tetrahedron() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     let positions = vec![
@@ -656,64 +654,44 @@ fn one_sided_distance_statistics() {
     assert_eq!((odd.median, odd.p95, odd.max), (2.0, 3.0, 3.0));
 }
 
-// --- PLY and data -------------------------------------------------------------------------------
-
-#[test]
-fn ply_round_trip() {
-    let dir = std::env::temp_dir().join(format!("psr-test-utilities-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let (p, t) = icosphere(2);
-    let path = dir.join("ico.ply");
-    write_ply_mesh(&path, &p, &t).unwrap();
-    let back = read_ply(&path).unwrap();
-    assert_eq!(
-        (back.positions, back.triangles, back.normals),
-        (p.clone(), t.clone(), None)
-    );
-
-    let (pts, nrm) = sample_sphere(100, 1.0, [0.0; 3], 1);
-    let path = dir.join("pts.ply");
-    write_ply_points(&path, &pts, Some(&nrm)).unwrap();
-    let back = read_ply(&path).unwrap();
-    assert_eq!((back.positions, back.normals), (pts, Some(nrm)));
-
-    // ASCII, with a quad, extra properties and an extra element.
-    let path = dir.join("ascii.ply");
-    std::fs::write(
-        &path,
-        "ply\nformat ascii 1.0\ncomment test\nelement vertex 4\n\
-         property double x\nproperty double y\nproperty double z\nproperty uchar red\n\
-         element face 1\nproperty list uchar uint vertex_indices\n\
-         element edge 1\nproperty int a\nproperty int b\nend_header\n\
-         0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n4 0 1 2 3\n0 1\n",
-    )
-    .unwrap();
-    let back = read_ply(&path).unwrap();
-    assert_eq!(back.positions.len(), 4);
-    assert_eq!(back.triangles, vec![[0, 1, 2], [0, 2, 3]]);
-    std::fs::remove_dir_all(&dir).ok();
-}
+// --- data ---------------------------------------------------------------------------------------
 
 #[test]
 fn shared_data_reads_and_the_reference_bunny_is_open() {
-    if let Some(path) = try_data_file("kitten_cgal.ply") {
-        let kitten = read_ply(path).unwrap();
+    let test = "shared_data_reads_and_the_reference_bunny_is_open";
+    if let Some(path) = data_or_skip("kitten_cgal.ply", test) {
+        let kitten = psr::ply::read_point_cloud(&path).unwrap();
         assert_eq!(kitten.positions.len(), 5210);
-        assert!(kitten.normals.is_some());
+        assert_eq!(kitten.normals.len(), 5210);
     }
-    if let Some(path) = try_data_file("bunny_scans.reference.ply") {
-        let bunny = read_ply(path).unwrap();
-        assert_eq!(
-            (bunny.positions.len(), bunny.triangles.len()),
-            (35_947, 69_451)
-        );
-        let topo = MeshTopology::of(&bunny.positions, &bunny.triangles);
+    if let Some(path) = data_or_skip("bunny_scans.reference.ply", test) {
+        let (positions, triangles) = psr::ply::read_mesh(&path).unwrap();
+        assert_eq!((positions.len(), triangles.len()), (35_947, 69_451));
+        let topo = MeshTopology::of(&positions, &triangles);
         println!(
             "bunny reference: {topo}, volume {:.4e}",
-            signed_volume(&bunny.positions, &bunny.triangles)
+            signed_volume(&positions, &triangles)
         );
         // The zippered reference has holes in the bottom.
         assert!(topo.boundary_edges > 0);
-        assert!(signed_volume(&bunny.positions, &bunny.triangles) > 0.0);
+        assert!(signed_volume(&positions, &triangles) > 0.0);
+    }
+}
+
+/// The real scans through `psr::ply`: sizes, unit normals, and colours where the file has them.
+/// (Moved here from a unit test in src/ply.rs, which skipped silently without the data.)
+#[test]
+fn shared_scans_read_with_their_normals_and_colours() {
+    let test = "shared_scans_read_with_their_normals_and_colours";
+    if let Some(path) = data_or_skip("bunny_scans.ply", test) {
+        let points = psr::ply::read_point_cloud(&path).unwrap();
+        assert_eq!(points.len(), 362_272);
+        assert!(points.colors.is_none() && points.confidence.is_none());
+        let n = points.normals[1000];
+        assert!(((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-4);
+    }
+    if let Some(path) = data_or_skip("lion_takanawa_rgb.ply", test) {
+        let points = psr::ply::read_point_cloud(&path).unwrap();
+        assert_eq!(points.colors.as_ref().map(Vec::len), Some(341_989));
     }
 }
