@@ -62,30 +62,47 @@ pub fn reconstruct_with_progress(
         params.threads
     };
     // The pipeline runs on the caller's thread (so the progress callback does too); only its
-    // parallel sections run inside this reconstruction's own pool. Its threads are joined
-    // (pthread_join, not just finished) before this returns, so no psr code runs after it and a
-    // host may unload the library at once.
-    let mut workers = Vec::with_capacity(threads);
-    let pool = rayon::ThreadPoolBuilder::new()
+    // parallel sections run inside this reconstruction's own pool.
+    let mut threads_started = Vec::with_capacity(threads);
+    let built = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .spawn_handler(|thread| {
             let name = format!("psr-worker-{}", thread.index());
-            workers.push(
+            threads_started.push(
                 std::thread::Builder::new()
                     .name(name)
                     .spawn(move || thread.run())?,
             );
             Ok(())
         })
-        .build()
-        .map_err(|e| Error::ThreadsUnavailable {
-            threads,
-            reason: e.to_string(),
-        })?;
-    let result = pipeline::run(points, params, &pool, progress);
-    drop(pool);
-    for worker in workers {
-        let _ = worker.join();
+        .build();
+    let mut workers = Workers {
+        pool: None,
+        threads: threads_started,
+    };
+    workers.pool = Some(built.map_err(|e| Error::ThreadsUnavailable {
+        threads,
+        reason: e.to_string(),
+    })?);
+    let pool = workers.pool.as_ref().expect("set just above");
+    pipeline::run(points, params, pool, progress)
+}
+
+/// A reconstruction's own worker threads. Dropping it, on return and while a panic unwinds
+/// alike, ends the pool and joins every thread (pthread_join, not just finished), so no psr
+/// code runs after the reconstruction returns and a host may unload the library at once.
+struct Workers {
+    pool: Option<rayon::ThreadPool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Workers {
+    fn drop(&mut self) {
+        // Without its pool the threads finish their jobs and exit (rayon also ends the threads
+        // it started when building the pool fails).
+        drop(self.pool.take());
+        for thread in self.threads.drain(..) {
+            let _ = thread.join();
+        }
     }
-    result
 }

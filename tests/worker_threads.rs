@@ -1,0 +1,58 @@
+//! A reconstruction leaves no thread behind even when it unwinds: a panic inside it (here from
+//! the progress callback) still ends its worker pool and joins every worker before the panic
+//! reaches the caller, as a normal return does. In a test binary of its own, since other tests'
+//! reconstructions would run workers meanwhile.
+
+use psr::{reconstruct_with_progress, Params, PointSet, Stage};
+
+/// Names of this process's threads (Linux: /proc/self/task/*/comm).
+#[cfg(target_os = "linux")]
+fn worker_threads() -> Vec<String> {
+    let mut names = Vec::new();
+    for task in std::fs::read_dir("/proc/self/task").expect("/proc/self/task is readable") {
+        let comm = task.unwrap().path().join("comm");
+        if let Ok(name) = std::fs::read_to_string(comm) {
+            if name.starts_with("psr-worker") {
+                names.push(name.trim().to_string());
+            }
+        }
+    }
+    names
+}
+
+#[test]
+#[cfg(target_os = "linux")]
+fn a_panic_inside_a_reconstruction_still_joins_its_workers() {
+    let n = 1000;
+    let points: Vec<[f32; 3]> = (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let ring = (1.0 - y * y).sqrt();
+            let phi = 2.399963229728653 * i as f64;
+            [ring * phi.cos(), y, ring * phi.sin()].map(|c| c as f32)
+        })
+        .collect();
+    let cloud = PointSet::from_slices(&points, &points).unwrap();
+    for stage in [Stage::Splat, Stage::Solve, Stage::Extract] {
+        let params = Params::default().with_depth(5).with_threads(3);
+        let outcome = std::panic::catch_unwind(|| {
+            reconstruct_with_progress(&cloud, &params, &mut |at, _| {
+                if at == stage {
+                    panic!("the host's callback fails during {}", at.name());
+                }
+                true
+            })
+        });
+        assert!(outcome.is_err(), "the panic reaches the caller");
+        // Checked at once: no grace period.
+        let left = worker_threads();
+        assert!(
+            left.is_empty(),
+            "workers alive after a panic in {stage:?}: {left:?}"
+        );
+    }
+    assert!(
+        reconstruct_with_progress(&cloud, &Params::default().with_depth(5), &mut |_, _| true)
+            .is_ok()
+    );
+}
