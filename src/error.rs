@@ -15,25 +15,45 @@ pub enum Error {
     LengthMismatch {
         /// which array disagrees with `positions` (e.g. "normals")
         what: &'static str,
+        /// entries in `positions`
         positions: usize,
+        /// entries in the other array
         other: usize,
     },
     /// A position coordinate is NaN or infinite.
-    NonFinitePosition { index: usize },
+    NonFinitePosition {
+        /// the point's index in its batch
+        index: usize,
+    },
     /// A normal component is NaN or infinite.
-    NonFiniteNormal { index: usize },
+    NonFiniteNormal {
+        /// the point's index in its batch
+        index: usize,
+    },
     /// A normal has zero (or denormal) length, so it gives no orientation.
-    ZeroNormal { index: usize },
+    ZeroNormal {
+        /// the point's index in its batch
+        index: usize,
+    },
     /// A per-point confidence weight is negative, NaN or infinite.
-    InvalidWeight { index: usize },
+    InvalidWeight {
+        /// the point's index in its batch
+        index: usize,
+    },
     /// Every confidence weight is 0, so no point counts.
     NoPositiveWeight,
     /// All points coincide: there is no extent in which to place a surface.
-    DegenerateInput { points: usize },
+    DegenerateInput {
+        /// how many points there are
+        points: usize,
+    },
     /// A parameter is outside its documented range.
     InvalidParameter {
+        /// the parameter's name, as in [`crate::Params`]
         name: &'static str,
+        /// the value given
         value: String,
+        /// the documented range
         expected: &'static str,
     },
     /// The caller's progress callback asked to stop.

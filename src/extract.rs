@@ -466,8 +466,8 @@ fn leaf_loops(
             let k = crossings[i % m].0 as usize;
             (slot(k), slot(k + 1))
         };
-        for i in 0..m {
-            if !crossings[i].1 {
+        for (i, &(_, outside_before)) in crossings[..m].iter().enumerate() {
+            if !outside_before {
                 continue;
             }
             // Outside joined: cut off the inside run that starts here (to the next crossing);
@@ -1013,7 +1013,7 @@ fn triangulate(
                     .length()
             })
             .fold(f64::INFINITY, f64::min);
-        if best.map_or(true, |(s, _)| smallest > s) {
+        if best.is_none_or(|(s, _)| smallest > s) {
             best = Some((smallest, apex));
         }
     }

@@ -13,11 +13,16 @@
 //! The reconstruction is one straight pipeline; each stage is a module:
 //! points → density → octree → splat → system → solve → isovalue → extract → mesh.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(missing_docs, clippy::undocumented_unsafe_blocks)]
+
 mod bspline;
 mod density;
 mod error;
 mod evaluate;
 mod extract;
+#[allow(unsafe_op_in_unsafe_fn, clippy::undocumented_unsafe_blocks)]
+// until the split into src/ffi/ lands
 pub mod ffi;
 mod grid;
 mod isovalue;

@@ -11,9 +11,11 @@ use rayon::prelude::*;
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct DepthSolve {
+    /// The octree depth.
     pub depth: u32,
     /// Unknowns (octree nodes) at this depth.
     pub unknowns: usize,
+    /// Conjugate-gradient iterations run.
     pub iterations: u32,
     /// ‖b − Ax‖ / ‖b‖ at the end (0 when b = 0).
     pub relative_residual: f64,
@@ -25,11 +27,13 @@ pub struct DepthSolve {
 #[derive(Debug, Clone, Default, PartialEq)]
 #[non_exhaustive]
 pub struct Stats {
+    /// Input points.
     pub points: usize,
     /// Octree nodes (unknowns) per depth, index = depth.
     pub nodes_per_depth: Vec<usize>,
     /// The isovalue γ the surface was extracted at (§4.4).
     pub isovalue: f64,
+    /// How each depth's solve ended, coarse to fine.
     pub solves: Vec<DepthSolve>,
     /// Wall seconds spent in each stage, in pipeline order.
     pub stage_seconds: Vec<(Stage, f64)>,
@@ -46,12 +50,14 @@ impl Stats {
 #[derive(Debug, Clone, Default, PartialEq)]
 #[non_exhaustive]
 pub struct Mesh {
+    /// Vertex positions.
     pub positions: Vec<[f32; 3]>,
     /// Counter-clockwise seen from outside: normals point out of the reconstructed solid.
     pub triangles: Vec<[u32; 3]>,
     /// Sampling density estimate at each vertex (kernel density of §4.5, in samples per
     /// kernel-depth node): low values mark surface invented far from any sample (for trimming).
     pub densities: Vec<f32>,
+    /// Figures about the reconstruction that made it.
     pub stats: Stats,
 }
 

@@ -122,7 +122,7 @@ impl Level {
     #[cfg(test)]
     pub fn neighbor(&self, i: u32, dir: usize) -> u32 {
         let mut offset = [0; 3];
-        offset[dir / 2] = if dir % 2 == 0 { -1 } else { 1 };
+        offset[dir / 2] = if dir.is_multiple_of(2) { -1 } else { 1 };
         let at = self.locate(&mut BrickCursor::default(), i);
         self.node_near(at, offset)
     }
@@ -811,18 +811,21 @@ pub fn brick_local(position: usize) -> [usize; 3] {
     [0, 1, 2].map(|axis| local_coord(position, axis))
 }
 
+/// Brick occupancy masks per axis and local interval, see [`axis_interval_masks`].
+pub type IntervalMasks = [[[[u64; 8]; 9]; 9]; 3];
+
 /// Per axis a and local interval lo..hi (0 ≤ lo ≤ hi ≤ 8), the brick positions whose local
 /// coordinate along a lies in it.
-pub fn axis_interval_masks() -> &'static [[[[u64; 8]; 9]; 9]; 3] {
-    static MASKS: std::sync::OnceLock<Box<[[[[u64; 8]; 9]; 9]; 3]>> = std::sync::OnceLock::new();
+pub fn axis_interval_masks() -> &'static IntervalMasks {
+    static MASKS: std::sync::OnceLock<Box<IntervalMasks>> = std::sync::OnceLock::new();
     MASKS.get_or_init(|| {
         let mut masks = Box::new([[[[0u64; 8]; 9]; 9]; 3]);
         for (a, per_axis) in masks.iter_mut().enumerate() {
-            for lo in 0..9 {
-                for hi in lo..9 {
+            for (lo, from_lo) in per_axis.iter_mut().enumerate() {
+                for (hi, mask) in from_lo.iter_mut().enumerate().skip(lo) {
                     for p in 0..512 {
                         if (lo..hi).contains(&brick_local(p)[a]) {
-                            per_axis[lo][hi][p >> 6] |= 1 << (p & 63);
+                            mask[p >> 6] |= 1 << (p & 63);
                         }
                     }
                 }

@@ -42,7 +42,7 @@ pub enum Splatting {
 pub enum VertexPlacement {
     /// Each vertex is found on {χ = γ}, then moved along the surface normal by the mean sag of
     /// the chords around it, so that the flat triangles straddle the curved surface instead of
-    /// lying on its concave side ([`crate::extract::fit_to_surface`]). Measured at depth 7
+    /// lying on its concave side (`fit_to_surface` in `extract.rs`). Measured at depth 7
     /// (thousandths of the diagonal, on the isosurface → fitted): mean distance to an exact
     /// torus 0.043 → 0.030, to a sphere 0.022 → 0.021; from the input points to the mesh on
     /// CGAL's kitten 0.41 → 0.30 and oni 1.66 → 1.36; on the bunny scans at depth 8 −2%, the

@@ -21,15 +21,24 @@ use std::time::Instant;
 #[repr(u32)]
 #[non_exhaustive]
 pub enum Stage {
+    /// Stage 1: Validating the points and mapping them into the unit cube (`points.rs`).
     Points = 0,
-    /// The density estimate comes before the octree: each sample's depth decides its nodes.
+    /// Stage 2: The sampling density and each sample's depth (`density.rs`); before the octree,
+    /// since each sample's depth decides its nodes.
     Density = 1,
+    /// Stage 3: Building the octree (`octree.rs`).
     Octree = 2,
+    /// Stage 4: Splatting the normals into the vector field V (`splat.rs`).
     Splat = 3,
+    /// Stage 5: The right-hand sides of the linear system (`system/`).
     System = 4,
+    /// Stage 6: Solving it, coarse to fine (`solve.rs`).
     Solve = 5,
+    /// Stage 7: The isovalue (`isovalue.rs`).
     Isovalue = 6,
+    /// Stage 8: Extracting the isosurface (`extract.rs`).
     Extract = 7,
+    /// Stage 9: The output mesh in input coordinates (`mesh.rs`).
     Mesh = 8,
 }
 

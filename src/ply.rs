@@ -25,6 +25,7 @@ use crate::Mesh;
 /// Oriented points read from a PLY file.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlyPoints {
+    /// The `x y z` of each vertex.
     pub positions: Vec<[f32; 3]>,
     /// One normal per position, as stored (not normalised).
     pub normals: Vec<[f32; 3]>,
@@ -50,8 +51,11 @@ impl PlyPoints {
 /// The encoding of a PLY body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlyFormat {
+    /// `format ascii 1.0`: one entry per line, values as text.
     Ascii,
+    /// `format binary_little_endian 1.0`.
     BinaryLittleEndian,
+    /// `format binary_big_endian 1.0`.
     BinaryBigEndian,
 }
 
@@ -85,15 +89,23 @@ pub enum PlyErrorKind {
     Io {
         /// "open" or "read"
         action: &'static str,
+        /// the operating system's error
         source: io::Error,
     },
     /// The file does not start with the line `ply` (empty, or another format).
     NotPly,
     /// The header is malformed; `line` counts from 1.
-    Header { line: usize, message: String },
+    Header {
+        /// the header line, from 1
+        line: usize,
+        /// what is wrong with it
+        message: String,
+    },
     /// The header declares more entries than the rest of the file could possibly hold.
     TooLarge {
+        /// the element's name
         element: String,
+        /// the entries it declares
         count: usize,
         /// Bytes the declared entries need at the very least (counted up to this element).
         min_bytes: u64,
@@ -102,27 +114,43 @@ pub enum PlyErrorKind {
     },
     /// The file ends inside entry `index` of `element` (which declares `count` entries).
     Truncated {
+        /// the element's name
         element: String,
+        /// the entry the file ends in, from 0
         index: usize,
+        /// the entries it declares
         count: usize,
     },
     /// A value in the body is malformed or out of range. `line` is given for ASCII files.
     BadValue {
+        /// the line, from 1, in ASCII files
         line: Option<usize>,
+        /// the element's name
         element: String,
+        /// the entry, from 0
         index: usize,
+        /// what is wrong with the value
         message: String,
     },
     /// A required element is absent.
-    MissingElement { element: String },
+    MissingElement {
+        /// the element's name
+        element: String,
+    },
     /// A required property is absent from an element; `present` lists the ones it has.
     MissingProperty {
+        /// the element's name
         element: String,
+        /// the property needed
         wanted: String,
+        /// the properties the element has
         present: Vec<String>,
     },
     /// The vertex element has no `nx ny nz`: the points are not oriented.
-    MissingNormals { present: Vec<String> },
+    MissingNormals {
+        /// the properties the vertex element has
+        present: Vec<String>,
+    },
 }
 
 impl PlyError {
@@ -1080,8 +1108,8 @@ pub fn write_point_cloud_to(
 ) -> io::Result<()> {
     let n = points.positions.len();
     let lengths_ok = points.normals.len() == n
-        && points.colors.as_ref().map_or(true, |c| c.len() == n)
-        && points.confidence.as_ref().map_or(true, |c| c.len() == n);
+        && points.colors.as_ref().is_none_or(|c| c.len() == n)
+        && points.confidence.as_ref().is_none_or(|c| c.len() == n);
     if !lengths_ok {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,

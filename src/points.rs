@@ -130,7 +130,7 @@ fn validate_batch(
         }
         let n64 = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
         let len = n64.length();
-        if !(len > 1e-20) {
+        if len.is_nan() || len <= 1e-20 {
             return Err(Error::ZeroNormal { index });
         }
         let u = n64 / len;
@@ -180,12 +180,12 @@ impl UnitCubeMap {
     }
 
     /// Input coordinates → unit cube.
-    pub fn to_unit(&self, p: [f32; 3]) -> DVec3 {
+    pub fn to_unit(self, p: [f32; 3]) -> DVec3 {
         (DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) - self.origin) / self.size
     }
 
     /// Unit cube → input coordinates.
-    pub fn to_input(&self, q: DVec3) -> DVec3 {
+    pub fn to_input(self, q: DVec3) -> DVec3 {
         q * self.size + self.origin
     }
 }

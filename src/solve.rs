@@ -282,7 +282,7 @@ fn conjugate_gradients(
         }
         pool.install(|| op.apply(&p, &mut ap));
         let pap = pool.install(|| dot_on_core(level, &p, &ap));
-        if !(pap > 0.0) {
+        if pap.is_nan() || pap <= 0.0 {
             break;
         }
         let alpha = rz / pap;

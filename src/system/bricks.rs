@@ -122,7 +122,7 @@ pub(super) struct BrickScratch {
     /// The prolongation of `coarse` at every position of the window, node or not.
     pub(super) prolonged: [Vec<[f64; WINDOW]>; 3],
     /// The screening term at the brick's positions and two nodes around them (index
-    /// [`padded`]`(x, y, z)` for brick-local x, y, z in −2..10).
+    /// [`padded`](super::screening::padded)`(x, y, z)` for brick-local x, y, z in −2..10).
     pub(super) screened: Box<[f64; PADDED]>,
 }
 
@@ -149,7 +149,7 @@ impl BrickScratch {
         }
     }
 
-    /// The x-pass at the core nodes: scale·(Σ taps[0]·y₀ + Σ taps[1]·y₁) along x.
+    /// The x-pass at the core nodes: `scale·(Σ taps[0]·y₀ + Σ taps[1]·y₁)` along x.
     pub(super) fn x_pass(
         &self,
         core_nodes: &mut dyn Iterator<Item = (&mut f64, [usize; 3])>,
@@ -201,7 +201,9 @@ fn window_sum(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
 impl CoreBricks {
     pub(super) fn new(level: &Level) -> CoreBricks {
         let index = level.bricks();
-        let found: Vec<Option<([u32; 27], u32, [u64; 8])>> = (0..index.brick_count())
+        // Per brick holding core nodes: its 27 bricks around, its first core position, its mask.
+        type Found = Option<([u32; 27], u32, [u64; 8])>;
+        let found: Vec<Found> = (0..index.brick_count())
             .into_par_iter()
             .map(|b| {
                 let (first, occupied) = index.brick(b);
@@ -254,7 +256,7 @@ impl CoreBricks {
         }
     }
 
-    /// out[c] = h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)·input at every core node c (in core order), plus,
+    /// `out[c]` = h·(D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)·input at every core node c (in core order), plus,
     /// with `weighted_chi` = (cells, proxies, W_q χ(q) by slot), W_q χ(q) at every proxy in a core
     /// brick's window for χ = input (the screening term's first half, see `DepthOperator::apply`).
     pub(super) fn laplacian(
@@ -289,7 +291,7 @@ impl CoreBricks {
         );
     }
 
-    /// out[c] = ⟨∇B_c, V⟩ = (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)) at every
+    /// `out[c]` = ⟨∇B_c, V⟩ = (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)) at every
     /// core node c, for V's coefficients `v(n)` on K_d.
     pub(super) fn divergence(
         &self,

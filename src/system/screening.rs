@@ -158,7 +158,7 @@ impl Proxies {
     }
 }
 
-/// Σ_slot x[slot] · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] (x fastest), one
+/// `Σ_slot x[slot] · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9]` (x fastest), one
 /// axis at a time (39 multiplications instead of 81).
 #[inline]
 pub(super) fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27]) -> f64 {
@@ -173,7 +173,7 @@ pub(super) fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27]) -> f64 {
     sum
 }
 
-/// out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9] (the transpose of
+/// `out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9]` (the transpose of
 /// [`tensor_contract`]).
 #[inline]
 pub(super) fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {

@@ -10,8 +10,8 @@ use rayon::prelude::*;
 
 /// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
 /// stored (node by node with [`ProlongedField::at`], brick by brick by
-/// [`divergence_of_prolonged`] and [`ProlongedField::add_to`]): the value at a
-/// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`] would
+/// [`divergence_of_prolonged`](super::divergence_of_prolonged) and [`ProlongedField::add_to`]): the value at a
+/// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`](super::fill_mirrors_field) would
 /// hold there. Reading it where needed saves three halo-sized vectors.
 pub struct ProlongedField<'a> {
     pub coarse: &'a Level,
@@ -201,7 +201,7 @@ fn coarse_window<const C: usize>(
     let index = coarse.bricks();
     for k in 0..8 {
         let brick_origin: [i32; 3] =
-            std::array::from_fn(|a| origin[a].div_euclid(8) * 8 + 8 * ((k >> a) & 1) as i32);
+            std::array::from_fn(|a| origin[a].div_euclid(8) * 8 + 8 * ((k >> a) & 1));
         let Some(slot) = coarse.brick_containing(brick_origin) else {
             continue;
         };
