@@ -1,0 +1,204 @@
+//! The `psr_mesh` handle: counts, borrowed views, copy-outs into the caller's buffers, and
+//! psr_mesh_free.
+
+use super::panic_boundary::{guard, guard_value};
+use super::status::{psr_status, Failure};
+use crate::Mesh;
+use std::ptr;
+
+/// A reconstructed triangle mesh. Created by psr_reconstructor_solve, destroyed by
+/// psr_mesh_free; independent of the reconstructor that made it. Opaque to C.
+pub struct psr_mesh {
+    pub(super) mesh: Mesh,
+}
+
+/// Test hook: wraps a mesh built in Rust as a C handle (free it with psr_mesh_free), so the
+/// mesh functions can be tested on known data. Not part of the C API.
+#[doc(hidden)]
+pub fn debug_mesh_new(mesh: Mesh) -> *mut psr_mesh {
+    Box::into_raw(Box::new(psr_mesh { mesh }))
+}
+
+/// Number of vertices of m; 0 if m is NULL.
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_vertex_count(m: *const psr_mesh) -> usize {
+    guard_value("psr_mesh_vertex_count", 0, || {
+        m.as_ref().map_or(0, |m| m.mesh.positions.len())
+    })
+}
+
+/// Number of triangles of m; 0 if m is NULL.
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_triangle_count(m: *const psr_mesh) -> usize {
+    guard_value("psr_mesh_triangle_count", 0, || {
+        m.as_ref().map_or(0, |m| m.mesh.triangles.len())
+    })
+}
+
+/// The vertex positions of m, 3 floats (x, y, z) per vertex, in the input's coordinates, owned
+/// by m: valid until psr_mesh_free(m), never to be freed or written. NULL if m is NULL or has no
+/// vertices.
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_positions(m: *const psr_mesh) -> *const f32 {
+    guard_value("psr_mesh_positions", ptr::null(), || match m.as_ref() {
+        Some(m) if !m.mesh.positions.is_empty() => m.mesh.positions.as_ptr().cast(),
+        _ => ptr::null(),
+    })
+}
+
+/// The triangles of m, 3 zero-based vertex indices per triangle, counter-clockwise seen from
+/// outside (so face normals point out of the solid), owned by m: valid until psr_mesh_free(m).
+/// NULL if m is NULL or has no triangles.
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_triangles(m: *const psr_mesh) -> *const u32 {
+    guard_value("psr_mesh_triangles", ptr::null(), || match m.as_ref() {
+        Some(m) if !m.mesh.triangles.is_empty() => m.mesh.triangles.as_ptr().cast(),
+        _ => ptr::null(),
+    })
+}
+
+/// The sampling density estimate at each vertex (one float per vertex), owned by m: valid until
+/// psr_mesh_free(m). Low values mark surface invented far from any sample; drop triangles whose
+/// vertices fall below a threshold to trim it (like PoissonRecon's SurfaceTrimmer). NULL if m is
+/// NULL or has no vertices.
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_densities(m: *const psr_mesh) -> *const f32 {
+    guard_value("psr_mesh_densities", ptr::null(), || match m.as_ref() {
+        Some(m) if !m.mesh.densities.is_empty() => m.mesh.densities.as_ptr(),
+        _ => ptr::null(),
+    })
+}
+
+/// The isovalue the surface was extracted at (the indicator function's mean over the samples,
+/// paper section 4.4). NaN if m is NULL.
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_isovalue(m: *const psr_mesh) -> f64 {
+    guard_value("psr_mesh_isovalue", f64::NAN, || {
+        m.as_ref().map_or(f64::NAN, |m| m.mesh.stats.isovalue)
+    })
+}
+
+/// Copies `src` into `dst` (capacity in elements) after the checks shared by the copy-outs.
+///
+/// # Safety
+/// `dst` is NULL or valid for writes of `capacity` elements.
+unsafe fn copy_out<T: Copy>(
+    m: *const psr_mesh,
+    src: impl FnOnce(&Mesh) -> &[T],
+    dst: *mut T,
+    capacity: usize,
+) -> psr_status {
+    guard("psr_mesh_copy", ptr::null(), || {
+        let m = m
+            .as_ref()
+            .ok_or_else(|| Failure::null("psr_mesh_copy", "m"))?;
+        let src = src(&m.mesh);
+        if src.is_empty() {
+            return Ok(());
+        }
+        if dst.is_null() {
+            return Err(Failure::null("psr_mesh_copy", "dst"));
+        }
+        if capacity < src.len() {
+            return Err(Failure::new(psr_status::BufferTooSmall, ""));
+        }
+        ptr::copy_nonoverlapping(src.as_ptr(), dst, src.len());
+        Ok(())
+    })
+}
+
+/// Copies the vertex positions of m into dst: 3 * psr_mesh_vertex_count(m) floats.
+/// capacity_floats is the number of floats dst can hold.
+///
+/// m must not be NULL; dst may be NULL only when the mesh has no vertices. Returns
+/// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+/// PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_copy_positions(
+    m: *const psr_mesh,
+    dst: *mut f32,
+    capacity_floats: usize,
+) -> psr_status {
+    copy_out(
+        m,
+        |mesh| mesh.positions.as_flattened(),
+        dst,
+        capacity_floats,
+    )
+}
+
+/// Copies the triangles of m into dst: 3 * psr_mesh_triangle_count(m) vertex indices.
+/// capacity_indices is the number of uint32_t dst can hold.
+///
+/// m must not be NULL; dst may be NULL only when the mesh has no triangles. Returns
+/// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+/// PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_indices` values.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_copy_triangles(
+    m: *const psr_mesh,
+    dst: *mut u32,
+    capacity_indices: usize,
+) -> psr_status {
+    copy_out(
+        m,
+        |mesh| mesh.triangles.as_flattened(),
+        dst,
+        capacity_indices,
+    )
+}
+
+/// Copies the per-vertex densities of m into dst: psr_mesh_vertex_count(m) floats.
+/// capacity_floats is the number of floats dst can hold.
+///
+/// m must not be NULL; dst may be NULL only when the mesh has no vertices. Returns
+/// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+/// PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_copy_densities(
+    m: *const psr_mesh,
+    dst: *mut f32,
+    capacity_floats: usize,
+) -> psr_status {
+    copy_out(m, |mesh| &mesh.densities, dst, capacity_floats)
+}
+
+/// Destroys a mesh and its arrays; pointers from psr_mesh_positions and the like become invalid.
+/// m may be NULL (nothing happens).
+///
+/// # Safety
+/// `m` is NULL or a live mesh from psr_reconstructor_solve, not used again afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_free(m: *mut psr_mesh) {
+    guard_value("psr_mesh_free", (), || {
+        if !m.is_null() {
+            drop(Box::from_raw(m));
+        }
+    })
+}
