@@ -1,7 +1,7 @@
 //! The `psr_mesh` handle: counts, borrowed views, copy-outs into the caller's buffers, and
 //! psr_mesh_free.
 
-use super::panic_boundary::{guard, guard_value};
+use super::panic_boundary::{guard_no_handle, guard_value};
 use super::status::{psr_status, Failure};
 use crate::Mesh;
 use std::ptr;
@@ -12,8 +12,9 @@ pub struct psr_mesh {
     pub(super) mesh: Mesh,
 }
 
-/// Test hook: wraps a mesh built in Rust as a C handle (free it with psr_mesh_free), so the
-/// mesh functions can be tested on known data. Not part of the C API.
+/// Test hook for psr's own Rust tests, not API (neither Rust nor C): wraps a mesh built in Rust
+/// as a C handle (free it with psr_mesh_free), so the mesh functions can be tested on known
+/// data.
 #[doc(hidden)]
 pub fn debug_mesh_new(mesh: Mesh) -> *mut psr_mesh {
     Box::into_raw(Box::new(psr_mesh { mesh }))
@@ -26,7 +27,9 @@ pub fn debug_mesh_new(mesh: Mesh) -> *mut psr_mesh {
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_vertex_count(m: *const psr_mesh) -> usize {
     guard_value("psr_mesh_vertex_count", 0, || {
-        m.as_ref().map_or(0, |m| m.mesh.positions.len())
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        unsafe { m.as_ref() }.map_or(0, |m| m.mesh.positions.len())
     })
 }
 
@@ -37,7 +40,9 @@ pub unsafe extern "C" fn psr_mesh_vertex_count(m: *const psr_mesh) -> usize {
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_triangle_count(m: *const psr_mesh) -> usize {
     guard_value("psr_mesh_triangle_count", 0, || {
-        m.as_ref().map_or(0, |m| m.mesh.triangles.len())
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        unsafe { m.as_ref() }.map_or(0, |m| m.mesh.triangles.len())
     })
 }
 
@@ -49,9 +54,13 @@ pub unsafe extern "C" fn psr_mesh_triangle_count(m: *const psr_mesh) -> usize {
 /// `m` is NULL or a live mesh from psr_reconstructor_solve.
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_positions(m: *const psr_mesh) -> *const f32 {
-    guard_value("psr_mesh_positions", ptr::null(), || match m.as_ref() {
-        Some(m) if !m.mesh.positions.is_empty() => m.mesh.positions.as_ptr().cast(),
-        _ => ptr::null(),
+    guard_value("psr_mesh_positions", ptr::null(), || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        match unsafe { m.as_ref() } {
+            Some(m) if !m.mesh.positions.is_empty() => m.mesh.positions.as_ptr().cast(),
+            _ => ptr::null(),
+        }
     })
 }
 
@@ -63,9 +72,13 @@ pub unsafe extern "C" fn psr_mesh_positions(m: *const psr_mesh) -> *const f32 {
 /// `m` is NULL or a live mesh from psr_reconstructor_solve.
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_triangles(m: *const psr_mesh) -> *const u32 {
-    guard_value("psr_mesh_triangles", ptr::null(), || match m.as_ref() {
-        Some(m) if !m.mesh.triangles.is_empty() => m.mesh.triangles.as_ptr().cast(),
-        _ => ptr::null(),
+    guard_value("psr_mesh_triangles", ptr::null(), || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        match unsafe { m.as_ref() } {
+            Some(m) if !m.mesh.triangles.is_empty() => m.mesh.triangles.as_ptr().cast(),
+            _ => ptr::null(),
+        }
     })
 }
 
@@ -78,9 +91,13 @@ pub unsafe extern "C" fn psr_mesh_triangles(m: *const psr_mesh) -> *const u32 {
 /// `m` is NULL or a live mesh from psr_reconstructor_solve.
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_densities(m: *const psr_mesh) -> *const f32 {
-    guard_value("psr_mesh_densities", ptr::null(), || match m.as_ref() {
-        Some(m) if !m.mesh.densities.is_empty() => m.mesh.densities.as_ptr(),
-        _ => ptr::null(),
+    guard_value("psr_mesh_densities", ptr::null(), || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        match unsafe { m.as_ref() } {
+            Some(m) if !m.mesh.densities.is_empty() => m.mesh.densities.as_ptr(),
+            _ => ptr::null(),
+        }
     })
 }
 
@@ -92,24 +109,27 @@ pub unsafe extern "C" fn psr_mesh_densities(m: *const psr_mesh) -> *const f32 {
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_isovalue(m: *const psr_mesh) -> f64 {
     guard_value("psr_mesh_isovalue", f64::NAN, || {
-        m.as_ref().map_or(f64::NAN, |m| m.mesh.stats.isovalue)
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        unsafe { m.as_ref() }.map_or(f64::NAN, |m| m.mesh.stats.isovalue)
     })
 }
 
 /// Copies `src` into `dst` (capacity in elements) after the checks shared by the copy-outs.
 ///
 /// # Safety
-/// `dst` is NULL or valid for writes of `capacity` elements.
+/// `m` is NULL or a live mesh from psr_reconstructor_solve; `dst` is NULL or valid for writes
+/// of `capacity` elements.
 unsafe fn copy_out<T: Copy>(
     m: *const psr_mesh,
     src: impl FnOnce(&Mesh) -> &[T],
     dst: *mut T,
     capacity: usize,
 ) -> psr_status {
-    guard("psr_mesh_copy", ptr::null(), || {
-        let m = m
-            .as_ref()
-            .ok_or_else(|| Failure::null("psr_mesh_copy", "m"))?;
+    guard_no_handle("psr_mesh_copy", || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        let m = unsafe { m.as_ref() }.ok_or_else(|| Failure::null("psr_mesh_copy", "m"))?;
         let src = src(&m.mesh);
         if src.is_empty() {
             return Ok(());
@@ -120,7 +140,10 @@ unsafe fn copy_out<T: Copy>(
         if capacity < src.len() {
             return Err(Failure::new(psr_status::BufferTooSmall, ""));
         }
-        ptr::copy_nonoverlapping(src.as_ptr(), dst, src.len());
+        // SAFETY: `dst` is not NULL, so it is valid for writes of `capacity` >= src.len()
+        // elements (this function's contract). It does not overlap `src`, the mesh's own array,
+        // which C only ever gets as a pointer to const and must never write.
+        unsafe { ptr::copy_nonoverlapping(src.as_ptr(), dst, src.len()) };
         Ok(())
     })
 }
@@ -140,12 +163,16 @@ pub unsafe extern "C" fn psr_mesh_copy_positions(
     dst: *mut f32,
     capacity_floats: usize,
 ) -> psr_status {
-    copy_out(
-        m,
-        |mesh| mesh.positions.as_flattened(),
-        dst,
-        capacity_floats,
-    )
+    // SAFETY: `m` is NULL or a live mesh and `dst` is NULL or valid for writes of the given
+    // capacity (this function's contract).
+    unsafe {
+        copy_out(
+            m,
+            |mesh| mesh.positions.as_flattened(),
+            dst,
+            capacity_floats,
+        )
+    }
 }
 
 /// Copies the triangles of m into dst: 3 * psr_mesh_triangle_count(m) vertex indices.
@@ -163,12 +190,16 @@ pub unsafe extern "C" fn psr_mesh_copy_triangles(
     dst: *mut u32,
     capacity_indices: usize,
 ) -> psr_status {
-    copy_out(
-        m,
-        |mesh| mesh.triangles.as_flattened(),
-        dst,
-        capacity_indices,
-    )
+    // SAFETY: `m` is NULL or a live mesh and `dst` is NULL or valid for writes of the given
+    // capacity (this function's contract).
+    unsafe {
+        copy_out(
+            m,
+            |mesh| mesh.triangles.as_flattened(),
+            dst,
+            capacity_indices,
+        )
+    }
 }
 
 /// Copies the per-vertex densities of m into dst: psr_mesh_vertex_count(m) floats.
@@ -186,7 +217,9 @@ pub unsafe extern "C" fn psr_mesh_copy_densities(
     dst: *mut f32,
     capacity_floats: usize,
 ) -> psr_status {
-    copy_out(m, |mesh| &mesh.densities, dst, capacity_floats)
+    // SAFETY: `m` is NULL or a live mesh and `dst` is NULL or valid for writes of the given
+    // capacity (this function's contract).
+    unsafe { copy_out(m, |mesh| &mesh.densities, dst, capacity_floats) }
 }
 
 /// Destroys a mesh and its arrays; pointers from psr_mesh_positions and the like become invalid.
@@ -198,7 +231,9 @@ pub unsafe extern "C" fn psr_mesh_copy_densities(
 pub unsafe extern "C" fn psr_mesh_free(m: *mut psr_mesh) {
     guard_value("psr_mesh_free", (), || {
         if !m.is_null() {
-            drop(Box::from_raw(m));
+            // SAFETY: `m` came from Box::into_raw in psr_reconstructor_solve (or
+            // debug_mesh_new) and is not used again (this function's contract).
+            drop(unsafe { Box::from_raw(m) });
         }
     })
 }

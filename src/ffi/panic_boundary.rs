@@ -17,13 +17,17 @@ use std::ptr;
 ///
 /// The body must not hold a reference to `*r` when it returns or unwinds: `guard` reads the
 /// handle through its own shared reference before and after the body, never during it.
-pub(super) fn guard(
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new, and `body` holds no reference to
+/// `*r` when it returns or unwinds.
+pub(super) unsafe fn guard(
     function: &str,
     r: *const psr_reconstructor,
     body: impl FnOnce() -> Outcome,
 ) -> psr_status {
-    // SAFETY: a non-NULL `r` came from psr_reconstructor_new (the caller's contract), and no
-    // other reference to it is live here (see above).
+    // SAFETY: a non-NULL `r` is a live handle (this function's contract); the reference is
+    // shared and dropped before the body runs.
     if let Some(handle) = unsafe { r.as_ref() } {
         if handle.busy.get() {
             handle.set_message(format!(
@@ -69,7 +73,7 @@ pub(super) fn guard(
             (psr_status::InternalError, message, true)
         }
     };
-    // SAFETY: as above; the body has returned, so no reference it made is live.
+    // SAFETY: as above; the body has returned or unwound, so no reference it made is live.
     if let Some(handle) = unsafe { r.as_ref() } {
         handle.busy.set(false);
         if poison {
@@ -90,11 +94,18 @@ fn original_panic_message(previous: &str) -> String {
     }
 }
 
+/// [`guard`] for calls on no reconstructor (psr_reconstructor_new, the mesh functions): a
+/// failure's status is returned and its message dropped, as there is no handle to keep it.
+pub(super) fn guard_no_handle(function: &str, body: impl FnOnce() -> Outcome) -> psr_status {
+    // SAFETY: a NULL reconstructor is never dereferenced.
+    unsafe { guard(function, ptr::null(), body) }
+}
+
 /// [`guard`] for functions that return a value rather than a status: `fallback` is returned if
 /// the body panics.
 pub(super) fn guard_value<T>(function: &str, fallback: T, body: impl FnOnce() -> T) -> T {
     let mut value = None;
-    guard(function, ptr::null(), || {
+    guard_no_handle(function, || {
         value = Some(body());
         Ok(())
     });
@@ -104,23 +115,29 @@ pub(super) fn guard_value<T>(function: &str, fallback: T, body: impl FnOnce() ->
 /// The reconstructor behind `r` for a call that changes it.
 ///
 /// # Safety
-/// `r` is NULL or a live handle from psr_reconstructor_new, with no other reference to it live.
+/// `r` is NULL or a live handle from psr_reconstructor_new, and no other reference to it is
+/// live while the returned one is used.
 pub(super) unsafe fn handle_mut<'a>(
     function: &str,
     r: *mut psr_reconstructor,
 ) -> Result<&'a mut psr_reconstructor, Failure> {
-    r.as_mut().ok_or_else(|| Failure::null(function, "r"))
+    // SAFETY: `r` is NULL (then `as_mut` gives None) or a live handle with no other reference
+    // to it live (this function's contract).
+    unsafe { r.as_mut() }.ok_or_else(|| Failure::null(function, "r"))
 }
 
 /// The reconstructor behind `r` for a call that only reads it.
 ///
 /// # Safety
-/// `r` is NULL or a live handle from psr_reconstructor_new.
+/// `r` is NULL or a live handle from psr_reconstructor_new, and no mutable reference to it is
+/// live while the returned one is used.
 pub(super) unsafe fn handle_ref<'a>(
     function: &str,
     r: *const psr_reconstructor,
 ) -> Result<&'a psr_reconstructor, Failure> {
-    r.as_ref().ok_or_else(|| Failure::null(function, "r"))
+    // SAFETY: `r` is NULL (then `as_ref` gives None) or a live handle with no mutable
+    // reference to it live (this function's contract).
+    unsafe { r.as_ref() }.ok_or_else(|| Failure::null(function, "r"))
 }
 
 /// Writes an out-parameter (the last step of a successful call).
@@ -131,7 +148,10 @@ pub(super) unsafe fn write_out<T>(function: &str, name: &str, out: *mut T, value
     if out.is_null() {
         return Err(Failure::null(function, name));
     }
-    out.write(value);
+    // SAFETY: `out` is not NULL (checked above), so it is valid for writes of `T` (this
+    // function's contract). `write` does not read or drop the old value, which C may have left
+    // uninitialised.
+    unsafe { out.write(value) };
     Ok(())
 }
 

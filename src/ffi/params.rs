@@ -11,14 +11,16 @@ use crate::{Error, Params};
 /// by psr_reconstructor_solve.
 ///
 /// # Safety
-/// As for [`handle_mut`].
+/// `r` is NULL or a live handle from psr_reconstructor_new.
 unsafe fn set_param(
     function: &'static str,
     r: *mut psr_reconstructor,
     apply: impl Fn(&mut Params),
 ) -> psr_status {
-    guard(function, r, || {
-        let handle = handle_mut(function, r)?;
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(function, r) }?;
         // Check the value against the widest range its parameter may take on its own.
         let mut probe = Params {
             depth: crate::params::MAX_DEPTH,
@@ -30,25 +32,35 @@ unsafe fn set_param(
             .map_err(|e| Failure::from_error(function, e))?;
         apply(&mut handle.params);
         Ok(())
-    })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(function, r, body) }
 }
 
 /// Reads one parameter into an out-parameter.
 ///
 /// # Safety
-/// As for [`handle_ref`] and [`write_out`].
+/// `r` is NULL or a live handle from psr_reconstructor_new; `out` is NULL or valid for writes
+/// of `T`.
 unsafe fn get_param<T>(
     function: &'static str,
     r: *const psr_reconstructor,
     out: *mut T,
     read: impl FnOnce(&Params) -> T,
 ) -> psr_status {
-    guard(function, r, || {
-        let handle = handle_ref(function, r)?;
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way.
+        let handle = unsafe { handle_ref(function, r) }?;
         require_out(function, "out", out)?;
         let value = read(&handle.params);
-        write_out(function, "out", out, value)
-    })
+        // SAFETY: `out` is NULL or valid for writes of `T` (this function's contract).
+        unsafe { write_out(function, "out", out, value) }
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(function, r, body) }
 }
 
 /// Sets the maximum octree depth D: the finest cells are 2^-D of the bounding cube, so each
@@ -67,7 +79,8 @@ pub unsafe extern "C" fn psr_reconstructor_set_depth(
     r: *mut psr_reconstructor,
     depth: u32,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_depth", r, |p| p.depth = depth)
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe { set_param("psr_reconstructor_set_depth", r, |p| p.depth = depth) }
 }
 
 /// Writes the maximum octree depth to *out. r and out must not be NULL. Returns PSR_STATUS_OK,
@@ -81,7 +94,9 @@ pub unsafe extern "C" fn psr_reconstructor_get_depth(
     r: *const psr_reconstructor,
     out: *mut u32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_depth", r, out, |p| p.depth)
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe { get_param("psr_reconstructor_get_depth", r, out, |p| p.depth) }
 }
 
 /// Sets the depth down to which the octree is complete, so the coarse solution is defined
@@ -97,9 +112,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_full_depth(
     r: *mut psr_reconstructor,
     full_depth: u32,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_full_depth", r, |p| {
-        p.full_depth = full_depth
-    })
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_full_depth", r, |p| {
+            p.full_depth = full_depth
+        })
+    }
 }
 
 /// Writes the full depth to *out. r and out must not be NULL. Returns the statuses of
@@ -112,7 +130,9 @@ pub unsafe extern "C" fn psr_reconstructor_get_full_depth(
     r: *const psr_reconstructor,
     out: *mut u32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_full_depth", r, out, |p| p.full_depth)
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe { get_param("psr_reconstructor_get_full_depth", r, out, |p| p.full_depth) }
 }
 
 /// Sets the depth at which the sampling density is estimated. A negative value (the default,
@@ -130,9 +150,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_kernel_depth(
     kernel_depth: i32,
 ) -> psr_status {
     let value = u32::try_from(kernel_depth).ok();
-    set_param("psr_reconstructor_set_kernel_depth", r, |p| {
-        p.kernel_depth = value
-    })
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_kernel_depth", r, |p| {
+            p.kernel_depth = value
+        })
+    }
 }
 
 /// Writes the kernel depth to *out: -1 when automatic, else the depth that was set (not the
@@ -147,10 +170,14 @@ pub unsafe extern "C" fn psr_reconstructor_get_kernel_depth(
     out: *mut i32,
 ) -> psr_status {
     // Set values are at most MAX_DEPTH (16), so the conversion cannot fail.
-    get_param("psr_reconstructor_get_kernel_depth", r, out, |p| {
-        p.kernel_depth
-            .map_or(-1, |k| i32::try_from(k).unwrap_or(i32::MAX))
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_kernel_depth", r, out, |p| {
+            p.kernel_depth
+                .map_or(-1, |k| i32::try_from(k).unwrap_or(i32::MAX))
+        })
+    }
 }
 
 /// Sets the target number of samples per octree node: sparser samples are splatted at coarser
@@ -167,9 +194,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_samples_per_node(
     r: *mut psr_reconstructor,
     samples_per_node: f32,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_samples_per_node", r, |p| {
-        p.samples_per_node = samples_per_node
-    })
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_samples_per_node", r, |p| {
+            p.samples_per_node = samples_per_node
+        })
+    }
 }
 
 /// Writes the samples per node to *out. r and out must not be NULL. Returns the statuses of
@@ -182,9 +212,13 @@ pub unsafe extern "C" fn psr_reconstructor_get_samples_per_node(
     r: *const psr_reconstructor,
     out: *mut f32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_samples_per_node", r, out, |p| {
-        p.samples_per_node
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_samples_per_node", r, out, |p| {
+            p.samples_per_node
+        })
+    }
 }
 
 /// Sets the ratio between the reconstruction cube and the points' bounding box. Default 1.1,
@@ -199,7 +233,8 @@ pub unsafe extern "C" fn psr_reconstructor_set_scale(
     r: *mut psr_reconstructor,
     scale: f32,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_scale", r, |p| p.scale = scale)
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe { set_param("psr_reconstructor_set_scale", r, |p| p.scale = scale) }
 }
 
 /// Writes the scale to *out. r and out must not be NULL. Returns the statuses of
@@ -212,7 +247,9 @@ pub unsafe extern "C" fn psr_reconstructor_get_scale(
     r: *const psr_reconstructor,
     out: *mut f32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_scale", r, out, |p| p.scale)
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe { get_param("psr_reconstructor_get_scale", r, out, |p| p.scale) }
 }
 
 /// Sets the screening weight alpha (Kazhdan & Hoppe 2013): how strongly the surface is pulled
@@ -228,9 +265,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_point_weight(
     r: *mut psr_reconstructor,
     point_weight: f32,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_point_weight", r, |p| {
-        p.point_weight = point_weight
-    })
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_point_weight", r, |p| {
+            p.point_weight = point_weight
+        })
+    }
 }
 
 /// Writes the screening weight to *out. r and out must not be NULL. Returns the statuses of
@@ -243,9 +283,13 @@ pub unsafe extern "C" fn psr_reconstructor_get_point_weight(
     r: *const psr_reconstructor,
     out: *mut f32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_point_weight", r, out, |p| {
-        p.point_weight
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_point_weight", r, out, |p| {
+            p.point_weight
+        })
+    }
 }
 
 /// Sets the number of worker threads psr_reconstructor_solve uses; 0 (the default) means one
@@ -263,7 +307,8 @@ pub unsafe extern "C" fn psr_reconstructor_set_threads(
     threads: u32,
 ) -> psr_status {
     let threads = usize::try_from(threads).unwrap_or(usize::MAX);
-    set_param("psr_reconstructor_set_threads", r, |p| p.threads = threads)
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe { set_param("psr_reconstructor_set_threads", r, |p| p.threads = threads) }
 }
 
 /// Writes the thread count to *out (0 = one per core). r and out must not be NULL. Returns the
@@ -277,9 +322,13 @@ pub unsafe extern "C" fn psr_reconstructor_get_threads(
     out: *mut u32,
 ) -> psr_status {
     // Set values are at most 4096, so the conversion cannot fail.
-    get_param("psr_reconstructor_get_threads", r, out, |p| {
-        u32::try_from(p.threads).unwrap_or(u32::MAX)
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_threads", r, out, |p| {
+            u32::try_from(p.threads).unwrap_or(u32::MAX)
+        })
+    }
 }
 
 /// Sets the most conjugate-gradient iterations per depth. Default 60, range 1 to 10000.
@@ -294,9 +343,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_max_solver_iterations(
     r: *mut psr_reconstructor,
     iterations: u32,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_max_solver_iterations", r, |p| {
-        p.max_solver_iterations = iterations
-    })
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_max_solver_iterations", r, |p| {
+            p.max_solver_iterations = iterations
+        })
+    }
 }
 
 /// Writes the most solver iterations per depth to *out. r and out must not be NULL. Returns
@@ -309,9 +361,13 @@ pub unsafe extern "C" fn psr_reconstructor_get_max_solver_iterations(
     r: *const psr_reconstructor,
     out: *mut u32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_max_solver_iterations", r, out, |p| {
-        p.max_solver_iterations
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_max_solver_iterations", r, out, |p| {
+            p.max_solver_iterations
+        })
+    }
 }
 
 /// Sets the relative residual |b - Ax| / |b| at which a depth's solve stops. Default 1e-2,
@@ -326,9 +382,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_solver_tolerance(
     r: *mut psr_reconstructor,
     tolerance: f64,
 ) -> psr_status {
-    set_param("psr_reconstructor_set_solver_tolerance", r, |p| {
-        p.solver_tolerance = tolerance
-    })
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_solver_tolerance", r, |p| {
+            p.solver_tolerance = tolerance
+        })
+    }
 }
 
 /// Writes the solver tolerance to *out. r and out must not be NULL. Returns the statuses of
@@ -341,9 +400,13 @@ pub unsafe extern "C" fn psr_reconstructor_get_solver_tolerance(
     r: *const psr_reconstructor,
     out: *mut f64,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_solver_tolerance", r, out, |p| {
-        p.solver_tolerance
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_solver_tolerance", r, out, |p| {
+            p.solver_tolerance
+        })
+    }
 }
 
 /// Boundary conditions at the bounding cube, for psr_reconstructor_set_boundary.
@@ -383,7 +446,7 @@ pub enum psr_vertex_placement {
 /// as a Rust enum).
 ///
 /// # Safety
-/// As for [`handle_mut`].
+/// `r` is NULL or a live handle from psr_reconstructor_new.
 unsafe fn set_choice<T: Copy>(
     function: &'static str,
     r: *mut psr_reconstructor,
@@ -393,8 +456,10 @@ unsafe fn set_choice<T: Copy>(
     choices: &[T],
     apply: impl Fn(&mut Params, T),
 ) -> psr_status {
-    guard(function, r, || {
-        let handle = handle_mut(function, r)?;
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(function, r) }?;
         let choice = usize::try_from(value)
             .ok()
             .and_then(|i| choices.get(i).copied())
@@ -410,7 +475,10 @@ unsafe fn set_choice<T: Copy>(
             })?;
         apply(&mut handle.params, choice);
         Ok(())
-    })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(function, r, body) }
 }
 
 /// Sets the boundary condition: PSR_BOUNDARY_NEUMANN (0, the default) or PSR_BOUNDARY_FREE (1).
@@ -426,15 +494,18 @@ pub unsafe extern "C" fn psr_reconstructor_set_boundary(
     r: *mut psr_reconstructor,
     boundary: i32,
 ) -> psr_status {
-    set_choice(
-        "psr_reconstructor_set_boundary",
-        r,
-        "boundary",
-        "PSR_BOUNDARY_NEUMANN (0) or PSR_BOUNDARY_FREE (1)",
-        boundary,
-        &[crate::Boundary::Neumann, crate::Boundary::Free],
-        |p, b| p.boundary = b,
-    )
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_choice(
+            "psr_reconstructor_set_boundary",
+            r,
+            "boundary",
+            "PSR_BOUNDARY_NEUMANN (0) or PSR_BOUNDARY_FREE (1)",
+            boundary,
+            &[crate::Boundary::Neumann, crate::Boundary::Free],
+            |p, b| p.boundary = b,
+        )
+    }
 }
 
 /// Writes the boundary condition (a psr_boundary value) to *out. r and out must not be NULL.
@@ -447,12 +518,16 @@ pub unsafe extern "C" fn psr_reconstructor_get_boundary(
     r: *const psr_reconstructor,
     out: *mut i32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_boundary", r, out, |p| {
-        match p.boundary {
-            crate::Boundary::Neumann => psr_boundary::Neumann as i32,
-            crate::Boundary::Free => psr_boundary::Free as i32,
-        }
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_boundary", r, out, |p| {
+            match p.boundary {
+                crate::Boundary::Neumann => psr_boundary::Neumann as i32,
+                crate::Boundary::Free => psr_boundary::Free as i32,
+            }
+        })
+    }
 }
 
 /// Sets the splatting weights: PSR_SPLATTING_BSPLINE (0, the default) or
@@ -468,15 +543,18 @@ pub unsafe extern "C" fn psr_reconstructor_set_splatting(
     r: *mut psr_reconstructor,
     splatting: i32,
 ) -> psr_status {
-    set_choice(
-        "psr_reconstructor_set_splatting",
-        r,
-        "splatting",
-        "PSR_SPLATTING_BSPLINE (0) or PSR_SPLATTING_TRILINEAR (1)",
-        splatting,
-        &[crate::Splatting::BSpline, crate::Splatting::Trilinear],
-        |p, v| p.splatting = v,
-    )
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_choice(
+            "psr_reconstructor_set_splatting",
+            r,
+            "splatting",
+            "PSR_SPLATTING_BSPLINE (0) or PSR_SPLATTING_TRILINEAR (1)",
+            splatting,
+            &[crate::Splatting::BSpline, crate::Splatting::Trilinear],
+            |p, v| p.splatting = v,
+        )
+    }
 }
 
 /// Writes the splatting weights (a psr_splatting value) to *out. r and out must not be NULL.
@@ -489,12 +567,16 @@ pub unsafe extern "C" fn psr_reconstructor_get_splatting(
     r: *const psr_reconstructor,
     out: *mut i32,
 ) -> psr_status {
-    get_param("psr_reconstructor_get_splatting", r, out, |p| {
-        match p.splatting {
-            crate::Splatting::BSpline => psr_splatting::Bspline as i32,
-            crate::Splatting::Trilinear => psr_splatting::Trilinear as i32,
-        }
-    })
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_splatting", r, out, |p| {
+            match p.splatting {
+                crate::Splatting::BSpline => psr_splatting::Bspline as i32,
+                crate::Splatting::Trilinear => psr_splatting::Trilinear as i32,
+            }
+        })
+    }
 }
 
 /// Sets where the mesh's vertices go: PSR_VERTEX_PLACEMENT_FITTED (0, the default: moved off the
@@ -511,18 +593,21 @@ pub unsafe extern "C" fn psr_reconstructor_set_vertex_placement(
     r: *mut psr_reconstructor,
     placement: i32,
 ) -> psr_status {
-    set_choice(
-        "psr_reconstructor_set_vertex_placement",
-        r,
-        "vertex_placement",
-        "PSR_VERTEX_PLACEMENT_FITTED (0) or PSR_VERTEX_PLACEMENT_ON_ISOSURFACE (1)",
-        placement,
-        &[
-            crate::VertexPlacement::Fitted,
-            crate::VertexPlacement::OnIsosurface,
-        ],
-        |p, v| p.vertex_placement = v,
-    )
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_choice(
+            "psr_reconstructor_set_vertex_placement",
+            r,
+            "vertex_placement",
+            "PSR_VERTEX_PLACEMENT_FITTED (0) or PSR_VERTEX_PLACEMENT_ON_ISOSURFACE (1)",
+            placement,
+            &[
+                crate::VertexPlacement::Fitted,
+                crate::VertexPlacement::OnIsosurface,
+            ],
+            |p, v| p.vertex_placement = v,
+        )
+    }
 }
 
 /// Writes where the vertices go (a psr_vertex_placement value) to *out. r and out must not be
@@ -535,13 +620,17 @@ pub unsafe extern "C" fn psr_reconstructor_get_vertex_placement(
     r: *const psr_reconstructor,
     out: *mut i32,
 ) -> psr_status {
-    get_param(
-        "psr_reconstructor_get_vertex_placement",
-        r,
-        out,
-        |p| match p.vertex_placement {
-            crate::VertexPlacement::Fitted => psr_vertex_placement::Fitted as i32,
-            crate::VertexPlacement::OnIsosurface => psr_vertex_placement::OnIsosurface as i32,
-        },
-    )
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param(
+            "psr_reconstructor_get_vertex_placement",
+            r,
+            out,
+            |p| match p.vertex_placement {
+                crate::VertexPlacement::Fitted => psr_vertex_placement::Fitted as i32,
+                crate::VertexPlacement::OnIsosurface => psr_vertex_placement::OnIsosurface as i32,
+            },
+        )
+    }
 }

@@ -8,17 +8,22 @@ use super::status::{psr_status, Failure, Outcome};
 /// Size of one position or normal: 3 floats.
 const VEC3_BYTES: usize = 3 * std::mem::size_of::<f32>();
 
-/// Copies `count` 3-float vectors starting `stride` bytes apart (0 = packed). The caller has
-/// checked that `base` is non-NULL, `stride` is 0 or at least 12 and the span does not overflow.
+/// Copies `count` 3-float vectors starting `stride` bytes apart (0 = packed).
 ///
 /// # Safety
-/// `base` is valid for reads of the whole span.
+/// `base`, `stride` and `count` have passed [`check_array`] (so `base` is not NULL and the span
+/// fits in `isize`), and `base` is valid for reads of that whole span: `count` vectors of 12
+/// bytes, `stride` bytes apart.
 unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) -> Vec<[f32; 3]> {
     let stride = if stride == 0 { VEC3_BYTES } else { stride };
     let bytes = base.cast::<u8>();
     (0..count)
-        // Unaligned reads: interleaved vertex formats with odd strides are accepted.
-        .map(|i| bytes.add(i * stride).cast::<[f32; 3]>().read_unaligned())
+        .map(|i| {
+            // SAFETY: i < count, so the 12 bytes at base + i * stride lie inside the span,
+            // which is readable and fits in isize (this function's contract); the reads are
+            // unaligned, so interleaved vertex formats with odd strides are accepted.
+            unsafe { bytes.add(i * stride).cast::<[f32; 3]>().read_unaligned() }
+        })
         .collect()
 }
 
@@ -90,8 +95,10 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
     count: usize,
 ) -> psr_status {
     const F: &str = "psr_reconstructor_add_points";
-    guard(F, r, || {
-        let handle = handle_mut(F, r)?;
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(F, r) }?;
         if count == 0 {
             return Ok(());
         }
@@ -111,8 +118,14 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
             normal_stride_bytes,
             count,
         )?;
-        let p = gather_vec3(positions, position_stride_bytes, count);
-        let n = gather_vec3(normals, normal_stride_bytes, count);
+        // SAFETY: both arrays passed check_array above, and are readable over their spans
+        // (this function's contract).
+        let (p, n) = unsafe {
+            (
+                gather_vec3(positions, position_stride_bytes, count),
+                gather_vec3(normals, normal_stride_bytes, count),
+            )
+        };
         handle.points.extend(&p, &n).map_err(|e| {
             let mut failure = Failure::from_error(F, e);
             failure
@@ -120,7 +133,10 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
                 .push_str(" (index within this batch; nothing from this batch was added)");
             failure
         })
-    })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
 }
 
 /// Writes the number of points r holds to *out. r and out must not be NULL. Returns
@@ -136,10 +152,16 @@ pub unsafe extern "C" fn psr_reconstructor_point_count(
     out: *mut usize,
 ) -> psr_status {
     const F: &str = "psr_reconstructor_point_count";
-    guard(F, r, || {
-        let handle = handle_ref(F, r)?;
-        write_out(F, "out", out, handle.points.len())
-    })
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way.
+        let handle = unsafe { handle_ref(F, r) }?;
+        // SAFETY: `out` is NULL or valid for writes (this function's contract).
+        unsafe { write_out(F, "out", out, handle.points.len()) }
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
 }
 
 /// Removes every point from r (parameters and callback stay), so the handle can be reused for
@@ -152,8 +174,13 @@ pub unsafe extern "C" fn psr_reconstructor_point_count(
 #[no_mangle]
 pub unsafe extern "C" fn psr_reconstructor_clear_points(r: *mut psr_reconstructor) -> psr_status {
     const F: &str = "psr_reconstructor_clear_points";
-    guard(F, r, || {
-        handle_mut(F, r)?.points.clear();
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        unsafe { handle_mut(F, r) }?.points.clear();
         Ok(())
-    })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
 }

@@ -1,7 +1,7 @@
 //! The `psr_reconstructor` handle: what it holds, and psr_reconstructor_new, _free and
 //! _last_error.
 
-use super::panic_boundary::{guard, guard_value, require_out, write_out};
+use super::panic_boundary::{guard_no_handle, guard_value, require_out, write_out};
 use super::stage::psr_progress_fn;
 use super::status::psr_status;
 use crate::{Params, PointSet};
@@ -70,10 +70,11 @@ impl psr_reconstructor {
 #[no_mangle]
 pub unsafe extern "C" fn psr_reconstructor_new(out: *mut *mut psr_reconstructor) -> psr_status {
     const F: &str = "psr_reconstructor_new";
-    guard(F, ptr::null(), || {
+    guard_no_handle(F, || {
         require_out(F, "out", out)?;
         let handle = Box::into_raw(Box::new(psr_reconstructor::new()));
-        write_out(F, "out", out, handle)
+        // SAFETY: `out` is NULL or valid for writing one pointer (this function's contract).
+        unsafe { write_out(F, "out", out, handle) }
     })
 }
 
@@ -86,10 +87,18 @@ pub unsafe extern "C" fn psr_reconstructor_new(out: *mut *mut psr_reconstructor)
 #[no_mangle]
 pub unsafe extern "C" fn psr_reconstructor_free(r: *mut psr_reconstructor) {
     guard_value("psr_reconstructor_free", (), || {
-        if r.is_null() || (*r).busy.get() {
+        if r.is_null() {
             return;
         }
-        drop(Box::from_raw(r));
+        // SAFETY: `r` is a live handle (this function's contract). The reference is shared: a
+        // solve running on r (this is then a call from its callback) holds a shared one too.
+        if unsafe { &*r }.busy.get() {
+            return;
+        }
+        // SAFETY: `r` came from Box::into_raw in psr_reconstructor_new and is not used again
+        // (this function's contract), and no call on it is running (it is not busy), so this
+        // is the only reference to it.
+        drop(unsafe { Box::from_raw(r) });
     })
 }
 
@@ -109,7 +118,9 @@ pub unsafe extern "C" fn psr_reconstructor_last_error(
     guard_value(
         "psr_reconstructor_last_error",
         NULL_HANDLE.as_ptr().cast(),
-        || match r.as_ref() {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); no call that could
+        // change it runs meanwhile, as a handle is used from one thread at a time.
+        || match unsafe { r.as_ref() } {
             None => NULL_HANDLE.as_ptr().cast(),
             Some(handle) => match handle.last_error.borrow().as_ref() {
                 // The CString's heap buffer does not move when the RefCell guard is dropped; it

@@ -26,12 +26,17 @@ pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
     user: *mut c_void,
 ) -> psr_status {
     const F: &str = "psr_reconstructor_set_progress_callback";
-    guard(F, r, || {
-        let handle = handle_mut(F, r)?;
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(F, r) }?;
         handle.progress = callback;
         handle.user = UserPointer(user);
         Ok(())
-    })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
 }
 
 /// Reconstructs a watertight mesh from r's points and parameters and writes a new mesh to
@@ -54,10 +59,12 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
     out: *mut *mut psr_mesh,
 ) -> psr_status {
     const F: &str = "psr_reconstructor_solve";
-    guard(F, r, || {
+    let body = || {
         require_out(F, "out", out)?;
         let (params, callback, user, panic_now) = {
-            let handle = handle_mut(F, r)?;
+            // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+            // only when no other call on r is under way and holds no reference to r meanwhile.
+            let handle = unsafe { handle_mut(F, r) }?;
             let panic_now = std::mem::take(&mut handle.panic_next_solve);
             (
                 handle.params.clone(),
@@ -69,31 +76,44 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
         if panic_now {
             panic!("forced by the test hook psr_reconstructor_debug_panic_next_solve");
         }
-        // No reference to *r is held while the callback runs: a call it makes on r sees `busy`
-        // through its own shared reference and is refused. The points are borrowed through a
-        // shared reference, which those refused calls do not conflict with.
-        let handle: &psr_reconstructor = &*r;
+        // SAFETY: `r` is a live handle (handle_mut above found it not NULL), and the mutable
+        // reference from handle_mut has ended. No mutable reference to *r is made while this
+        // shared one lives: a call the callback makes on r sees `busy` through its own shared
+        // reference and is refused, which does not touch the points borrowed here.
+        let handle: &psr_reconstructor = unsafe { &*r };
         handle.busy.set(true);
         let mut progress = |stage: Stage, fraction: f32| match callback {
-            Some(f) => f(user.0, stage.into(), fraction),
+            // SAFETY: whoever set the callback promised it is safe to call with `user` until it
+            // is replaced or r is freed (psr_reconstructor_set_progress_callback's contract),
+            // and neither can happen during the solve: calls on r from the callback are
+            // refused, and psr_reconstructor_free does nothing then.
+            Some(f) => unsafe { f(user.0, stage.into(), fraction) },
             None => true,
         };
         let result = crate::reconstruct_with_progress(&handle.points, &params, &mut progress);
         handle.busy.set(false);
         let mesh = result.map_err(|e| Failure::from_error(F, e))?;
         let mesh = Box::into_raw(Box::new(psr_mesh { mesh }));
-        write_out(F, "out", out, mesh)
-    })
+        // SAFETY: `out` is not NULL (checked first) and valid for writing one pointer (this
+        // function's contract).
+        unsafe { write_out(F, "out", out, mesh) }
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
 }
 
-/// Test hook: makes the next solve on `r` panic inside the panic boundary, to prove that the
-/// panic becomes `InternalError` and poisons the handle. Not part of the C API.
+/// Test hook for psr's own Rust tests, not API (neither Rust nor C): makes the next solve on `r`
+/// panic inside the panic boundary, to prove that the panic becomes `InternalError` and poisons
+/// the handle.
 ///
 /// # Safety
-/// `r` is a live handle from psr_reconstructor_new.
+/// `r` is NULL (nothing happens) or a live handle from psr_reconstructor_new that no other call
+/// is using.
 #[doc(hidden)]
 pub unsafe fn debug_panic_next_solve(r: *mut psr_reconstructor) {
-    if let Some(handle) = r.as_mut() {
+    // SAFETY: `r` is NULL or a live handle no other call is using (this function's contract).
+    if let Some(handle) = unsafe { r.as_mut() } {
         handle.panic_next_solve = true;
     }
 }
@@ -113,8 +133,13 @@ pub unsafe extern "C" fn psr_reconstructor_debug_panic_next_solve(
     r: *mut psr_reconstructor,
 ) -> psr_status {
     const F: &str = "psr_reconstructor_debug_panic_next_solve";
-    guard(F, r, || {
-        handle_mut(F, r)?.panic_next_solve = true;
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        unsafe { handle_mut(F, r) }?.panic_next_solve = true;
         Ok(())
-    })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
 }

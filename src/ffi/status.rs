@@ -140,10 +140,12 @@ mod tests {
             ),
         ];
         for (status, name) in all {
+            // SAFETY: psr_status_string returns a static NUL-terminated string, never NULL.
             let got = unsafe { CStr::from_ptr(psr_status_string(status as c_int)) };
             assert_eq!(got.to_str().unwrap(), name);
         }
         for unknown in [-1, 13, c_int::MAX, c_int::MIN] {
+            // SAFETY: as above.
             let got = unsafe { CStr::from_ptr(psr_status_string(unknown)) };
             assert_eq!(got.to_str().unwrap(), "PSR_STATUS_UNKNOWN");
         }

@@ -80,6 +80,7 @@ mod tests {
 
     #[test]
     fn version_parts_match_the_crate_version() {
+        // SAFETY: psr_version returns a static NUL-terminated string, never NULL.
         let text = unsafe { CStr::from_ptr(psr_version()) }.to_str().unwrap();
         assert_eq!(text, env!("CARGO_PKG_VERSION"));
         assert_eq!(
