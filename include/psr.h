@@ -163,7 +163,8 @@ typedef enum {
 } psr_status;
 
 /**
- * The pipeline stages reported to the progress callback, in order.
+ * The pipeline stages reported to the progress callback, in order. psr_stage_string gives their
+ * names.
  */
 typedef enum {
     /**
@@ -270,8 +271,8 @@ typedef struct psr_reconstructor psr_reconstructor;
  * It is called only from inside psr_reconstructor_solve, on the thread that called it, never
  * concurrently with itself. It must not call any function on the reconstructor being solved
  * (such calls are refused with PSR_STATUS_INVALID_ARGUMENT, and psr_reconstructor_free does
- * nothing); it may use other handles, psr_status_string and the version functions. It must not
- * unwind (no C++ exception or longjmp out of it).
+ * nothing); it may use other handles, psr_status_string, psr_stage_string and the version
+ * functions. It must not unwind (no C++ exception or longjmp out of it).
  */
 typedef bool (*psr_progress_fn)(void *user, psr_stage stage, float fraction);
 
@@ -286,6 +287,14 @@ extern "C" {
  * (never free it). Any int is accepted: unknown values give "PSR_STATUS_UNKNOWN". Never NULL.
  */
 const char *psr_status_string(int status);
+
+/**
+ * The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
+ * (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
+ * "extract" or "mesh", in psr_stage's order. Any int is accepted: unknown values give
+ * "unknown". Never NULL.
+ */
+const char *psr_stage_string(int stage);
 
 /**
  * The library's version, "MAJOR.MINOR.PATCH", as a static NUL-terminated string (never free

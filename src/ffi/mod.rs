@@ -11,6 +11,8 @@
 //! - Out-parameters are written only on success, as the very last step.
 //! - No global state: each handle carries its parameters, points, callback and last message, and
 //!   each solve builds its own worker pool, so different handles may run on different threads.
+//!   (The one static filled at run time, psr_stage_string's table of names, is written once
+//!   and never changes.)
 //! - `unsafe` is confined to turning C pointers into references, reading and writing through
 //!   them (each behind a NULL, length and overflow check) and calling the C progress callback.
 //!   Every `unsafe fn` says what its caller must guarantee (`# Safety`), every `unsafe {}` block
@@ -25,7 +27,7 @@
 //! - `status.rs`: `psr_status`, `psr_status_string`, and `Failure`, a failed call's status and
 //!   message, with the mapping from [`crate::Error`] to a status.
 //! - `version.rs`: `PSR_VERSION_*` and `psr_version*`.
-//! - `stage.rs`: `psr_stage` and `psr_progress_fn`.
+//! - `stage.rs`: `psr_stage`, `psr_stage_string` and `psr_progress_fn`.
 //! - `reconstructor.rs`: the `psr_reconstructor` handle; psr_reconstructor_new, _free and
 //!   _last_error.
 //! - `params.rs`: the parameter setters and getters; `psr_boundary`, `psr_splatting`,
@@ -92,7 +94,7 @@ pub use self::reconstructor::{
 #[cfg(feature = "test-panic")]
 pub use self::solve::psr_reconstructor_debug_panic_next_solve;
 pub use self::solve::{psr_reconstructor_set_progress_callback, psr_reconstructor_solve};
-pub use self::stage::{psr_progress_fn, psr_stage};
+pub use self::stage::{psr_progress_fn, psr_stage, psr_stage_string};
 pub use self::status::{psr_status, psr_status_string};
 pub use self::version::{
     psr_version, psr_version_major, psr_version_minor, psr_version_patch, PSR_VERSION_MAJOR,
