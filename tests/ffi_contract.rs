@@ -828,6 +828,37 @@ fn status_strings_take_any_int() {
     assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
 }
 
+/// Proves: psr_stage_string names every stage by psr_stage's numbers (density before octree),
+/// agrees with the Rust names, and takes any int.
+#[test]
+fn stage_strings_name_each_stage_and_take_any_int() {
+    let name = |s: i32| {
+        let p = psr_stage_string(s);
+        assert!(!p.is_null(), "psr_stage_string never returns NULL");
+        unsafe { CStr::from_ptr(p) }.to_str().unwrap()
+    };
+    let expected = [
+        (psr_stage::Points, "points"),
+        (psr_stage::Density, "density"),
+        (psr_stage::Octree, "octree"),
+        (psr_stage::Splat, "splat"),
+        (psr_stage::System, "system"),
+        (psr_stage::Solve, "solve"),
+        (psr_stage::Isovalue, "isovalue"),
+        (psr_stage::Extract, "extract"),
+        (psr_stage::Mesh, "mesh"),
+    ];
+    for (stage, text) in expected {
+        assert_eq!(name(stage as i32), text, "{stage:?}");
+    }
+    for stage in psr::Stage::ALL {
+        assert_eq!(name(stage as i32), stage.name());
+    }
+    for unknown in [-1, 9, i32::MAX, i32::MIN] {
+        assert_eq!(name(unknown), "unknown");
+    }
+}
+
 #[test]
 fn status_numbers_are_stable() {
     // These numbers are ABI: never change or reuse one.
@@ -889,6 +920,8 @@ fn version_functions_agree_with_the_crate() {
 struct Recorder {
     calls: usize,
     stages: Vec<psr_stage>,
+    /// psr_stage_string of each entry of `stages`, asked from inside the callback.
+    names: Vec<String>,
     threads: Vec<std::thread::ThreadId>,
     bad_fractions: usize,
     /// Return false on this call (1-based); 0 = never.
@@ -903,6 +936,8 @@ unsafe extern "C" fn record(user: *mut c_void, stage: psr_stage, fraction: f32) 
     rec.calls += 1;
     if rec.stages.last() != Some(&stage) {
         rec.stages.push(stage);
+        let name = CStr::from_ptr(psr_stage_string(stage as i32));
+        rec.names.push(name.to_str().unwrap().to_owned());
     }
     rec.threads.push(std::thread::current().id());
     if !(0.0..=1.0).contains(&fraction) {
@@ -1059,6 +1094,11 @@ fn progress_runs_on_the_calling_thread_through_the_stages_in_order() {
         "{:?}",
         rec.stages
     );
+    // psr_stage_string works from inside the callback and names the stages reported.
+    assert_eq!(rec.names.len(), rec.stages.len());
+    assert_eq!(rec.names.first().map(String::as_str), Some("points"));
+    assert_eq!(rec.names.last().map(String::as_str), Some("mesh"));
+    assert!(!rec.names.iter().any(|n| n == "unknown"), "{:?}", rec.names);
 }
 
 #[test]

@@ -83,9 +83,7 @@ static bool on_progress(void *user, psr_stage stage, float fraction) {
     int *last = (int *)user;
     (void)fraction;
     if ((int)stage != *last) {
-        static const char *names[] = {"points", "octree", "density", "splat", "system",
-                                      "solve", "isovalue", "extract", "mesh"};
-        fprintf(stderr, "  stage: %s\n", (unsigned)stage < 9 ? names[stage] : "?");
+        fprintf(stderr, "  stage: %s\n", psr_stage_string((int)stage));
         *last = (int)stage;
     }
     return true; /* return false to cancel */

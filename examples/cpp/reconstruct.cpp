@@ -202,7 +202,7 @@ int main(int argc, char **argv) {
         int last_stage = -1;
         reconstructor.depth(depth).on_progress([&](psr_stage stage, float) {
             if (static_cast<int>(stage) != last_stage) {
-                std::cerr << "  stage " << static_cast<int>(stage) << "\n";
+                std::cerr << "  stage: " << psr_stage_string(static_cast<int>(stage)) << "\n";
                 last_stage = static_cast<int>(stage);
             }
             return true;

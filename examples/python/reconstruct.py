@@ -19,7 +19,6 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_CLOUD = os.path.join(HERE, "..", "data", "kitten_cgal.ply")
 
 PSR_STATUS_OK = 0
-STAGES = ["points", "octree", "density", "splat", "system", "solve", "isovalue", "extract", "mesh"]
 
 # typedef bool (*psr_progress_fn)(void *user, psr_stage stage, float fraction);
 PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_bool, ctypes.c_void_p, ctypes.c_int, ctypes.c_float)
@@ -46,6 +45,7 @@ def load(path):
         "psr_version_major": (ctypes.c_uint32, []),
         "psr_version_minor": (ctypes.c_uint32, []),
         "psr_status_string": (ctypes.c_char_p, [ctypes.c_int]),
+        "psr_stage_string": (ctypes.c_char_p, [ctypes.c_int]),
         "psr_reconstructor_new": (status, [ctypes.POINTER(r_p)]),
         "psr_reconstructor_free": (None, [r_p]),
         "psr_reconstructor_last_error": (ctypes.c_char_p, [r_p]),
@@ -137,7 +137,7 @@ def main():
             # would print and return 0 (cancel). Keep it simple.
             if not seen or seen[-1] != stage:
                 seen.append(stage)
-                print(f"  stage: {STAGES[stage] if 0 <= stage < len(STAGES) else stage}", file=sys.stderr)
+                print(f"  stage: {lib.psr_stage_string(stage).decode()}", file=sys.stderr)
             return True
 
         callback = PROGRESS_FN(on_progress)  # keep a reference while the library may call it

@@ -2,8 +2,9 @@
  * Contract tests of the psr C API, from C, against the installed header and library:
  * NULL for every pointer argument, free(NULL), solve before any points, a bad point in the
  * middle of a second batch, strides and overflow, short copy-out buffers, out-parameters left
- * alone on failure, cancellation from the callback, a forced internal panic (when the library
- * was built with the test hook), and two handles on two threads matching sequential runs.
+ * alone on failure, the names of statuses and stages, cancellation from the callback, a forced
+ * internal panic (when the library was built with the test hook), and two handles on two
+ * threads matching sequential runs.
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -158,7 +159,7 @@ static void test_order_and_parameters(void) {
     uint32_t depth = 0;
     int32_t kernel = 0;
 
-    section("defaults, setters, solve before any points");
+    section("defaults, setters, solve before any points, status and stage names");
     CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
     CHECK_STATUS(psr_reconstructor_get_depth(r, &depth), PSR_STATUS_OK);
     CHECK(depth == 8);
@@ -181,6 +182,19 @@ static void test_order_and_parameters(void) {
     CHECK(strcmp(psr_status_string(9), "PSR_STATUS_BUFFER_TOO_SMALL") == 0);
     CHECK(strcmp(psr_status_string(-5), "PSR_STATUS_UNKNOWN") == 0);
     CHECK(strcmp(psr_status_string(1000), "PSR_STATUS_UNKNOWN") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_POINTS), "points") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_DENSITY), "density") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_OCTREE), "octree") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_SPLAT), "splat") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_SYSTEM), "system") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_SOLVE), "solve") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_ISOVALUE), "isovalue") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_EXTRACT), "extract") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_MESH), "mesh") == 0);
+    CHECK(psr_stage_string(PSR_STAGE_MESH) == psr_stage_string(PSR_STAGE_MESH)); /* static */
+    CHECK(strcmp(psr_stage_string(-1), "unknown") == 0);
+    CHECK(strcmp(psr_stage_string(9), "unknown") == 0);
+    CHECK(strcmp(psr_stage_string(1000), "unknown") == 0);
     CHECK(psr_version_major() == PSR_VERSION_MAJOR && psr_version_minor() == PSR_VERSION_MINOR &&
           psr_version_patch() == PSR_VERSION_PATCH);
 }
@@ -271,27 +285,29 @@ static void test_mesh(void) {
 }
 
 struct progress_state {
-    int calls, stop_at;
+    int calls, stop_at, named;
 };
 
 static bool stop_early(void *user, psr_stage stage, float fraction) {
     struct progress_state *s = (struct progress_state *)user;
-    (void)stage;
+    const char *name = psr_stage_string((int)stage); /* allowed inside the callback */
     (void)fraction;
     s->calls++;
+    s->named += name != NULL && strcmp(name, "unknown") != 0;
     return s->calls < s->stop_at;
 }
 
 static void test_cancel(void) {
     psr_reconstructor *r = new_with_sphere(1000, 5);
     psr_mesh *m = NULL;
-    struct progress_state state = {0, 2};
+    struct progress_state state = {0, 2, 0};
 
     section("cancellation from the progress callback");
     CHECK_STATUS(psr_reconstructor_set_progress_callback(r, stop_early, &state), PSR_STATUS_OK);
     CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_CANCELLED);
     CHECK(m == NULL);
     CHECK(state.calls == 2);
+    CHECK(state.named == 2);
     CHECK(contains(psr_reconstructor_last_error(r), "cancelled"));
     /* Still usable afterwards. */
     CHECK_STATUS(psr_reconstructor_set_progress_callback(r, NULL, NULL), PSR_STATUS_OK);

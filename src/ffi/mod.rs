@@ -1,0 +1,121 @@
+//! The C API: opaque handles over [`crate::Params`], [`crate::PointSet`] and [`crate::Mesh`].
+//!
+//! This module only checks arguments, converts between C and Rust representations and forwards
+//! to [`crate::reconstruct_with_progress`]; it holds no reconstruction logic. `include/psr.h` is
+//! generated from it by cbindgen (see `cbindgen.toml` and `scripts/gen_header.sh`), so the doc
+//! comments below are the C documentation: they speak C.
+//!
+//! Invariants the code below keeps:
+//! - No panic crosses the boundary: every exported function runs its body through `guard`,
+//!   the one `catch_unwind` of this module. A panic in a call on a reconstructor poisons it.
+//! - Out-parameters are written only on success, as the very last step.
+//! - No global state: each handle carries its parameters, points, callback and last message, and
+//!   each solve builds its own worker pool, so different handles may run on different threads.
+//!   (The one static filled at run time, psr_stage_string's table of names, is written once
+//!   and never changes.)
+//! - `unsafe` is confined to turning C pointers into references, reading and writing through
+//!   them (each behind a NULL, length and overflow check) and calling the C progress callback.
+//!   Every `unsafe fn` says what its caller must guarantee (`# Safety`), every `unsafe {}` block
+//!   why that holds there (`// SAFETY:`); the lints at the top of this file make the blocks
+//!   explicit, also inside `unsafe fn`, and require their comments.
+//!
+//! One file per concept of the C API, as rustls-ffi does; everything C sees is re-exported here,
+//! so `psr::ffi::*` is the whole C API:
+//! - `panic_boundary.rs`: `guard` (the one `catch_unwind`, poisoning, the refusal of calls from
+//!   inside a handle's own callback, the last message) and the helpers that turn C pointers into
+//!   references and write out-parameters.
+//! - `status.rs`: `psr_status`, `psr_status_string`, and `Failure`, a failed call's status and
+//!   message, with the mapping from [`crate::Error`] to a status.
+//! - `version.rs`: `PSR_VERSION_*` and `psr_version*`.
+//! - `stage.rs`: `psr_stage`, `psr_stage_string` and `psr_progress_fn`.
+//! - `reconstructor.rs`: the `psr_reconstructor` handle; psr_reconstructor_new, _free and
+//!   _last_error.
+//! - `params.rs`: the parameter setters and getters; `psr_boundary`, `psr_splatting`,
+//!   `psr_vertex_placement`.
+//! - `points.rs`: psr_reconstructor_add_points, _point_count and _clear_points.
+//! - `solve.rs`: psr_reconstructor_set_progress_callback, psr_reconstructor_solve and the
+//!   panic test hooks.
+//! - `mesh.rs`: the `psr_mesh` handle: counts, borrowed views, copy-outs, psr_mesh_free.
+
+// The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
+#![allow(non_camel_case_types)]
+// Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment
+// saying why it holds, also inside `unsafe fn` bodies.
+#![deny(unsafe_op_in_unsafe_fn)]
+#![deny(clippy::undocumented_unsafe_blocks)]
+#![warn(missing_docs)]
+
+// The files in the header's order (cbindgen writes functions in the order it reads them; these
+// comments also keep rustfmt from sorting the lines).
+// No C functions: the one catch_unwind and the pointer helpers.
+mod panic_boundary;
+// psr_status_string.
+mod status;
+// Stage names and the progress callback's type.
+mod stage;
+// psr_version and its parts.
+mod version;
+// psr_reconstructor_new, _free, _last_error.
+mod reconstructor;
+// The parameter setters and getters.
+mod params;
+// psr_reconstructor_add_points, _point_count, _clear_points.
+mod points;
+// psr_reconstructor_set_progress_callback, psr_reconstructor_solve.
+mod solve;
+// psr_mesh_*.
+mod mesh;
+
+pub use self::mesh::{
+    psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_triangles,
+    psr_mesh_densities, psr_mesh_free, psr_mesh_isovalue, psr_mesh_positions,
+    psr_mesh_triangle_count, psr_mesh_triangles, psr_mesh_vertex_count,
+};
+pub use self::params::{
+    psr_boundary, psr_reconstructor_get_boundary, psr_reconstructor_get_depth,
+    psr_reconstructor_get_full_depth, psr_reconstructor_get_kernel_depth,
+    psr_reconstructor_get_max_solver_iterations, psr_reconstructor_get_point_weight,
+    psr_reconstructor_get_samples_per_node, psr_reconstructor_get_scale,
+    psr_reconstructor_get_solver_tolerance, psr_reconstructor_get_splatting,
+    psr_reconstructor_get_threads, psr_reconstructor_get_vertex_placement,
+    psr_reconstructor_set_boundary, psr_reconstructor_set_depth, psr_reconstructor_set_full_depth,
+    psr_reconstructor_set_kernel_depth, psr_reconstructor_set_max_solver_iterations,
+    psr_reconstructor_set_point_weight, psr_reconstructor_set_samples_per_node,
+    psr_reconstructor_set_scale, psr_reconstructor_set_solver_tolerance,
+    psr_reconstructor_set_splatting, psr_reconstructor_set_threads,
+    psr_reconstructor_set_vertex_placement, psr_splatting, psr_vertex_placement,
+};
+pub use self::points::{
+    psr_reconstructor_add_points, psr_reconstructor_clear_points, psr_reconstructor_point_count,
+};
+pub use self::reconstructor::{
+    psr_reconstructor, psr_reconstructor_free, psr_reconstructor_last_error, psr_reconstructor_new,
+};
+#[cfg(feature = "test-panic")]
+pub use self::solve::psr_reconstructor_debug_panic_next_solve;
+pub use self::solve::{psr_reconstructor_set_progress_callback, psr_reconstructor_solve};
+pub use self::stage::{psr_progress_fn, psr_stage, psr_stage_string};
+pub use self::status::{psr_status, psr_status_string};
+pub use self::version::{
+    psr_version, psr_version_major, psr_version_minor, psr_version_patch, PSR_VERSION_MAJOR,
+    PSR_VERSION_MINOR, PSR_VERSION_PATCH,
+};
+
+// Test hooks for the Rust tests, not part of the C API.
+#[doc(hidden)]
+pub use self::mesh::debug_mesh_new;
+#[doc(hidden)]
+pub use self::solve::debug_panic_next_solve;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_send<T: Send>() {}
+
+    #[test]
+    fn handles_are_send() {
+        assert_send::<psr_reconstructor>();
+        assert_send::<psr_mesh>();
+    }
+}

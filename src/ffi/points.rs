@@ -1,0 +1,186 @@
+//! Points: psr_reconstructor_add_points (strided, checked whole before anything is appended),
+//! psr_reconstructor_point_count and psr_reconstructor_clear_points.
+
+use super::panic_boundary::{guard, handle_mut, handle_ref, write_out};
+use super::reconstructor::psr_reconstructor;
+use super::status::{psr_status, Failure, Outcome};
+
+/// Size of one position or normal: 3 floats.
+const VEC3_BYTES: usize = 3 * std::mem::size_of::<f32>();
+
+/// Copies `count` 3-float vectors starting `stride` bytes apart (0 = packed).
+///
+/// # Safety
+/// `base`, `stride` and `count` have passed [`check_array`] (so `base` is not NULL and the span
+/// fits in `isize`), and `base` is valid for reads of that whole span: `count` vectors of 12
+/// bytes, `stride` bytes apart.
+unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) -> Vec<[f32; 3]> {
+    let stride = if stride == 0 { VEC3_BYTES } else { stride };
+    let bytes = base.cast::<u8>();
+    (0..count)
+        .map(|i| {
+            // SAFETY: i < count, so the 12 bytes at base + i * stride lie inside the span,
+            // which is readable and fits in isize (this function's contract); the reads are
+            // unaligned, so interleaved vertex formats with odd strides are accepted.
+            unsafe { bytes.add(i * stride).cast::<[f32; 3]>().read_unaligned() }
+        })
+        .collect()
+}
+
+/// Checks one strided array argument; `stride` 0 means packed.
+fn check_array(
+    function: &str,
+    name: &str,
+    stride_name: &str,
+    base: *const f32,
+    stride: usize,
+    count: usize,
+) -> Outcome {
+    if base.is_null() {
+        return Err(Failure::null(
+            function,
+            &format!("{name} (with count {count})"),
+        ));
+    }
+    let stride = if stride == 0 { VEC3_BYTES } else { stride };
+    if stride < VEC3_BYTES {
+        return Err(Failure::new(
+            psr_status::InvalidArgument,
+            format!("{function}: {stride_name} is {stride} bytes, less than one element (3 floats = 12 bytes); use 0 for packed arrays"),
+        ));
+    }
+    // The last element ends at (count - 1) * stride + 12, which must fit in isize.
+    let span = (count - 1)
+        .checked_mul(stride)
+        .and_then(|s| s.checked_add(VEC3_BYTES));
+    match span {
+        Some(span) if span <= isize::MAX as usize => Ok(()),
+        _ => Err(Failure::new(
+            psr_status::InvalidArgument,
+            format!("{function}: {count} points with a {stride}-byte {stride_name} span more bytes than memory can hold"),
+        )),
+    }
+}
+
+/// Appends `count` oriented points to r. Position i is the 3 floats at
+/// `(const char *)positions + i * position_stride_bytes`, normal i likewise; a stride of 0 means
+/// tightly packed (12 bytes), otherwise it must be at least 12 (interleaved vertex structs are
+/// fine; no alignment is required). Normals need not be unit length; they are normalised.
+///
+/// The points are copied: the arrays may be freed as soon as this returns. Calls append, so a
+/// cloud can be added in batches. The batch is checked whole first: if any position is NaN or
+/// infinite, or any normal is NaN, infinite or zero, nothing from this batch is appended, points
+/// from earlier batches stay, and the message names the first bad index within this batch.
+///
+/// Extensions (per-point confidence weights, colours) will come as new functions, e.g.
+/// psr_reconstructor_add_points_ex taking a struct that begins with its own size, never by
+/// changing this signature.
+///
+/// r must not be NULL; positions and normals may be NULL only when count is 0 (then nothing
+/// happens). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a
+/// stride below 12, or count * stride overflowing), PSR_STATUS_NON_FINITE_POSITION,
+/// PSR_STATUS_NON_FINITE_NORMAL, PSR_STATUS_ZERO_NORMAL, PSR_STATUS_HANDLE_POISONED or
+/// PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `positions` and `normals` are NULL or valid for reads of the
+/// strided spans described above.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_add_points(
+    r: *mut psr_reconstructor,
+    positions: *const f32,
+    position_stride_bytes: usize,
+    normals: *const f32,
+    normal_stride_bytes: usize,
+    count: usize,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_add_points";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(F, r) }?;
+        if count == 0 {
+            return Ok(());
+        }
+        check_array(
+            F,
+            "positions",
+            "position_stride_bytes",
+            positions,
+            position_stride_bytes,
+            count,
+        )?;
+        check_array(
+            F,
+            "normals",
+            "normal_stride_bytes",
+            normals,
+            normal_stride_bytes,
+            count,
+        )?;
+        // SAFETY: both arrays passed check_array above, and are readable over their spans
+        // (this function's contract).
+        let (p, n) = unsafe {
+            (
+                gather_vec3(positions, position_stride_bytes, count),
+                gather_vec3(normals, normal_stride_bytes, count),
+            )
+        };
+        handle.points.extend(&p, &n).map_err(|e| {
+            let mut failure = Failure::from_error(F, e);
+            failure
+                .message
+                .push_str(" (index within this batch; nothing from this batch was added)");
+            failure
+        })
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// Writes the number of points r holds to *out. r and out must not be NULL. Returns
+/// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED,
+/// PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback) or PSR_STATUS_INTERNAL_ERROR;
+/// *out is written only on success.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_point_count(
+    r: *const psr_reconstructor,
+    out: *mut usize,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_point_count";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way.
+        let handle = unsafe { handle_ref(F, r) }?;
+        // SAFETY: `out` is NULL or valid for writes (this function's contract).
+        unsafe { write_out(F, "out", out, handle.points.len()) }
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// Removes every point from r (parameters and callback stay), so the handle can be reused for
+/// another cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
+/// or PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_clear_points(r: *mut psr_reconstructor) -> psr_status {
+    const F: &str = "psr_reconstructor_clear_points";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        unsafe { handle_mut(F, r) }?.points.clear();
+        Ok(())
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}

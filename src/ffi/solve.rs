@@ -1,0 +1,145 @@
+//! Solving: psr_reconstructor_set_progress_callback, psr_reconstructor_solve, and the test hooks
+//! that force a panic inside the next solve.
+
+use super::mesh::psr_mesh;
+use super::panic_boundary::{guard, handle_mut, require_out, write_out};
+use super::reconstructor::{psr_reconstructor, UserPointer};
+use super::stage::psr_progress_fn;
+use super::status::{psr_status, Failure};
+use crate::Stage;
+use std::ffi::c_void;
+
+/// Sets (or, with callback NULL, removes) the progress callback of r. See psr_progress_fn for
+/// when and on which thread it is called. user is passed back to it untouched and may be NULL.
+///
+/// r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
+/// or PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `callback`, if set, is safe to call with `user` until it is
+/// replaced or r is freed.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
+    r: *mut psr_reconstructor,
+    callback: psr_progress_fn,
+    user: *mut c_void,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_set_progress_callback";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(F, r) }?;
+        handle.progress = callback;
+        handle.user = UserPointer(user);
+        Ok(())
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// Reconstructs a watertight mesh from r's points and parameters and writes a new mesh to
+/// *out; free it with psr_mesh_free. r keeps its points and parameters and may be solved again.
+/// Runs on the calling thread, using the number of worker threads set with
+/// psr_reconstructor_set_threads; the progress callback, if any, is called on the calling thread.
+///
+/// r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
+/// PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
+/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, or all points coincide)
+/// or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
+/// left untouched.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writing one pointer.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_solve(
+    r: *mut psr_reconstructor,
+    out: *mut *mut psr_mesh,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_solve";
+    let body = || {
+        require_out(F, "out", out)?;
+        let (params, callback, user, panic_now) = {
+            // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+            // only when no other call on r is under way and holds no reference to r meanwhile.
+            let handle = unsafe { handle_mut(F, r) }?;
+            let panic_now = std::mem::take(&mut handle.panic_next_solve);
+            (
+                handle.params.clone(),
+                handle.progress,
+                handle.user,
+                panic_now,
+            )
+        };
+        if panic_now {
+            panic!("forced by the test hook psr_reconstructor_debug_panic_next_solve");
+        }
+        // SAFETY: `r` is a live handle (handle_mut above found it not NULL), and the mutable
+        // reference from handle_mut has ended. No mutable reference to *r is made while this
+        // shared one lives: a call the callback makes on r sees `busy` through its own shared
+        // reference and is refused, which does not touch the points borrowed here.
+        let handle: &psr_reconstructor = unsafe { &*r };
+        handle.busy.set(true);
+        let mut progress = |stage: Stage, fraction: f32| match callback {
+            // SAFETY: whoever set the callback promised it is safe to call with `user` until it
+            // is replaced or r is freed (psr_reconstructor_set_progress_callback's contract),
+            // and neither can happen during the solve: calls on r from the callback are
+            // refused, and psr_reconstructor_free does nothing then.
+            Some(f) => unsafe { f(user.0, stage.into(), fraction) },
+            None => true,
+        };
+        let result = crate::reconstruct_with_progress(&handle.points, &params, &mut progress);
+        handle.busy.set(false);
+        let mesh = result.map_err(|e| Failure::from_error(F, e))?;
+        let mesh = Box::into_raw(Box::new(psr_mesh { mesh }));
+        // SAFETY: `out` is not NULL (checked first) and valid for writing one pointer (this
+        // function's contract).
+        unsafe { write_out(F, "out", out, mesh) }
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// Test hook for psr's own Rust tests, not API (neither Rust nor C): makes the next solve on `r`
+/// panic inside the panic boundary, to prove that the panic becomes `InternalError` and poisons
+/// the handle.
+///
+/// # Safety
+/// `r` is NULL (nothing happens) or a live handle from psr_reconstructor_new that no other call
+/// is using.
+#[doc(hidden)]
+pub unsafe fn debug_panic_next_solve(r: *mut psr_reconstructor) {
+    // SAFETY: `r` is NULL or a live handle no other call is using (this function's contract).
+    if let Some(handle) = unsafe { r.as_mut() } {
+        handle.panic_next_solve = true;
+    }
+}
+
+/// Test hook, compiled only with the cargo feature "test-panic" (CMake: -DPSR_TEST_PANIC=ON):
+/// makes the next psr_reconstructor_solve on r panic inside the library, which must come back
+/// as PSR_STATUS_INTERNAL_ERROR and poison r. Never use it in applications.
+///
+/// r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_HANDLE_POISONED or PSR_STATUS_INVALID_ARGUMENT.
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[cfg(feature = "test-panic")]
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_debug_panic_next_solve(
+    r: *mut psr_reconstructor,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_debug_panic_next_solve";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        unsafe { handle_mut(F, r) }?.panic_next_solve = true;
+        Ok(())
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}

@@ -1,0 +1,136 @@
+//! Progress: `psr_stage`, the pipeline stages reported to the progress callback,
+//! `psr_stage_string`, their names, and `psr_progress_fn`, the callback's type.
+
+use super::panic_boundary::guard_value;
+use crate::Stage;
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::sync::OnceLock;
+
+/// The pipeline stages reported to the progress callback, in order. psr_stage_string gives their
+/// names.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum psr_stage {
+    /// Copying the points and mapping them into the unit cube.
+    Points = 0,
+    /// Estimating the sampling density (it decides the depths the octree needs).
+    Density = 1,
+    /// Building the octree.
+    Octree = 2,
+    /// Splatting the normals into the vector field.
+    Splat = 3,
+    /// Assembling the linear system.
+    System = 4,
+    /// Solving it, depth by depth.
+    Solve = 5,
+    /// Computing the isovalue.
+    Isovalue = 6,
+    /// Extracting the isosurface.
+    Extract = 7,
+    /// Assembling the output mesh.
+    Mesh = 8,
+}
+
+impl From<Stage> for psr_stage {
+    fn from(stage: Stage) -> Self {
+        match stage {
+            Stage::Points => psr_stage::Points,
+            Stage::Octree => psr_stage::Octree,
+            Stage::Density => psr_stage::Density,
+            Stage::Splat => psr_stage::Splat,
+            Stage::System => psr_stage::System,
+            Stage::Solve => psr_stage::Solve,
+            Stage::Isovalue => psr_stage::Isovalue,
+            Stage::Extract => psr_stage::Extract,
+            Stage::Mesh => psr_stage::Mesh,
+        }
+    }
+}
+
+/// The stage names as C strings, made once from [`Stage::name`], so that Rust and C share one
+/// table of names. Written once and never changed: the only static of the C API filled at run
+/// time.
+static STAGE_NAMES: OnceLock<[CString; Stage::ALL.len()]> = OnceLock::new();
+
+/// What psr_stage_string gives for a number that is no stage.
+static UNKNOWN_STAGE: &CStr = c"unknown";
+
+/// The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
+/// (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
+/// "extract" or "mesh", in psr_stage's order. Any int is accepted: unknown values give
+/// "unknown". Never NULL.
+#[no_mangle]
+pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
+    guard_value("psr_stage_string", UNKNOWN_STAGE.as_ptr(), || {
+        let names = STAGE_NAMES.get_or_init(|| {
+            Stage::ALL.map(|s| CString::new(s.name()).expect("stage names have no NUL"))
+        });
+        Stage::ALL
+            .iter()
+            .position(|&s| psr_stage::from(s) as c_int == stage)
+            .map_or(UNKNOWN_STAGE.as_ptr(), |i| names[i].as_ptr())
+    })
+}
+
+/// A progress callback: receives your user pointer, the current stage and the fraction of that
+/// stage done (0 to 1, not necessarily reaching 1), and returns true to go on or false to cancel
+/// (psr_reconstructor_solve then returns PSR_STATUS_CANCELLED and no mesh).
+///
+/// It is called only from inside psr_reconstructor_solve, on the thread that called it, never
+/// concurrently with itself. It must not call any function on the reconstructor being solved
+/// (such calls are refused with PSR_STATUS_INVALID_ARGUMENT, and psr_reconstructor_free does
+/// nothing); it may use other handles, psr_status_string, psr_stage_string and the version
+/// functions. It must not unwind (no C++ exception or longjmp out of it).
+pub type psr_progress_fn =
+    Option<unsafe extern "C" fn(user: *mut c_void, stage: psr_stage, fraction: f32) -> bool>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn name(stage: c_int) -> &'static str {
+        let p = psr_stage_string(stage);
+        assert!(!p.is_null());
+        // SAFETY: psr_stage_string returns a NUL-terminated string that lives as long as the
+        // program (a literal, or a name in STAGE_NAMES, which is never changed or dropped).
+        unsafe { CStr::from_ptr(p) }.to_str().unwrap()
+    }
+
+    /// Proves: psr_stage_string gives Stage::name for every stage, by psr_stage's numbers (so
+    /// density before octree), the same static string every time, and "unknown" for any
+    /// other int.
+    #[test]
+    fn stage_strings_are_the_stage_names_in_psr_stage_order() {
+        let expected = [
+            (psr_stage::Points, "points"),
+            (psr_stage::Density, "density"),
+            (psr_stage::Octree, "octree"),
+            (psr_stage::Splat, "splat"),
+            (psr_stage::System, "system"),
+            (psr_stage::Solve, "solve"),
+            (psr_stage::Isovalue, "isovalue"),
+            (psr_stage::Extract, "extract"),
+            (psr_stage::Mesh, "mesh"),
+        ];
+        for (stage, text) in expected {
+            assert_eq!(name(stage as c_int), text);
+        }
+        for stage in Stage::ALL {
+            assert_eq!(name(psr_stage::from(stage) as c_int), stage.name());
+        }
+        assert_eq!(
+            psr_stage_string(psr_stage::Solve as c_int),
+            psr_stage_string(psr_stage::Solve as c_int)
+        );
+        for unknown in [-1, 9, 10, c_int::MAX, c_int::MIN] {
+            assert_eq!(name(unknown), "unknown");
+        }
+    }
+
+    #[test]
+    fn stages_keep_their_numbers() {
+        for stage in Stage::ALL {
+            assert_eq!(psr_stage::from(stage) as u32, stage as u32);
+        }
+    }
+}
