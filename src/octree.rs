@@ -90,7 +90,10 @@ impl Level {
     pub fn brick_starts(&self, nodes: impl IntoIterator<Item = u32>) -> Vec<u32> {
         let mut starts = vec![0u32; self.index.brick_count() + 1];
         let mut cursor = BrickCursor::default();
+        let mut previous = None;
         for node in nodes {
+            debug_assert!(previous <= Some(node), "brick_starts needs nodes in order");
+            previous = Some(node);
             starts[self.locate(&mut cursor, node).slot + 1] += 1;
         }
         for b in 0..self.index.brick_count() {

@@ -3,7 +3,7 @@
 //! weight W_q), applied brick by brick on the Laplacian's windows.
 
 use super::bricks::{CoreBricks, WINDOW};
-use crate::grid::cell_of;
+use crate::grid::{cell_of, morton_nested};
 use crate::octree::{brick_local, Level, NEAR, NONE};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -108,8 +108,14 @@ impl Proxies {
         let inv_proxy_h = (proxy_depth as f64).exp2();
         let mut proxies = Proxies::default();
         let mut s = 0;
+        let mut previous_group = None;
         while s < positions.len() {
             let group = cell_of(positions[s], inv_proxy_h);
+            // Each group's samples must be consecutive (Morton order at a depth ≥ the proxy
+            // depth), or a cell would get several proxies with part of its weight each.
+            let key = morton_nested(group.map(|v| v.max(0) as u32));
+            debug_assert!(previous_group < Some(key), "samples not in Morton order");
+            previous_group = Some(key);
             let mut sum_w = 0.0;
             let mut sum_p = DVec3::ZERO;
             while s < positions.len() && cell_of(positions[s], inv_proxy_h) == group {
