@@ -277,6 +277,28 @@ pub fn reflect(c: Coord, n: i32) -> Option<(Coord, u8)> {
     (flips != 0).then_some((out, flips))
 }
 
+/// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
+/// reflects, so free-space stencils act as the folded (even) basis (no-op with free boundaries).
+pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
+    for m in &level.mirrors {
+        x[m.outside as usize] = x[m.inside as usize];
+    }
+}
+
+/// [`fill_mirrors`] for a vector field: a component normal to a reflecting face changes sign.
+pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
+    for m in &level.mirrors {
+        for (axis, comp) in v.iter_mut().enumerate() {
+            let sign = if m.flips & (1 << axis) != 0 {
+                -1.0
+            } else {
+                1.0
+            };
+            comp[m.outside as usize] = sign * comp[m.inside as usize];
+        }
+    }
+}
+
 /// The whole tree: one [`Level`] per depth 0..=max depth.
 #[derive(Debug, Default)]
 pub struct Octree {

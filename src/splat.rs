@@ -17,10 +17,9 @@
 
 use crate::density::DepthSample;
 use crate::grid::cell_of;
-use crate::octree::{brick_local, BrickCursor, Level};
+use crate::octree::{brick_local, fill_mirrors_field, BrickCursor, Level};
 use crate::parallel::scatter_by_chunk;
 use crate::points::Samples;
-use crate::system::fill_mirrors_field;
 use crate::{Boundary, Params, Splatting};
 use glam::DVec3;
 use rayon::prelude::*;

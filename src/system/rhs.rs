@@ -1,34 +1,12 @@
 //! Right-hand sides: ⟨∇B_o, V⟩, the divergence of the splatted vector field V tested against
-//! each node function, brick by brick; and the Neumann mirrors that make free-space stencils
-//! act as the folded (even) basis at the cube's faces.
+//! each node function, brick by brick; and vectors kept on the core with their Neumann mirrors
+//! filled.
 
 use super::bricks::CoreBricks;
 use super::transfer::{restrict_into, ProlongedField};
 use crate::error::Result;
-use crate::octree::{Level, Octree};
+use crate::octree::{fill_mirrors, Level, Octree};
 use crate::parallel::for_each_indexed;
-
-/// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
-/// reflects, so free-space stencils act as the folded (even) basis (no-op with free boundaries).
-pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
-    for m in &level.mirrors {
-        x[m.outside as usize] = x[m.inside as usize];
-    }
-}
-
-/// [`fill_mirrors`] for a vector field: a component normal to a reflecting face changes sign.
-pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
-    for m in &level.mirrors {
-        for (axis, comp) in v.iter_mut().enumerate() {
-            let sign = if m.flips & (1 << axis) != 0 {
-                -1.0
-            } else {
-                1.0
-            };
-            comp[m.outside as usize] = sign * comp[m.inside as usize];
-        }
-    }
-}
 
 /// Sets x[core node i] = f(i, x[core node i]) for every core position i (in parallel, in fixed
 /// chunks), then refills the mirror nodes: how a vector that lives on the core is kept on K_d.
