@@ -116,6 +116,8 @@ impl Clock<'_, '_> {
     }
 }
 
+/// Reconstructs `points` with `params`, the parallel sections in `pool`, reporting each stage
+/// to `progress` on the calling thread (which may cancel).
 pub(crate) fn run(
     points: &PointSet,
     params: &Params,
