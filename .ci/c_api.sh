@@ -18,10 +18,11 @@
 #   .ci/c_api.sh            (KEEP=1 keeps the temporary directory for inspection)
 set -euo pipefail
 
-CBINDGEN_VERSION=0.29.4 # also in cbindgen.toml, scripts/gen_header.sh, tests/header_fresh.rs
 script=c_api.sh
 work_prefix=psr-c-api
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+# The pinned cbindgen (Cargo.toml's [workspace.metadata.cbindgen], read by the header script).
+CBINDGEN_VERSION="$("$root/scripts/gen_header.sh" --cbindgen-version)"
 make_work
 
 # --- 1. tools ----------------------------------------------------------------------------------

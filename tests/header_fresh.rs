@@ -4,8 +4,6 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The pinned cbindgen (also in cbindgen.toml, scripts/gen_header.sh and .ci/c_api.sh).
-const CBINDGEN_VERSION: &str = "0.29.4";
 const REFRESH: &str = "scripts/gen_header.sh";
 
 fn root() -> PathBuf {
@@ -16,6 +14,22 @@ fn in_ci() -> bool {
     std::env::var("CI")
         .map(|v| !v.is_empty() && v != "false" && v != "0")
         .unwrap_or(false)
+}
+
+/// The pinned cbindgen version, as the header script reads it from Cargo.toml
+/// (`[workspace.metadata.cbindgen]`, the only place it is written).
+fn pinned_version() -> String {
+    let out = Command::new("bash")
+        .arg(root().join(REFRESH))
+        .arg("--cbindgen-version")
+        .output()
+        .expect("bash runs");
+    assert!(
+        out.status.success(),
+        "{REFRESH} --cbindgen-version failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
 }
 
 /// Where cbindgen may be: on PATH, or where `cargo install` puts it.
@@ -31,30 +45,31 @@ fn cbindgen_candidates() -> Vec<PathBuf> {
 }
 
 /// The pinned cbindgen, or why none can be used.
-fn pinned_cbindgen() -> Result<PathBuf, String> {
+fn pinned_cbindgen(version: &str) -> Result<PathBuf, String> {
     let mut found = Vec::new();
     for candidate in cbindgen_candidates() {
         if let Ok(out) = Command::new(&candidate).arg("--version").output() {
-            let version = String::from_utf8_lossy(&out.stdout).trim().to_string();
-            if version == format!("cbindgen {CBINDGEN_VERSION}") {
+            let got = String::from_utf8_lossy(&out.stdout).trim().to_string();
+            if got == format!("cbindgen {version}") {
                 return Ok(candidate);
             }
-            found.push(version);
+            found.push(got);
         }
     }
     if found.is_empty() {
         Err("cbindgen is not installed".to_string())
     } else {
-        Err(format!("found {found:?}, need cbindgen {CBINDGEN_VERSION}"))
+        Err(format!("found {found:?}, need cbindgen {version}"))
     }
 }
 
 #[test]
 fn committed_header_matches_a_fresh_generation() {
-    let cbindgen = match pinned_cbindgen() {
+    let version = pinned_version();
+    let cbindgen = match pinned_cbindgen(&version) {
         Ok(path) => path,
         Err(why) => {
-            let install = format!("cargo install cbindgen --version {CBINDGEN_VERSION} --locked");
+            let install = format!("cargo install cbindgen --version {version} --locked");
             if in_ci() {
                 panic!("{why}; CI must check the header: install it with `{install}`");
             }
