@@ -826,7 +826,8 @@ fn status_strings_take_any_int() {
         "PSR_STATUS_BUFFER_TOO_SMALL"
     );
     assert_eq!(name(11), "PSR_STATUS_INTERNAL_ERROR");
-    assert_eq!(name(12), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(12), "PSR_STATUS_THREADS_UNAVAILABLE");
+    assert_eq!(name(13), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(-1), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
 }
