@@ -43,8 +43,8 @@ struct Args {
     #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_input))]
     input: PathBuf,
 
-    /// Output mesh: binary little-endian PLY (vertex x y z [value], face vertex_indices); the
-    /// name must end in .ply. PoissonRecon: --out.
+    /// Output mesh: binary little-endian PLY (vertex x y z and, unless --no-density, value; face
+    /// vertex_indices); the name must end in .ply. PoissonRecon: --out.
     #[arg(long = "out", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_output))]
     output: PathBuf,
 
