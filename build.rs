@@ -1,23 +1,27 @@
-//! Sets the shared library's SONAME by cargo-c's rule, so that programs linked against
-//! libpsr.so record the ABI they were built for: `libpsr.so.MAJOR` from 1.0 on,
-//! `libpsr.so.0.MINOR` for 0.x (every 0.x minor may break the ABI), `libpsr.so.0.0.PATCH` for
-//! 0.0.x. Nothing else belongs here.
+//! Writes into the shared library the name the loader should look for, when the build asks for
+//! one through `PSR_SONAME` (CMakeLists.txt does: it is the one place where cargo-c's rule
+//! turns the crate version into that name, e.g. `libpsr.so.0.1`). ELF systems get it as the
+//! SONAME, Apple systems as the install name `@rpath/<name>`; Windows DLLs have neither.
+//!
+//! A plain `cargo build` sets no PSR_SONAME and gets an unversioned library, as for any cdylib
+//! (cargo-c, if used, applies the same rule itself). Nothing else belongs here.
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
-    if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("linux") {
+    println!("cargo:rerun-if-env-changed=PSR_SONAME");
+    let name = std::env::var("PSR_SONAME").unwrap_or_default();
+    if name.is_empty() {
         return;
     }
-    let part = |name: &str| std::env::var(name).expect("cargo sets the version variables");
-    let (major, minor, patch) = (
-        part("CARGO_PKG_VERSION_MAJOR"),
-        part("CARGO_PKG_VERSION_MINOR"),
-        part("CARGO_PKG_VERSION_PATCH"),
+    assert!(
+        !name.contains([',', ' ', '\t', '\n', '/']),
+        "PSR_SONAME must be a plain file name such as libpsr.so.0.1, got {name:?}"
     );
-    let abi = match (major.as_str(), minor.as_str()) {
-        ("0", "0") => format!("0.0.{patch}"),
-        ("0", _) => format!("0.{minor}"),
-        _ => major,
-    };
-    println!("cargo:rustc-cdylib-link-arg=-Wl,-soname,libpsr.so.{abi}");
+    let family = std::env::var("CARGO_CFG_TARGET_FAMILY").unwrap_or_default();
+    let vendor = std::env::var("CARGO_CFG_TARGET_VENDOR").unwrap_or_default();
+    if vendor == "apple" {
+        println!("cargo:rustc-cdylib-link-arg=-Wl,-install_name,@rpath/{name}");
+    } else if family.split(',').any(|f| f == "unix") {
+        println!("cargo:rustc-cdylib-link-arg=-Wl,-soname,{name}");
+    }
 }

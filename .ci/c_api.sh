@@ -4,7 +4,7 @@
 #      cbindgen at the pinned version;
 #   2. checks include/psr.h is what cbindgen generates from src/ffi.rs;
 #   3. builds and installs psr with the top-level CMakeLists.txt into a temporary prefix, checks
-#      the installed layout and SONAME, then MOVES the prefix (relocatability) and deletes the
+#      the installed layout and that the SONAME, its links and psrConfig.cmake agree, then MOVES the prefix (relocatability) and deletes the
 #      build tree;
 #   4. compiles the installed header alone as C99 and C++17 with -Wall -Wextra -Werror;
 #   5. builds examples/ and tests/c/ as separate CMake projects with find_package(psr), and the
@@ -18,10 +18,11 @@
 #   .ci/c_api.sh            (KEEP=1 keeps the temporary directory for inspection)
 set -euo pipefail
 
-CBINDGEN_VERSION=0.29.4 # also in cbindgen.toml, scripts/gen_header.sh, tests/header_fresh.rs
 script=c_api.sh
 work_prefix=psr-c-api
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+# The pinned cbindgen (Cargo.toml's [workspace.metadata.cbindgen], read by the header script).
+CBINDGEN_VERSION="$("$root/scripts/gen_header.sh" --cbindgen-version)"
 make_work
 
 # --- 1. tools ----------------------------------------------------------------------------------
@@ -69,19 +70,21 @@ install_psr() { # install_psr BUILD_DIR PREFIX [cmake args...]
 step "build and install psr with CMake"
 install_psr "$work/build" "$work/staging"
 version="$(sed -n 's/^version *= *"\([0-9.]*\)".*/\1/p' "$root/Cargo.toml" | head -1)"
-major="${version%%.*}"
-minor="$(echo "$version" | cut -d. -f2)"
-patch="$(echo "$version" | cut -d. -f3)"
-if [ "$major" = 0 ] && [ "$minor" = 0 ]; then abi="0.0.$patch"; elif [ "$major" = 0 ]; then abi="0.$minor"; else abi="$major"; fi
 lib="$work/staging/lib"
 for f in "$lib/libpsr.so.$version" "$lib/libpsr.a" "$work/staging/include/psr.h" \
     "$lib/cmake/psr/psrConfig.cmake" "$lib/cmake/psr/psrConfigVersion.cmake" "$lib/pkgconfig/psr.pc"; do
     [ -f "$f" ] || die "missing from the install: $f"
 done
-[ "$(readlink "$lib/libpsr.so.$abi")" = "libpsr.so.$version" ] || die "libpsr.so.$abi should link to libpsr.so.$version"
-[ "$(readlink "$lib/libpsr.so")" = "libpsr.so.$abi" ] || die "libpsr.so should link to libpsr.so.$abi"
+# The SONAME rule (cargo-c's) is written in CMakeLists.txt alone; here its result is read from
+# the library and checked for agreement: a libpsr.so.<leading part of the version> that the
+# links and psrConfig.cmake name too.
 soname="$(readelf -d "$lib/libpsr.so.$version" | sed -n 's/.*Library soname: \[\(.*\)\]/\1/p')"
-[ "$soname" = "libpsr.so.$abi" ] || die "SONAME is '$soname', want libpsr.so.$abi"
+abi="${soname#libpsr.so.}"
+case "$soname" in libpsr.so.?*) ;; *) die "SONAME is '$soname', want libpsr.so.<ABI version>" ;; esac
+case "$version." in "$abi".*) ;; *) die "SONAME $soname: $abi is not a leading part of version $version" ;; esac
+[ "$(readlink "$lib/$soname")" = "libpsr.so.$version" ] || die "$soname should link to libpsr.so.$version"
+[ "$(readlink "$lib/libpsr.so")" = "$soname" ] || die "libpsr.so should link to $soname"
+grep -qF "set(_psr_soname \"$soname\")" "$lib/cmake/psr/psrConfig.cmake" || die "psrConfig.cmake does not give the SONAME $soname"
 echo "installed psr $version, SONAME $soname"
 if grep -rl -e "$work" -e "$root" "$lib/cmake" "$lib/pkgconfig"; then
     die "the package files above contain absolute build or install paths"

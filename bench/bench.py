@@ -259,9 +259,9 @@ def git_revision() -> str:
     try:
         rev = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
         # Only what goes into the binary counts (editing bench/ or docs/ does not change psr).
-        built_from = ["src", "Cargo.toml", "Cargo.lock", "build.rs"]
+        built_from = ["src", "cli", "Cargo.toml", "Cargo.lock", "build.rs"]
         dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no", "--"] + built_from, capture_output=True, text=True).stdout.strip()
-        return rev + (" (with uncommitted changes to src/ or Cargo files)" if dirty else "") if rev else "unknown"
+        return rev + (" (with uncommitted changes to src/, cli/ or Cargo files)" if dirty else "") if rev else "unknown"
     except OSError:
         return "unknown"
 

@@ -1,11 +1,23 @@
 #!/usr/bin/env bash
 # Regenerates include/psr.h from src/ffi.rs with the pinned cbindgen.
-#   scripts/gen_header.sh           write include/psr.h
-#   scripts/gen_header.sh OUT.h     write elsewhere (used by tests/header_fresh.rs)
+# Its version is written once, in Cargo.toml's [workspace.metadata.cbindgen].
+#   scripts/gen_header.sh                     write include/psr.h
+#   scripts/gen_header.sh OUT.h               write elsewhere (used by tests/header_fresh.rs)
+#   scripts/gen_header.sh --cbindgen-version  print the pinned version (for .ci/c_api.sh and
+#                                             tests/header_fresh.rs)
 set -euo pipefail
-CBINDGEN_VERSION=0.29.4 # also in cbindgen.toml, tests/header_fresh.rs, .ci/c_api.sh
 export PATH="$PATH:${CARGO_HOME:-$HOME/.cargo}/bin"
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+CBINDGEN_VERSION="$(awk -F'"' '/^\[/ { section = $0 }
+    section == "[workspace.metadata.cbindgen]" && /^version *=/ { print $2; exit }' "$root/Cargo.toml")"
+if [ -z "$CBINDGEN_VERSION" ]; then
+    echo "error: no version = \"...\" under [workspace.metadata.cbindgen] in $root/Cargo.toml" >&2
+    exit 1
+fi
+if [ "${1:-}" = --cbindgen-version ]; then
+    echo "$CBINDGEN_VERSION"
+    exit 0
+fi
 out="${1:-$root/include/psr.h}"
 if ! command -v cbindgen >/dev/null || [ "$(cbindgen --version)" != "cbindgen $CBINDGEN_VERSION" ]; then
     echo "error: cbindgen $CBINDGEN_VERSION is required; install it with" >&2

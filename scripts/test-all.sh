@@ -1,21 +1,66 @@
 #!/usr/bin/env bash
-# The whole test suite, as CI runs it (README's second command):
-#   1. the C API as users meet it (.ci/c_api.sh: header freshness, CMake install to a temporary
+# The whole test suite, as CI runs it (README's second command). Cheap checks first, so that a
+# formatting slip or a lint fails in minutes rather than after the long suites:
+#   1. formatting (cargo fmt --check);
+#   2. clippy on every target of the workspace, warnings as errors;
+#   3. rustdoc of the workspace, warnings as errors (broken intra-doc links and the like);
+#   4. the workspace at the declared minimum Rust (rust-version in Cargo.toml): cargo check of
+#      every target with that toolchain, in its own target dir (target/msrv) so the main build
+#      is not invalidated;
+#   5. the C API as users meet it (.ci/c_api.sh: header freshness, CMake install to a temporary
 #      prefix, examples in C, C++ and Python, C contract tests under valgrind); it installs the
 #      tools it needs (cmake, valgrind, pinned cbindgen) when they are missing;
-#   2. the comparisons with CGAL's and PCL's Poisson reconstructions (.ci/cpp_tests.sh: C++
+#   6. the comparisons with CGAL's and PCL's Poisson reconstructions (.ci/cpp_tests.sh: C++
 #      tests through the installed package; installs libcgal-dev, libpcl-dev, libeigen3-dev and
 #      libgtest-dev when missing; refreshes docs/comparisons.md);
-#   3. formatting;
-#   4. every Rust test in release mode (unit, pipeline, real scans, FFI contract).
+#   7. every Rust test in release mode (unit, pipeline, real scans, FFI contract, CLI);
+#   8. the unit tests once more in the test profile, whose debug assertions and overflow checks
+#      release builds compile out (optimised all the same: [profile.test] opt-level = 3). The
+#      integration tests in tests/ (reconstructions of real scans) are left to step 7: in this
+#      profile they would take far longer and check nothing more.
+# Step 0 installs what steps 1-4 need when it is missing: rustfmt, clippy (rustup components) and
+# the minimum toolchain (rustup toolchain install --profile minimal).
 # Real-scan tests read ../shared/data (or $PSR_DATA_DIR); they skip with a visible message when
 # it is absent, and fail when it is absent under CI=true.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
+start=$SECONDS
+heading() { printf '\n==== %s (%ds)\n' "$*" "$((SECONDS - start))"; }
 
-bash .ci/c_api.sh
-bash .ci/cpp_tests.sh
+msrv="$(bash scripts/msrv.sh)"
+heading "0. tools: rustfmt, clippy, Rust $msrv (installed when missing)"
+for component in rustfmt clippy; do
+    rustup component list --installed 2>/dev/null | grep -q "^$component" || rustup component add "$component"
+done
+rustup run "$msrv" rustc --version >/dev/null 2>&1 || rustup toolchain install "$msrv" --profile minimal
+cargo --version
+cargo clippy --version
+rustup run "$msrv" rustc --version
+
+heading "1. formatting: cargo fmt --all -- --check"
 cargo fmt --all -- --check
-cargo test --release --all-targets 2>&1
+
+heading "2. lints: cargo clippy --workspace --all-targets -- -D warnings"
+cargo clippy --workspace --all-targets -- -D warnings
+
+heading "3. docs: cargo doc --workspace --no-deps with RUSTDOCFLAGS=\"-D warnings\""
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+
+heading "4. minimum Rust $msrv: cargo +$msrv check --workspace --all-targets"
+cargo "+$msrv" check --workspace --all-targets --target-dir target/msrv
+
+heading "5. the C API (.ci/c_api.sh)"
+bash .ci/c_api.sh
+
+heading "6. comparisons with CGAL and PCL (.ci/cpp_tests.sh)"
+bash .ci/cpp_tests.sh
+
+heading "7. Rust tests, release: cargo test --release --workspace --all-targets"
+cargo test --release --workspace --all-targets 2>&1
+
+heading "8. unit tests with debug assertions: cargo test --workspace --lib --bins"
+cargo test --workspace --lib --bins 2>&1
+
+heading "all steps passed"

@@ -6,98 +6,158 @@
 //!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear] [--vertices fitted|on-isosurface] [--confidence] [--no-density] [--quiet] [--verbose]
 //! ```
 //!
+//! Both file names must end in `.ply` (any case): psr reads PLY point clouds and writes binary
+//! PLY meshes, and refuses to write PLY under another name. `psr --help` gives each option's
+//! PoissonRecon 18.75 equivalent (`tests/cli.rs` checks that every option has one).
+//!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
 //! reconstruction error.
 
+use std::ffi::OsString;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use clap::builder::{OsStringValueParser, TypedValueParser};
 use clap::Parser;
 use psr::{ply, Boundary, Mesh, Params, PointSet, Splatting, Stage, VertexPlacement};
 
 /// Poisson surface reconstruction: turns an oriented point cloud (PLY with x y z nx ny nz)
 /// into a watertight triangle mesh (binary PLY).
+///
+/// Each option's help ends with its equivalent in Kazhdan's PoissonRecon 18.75, or says that
+/// there is none.
 #[derive(Parser, Debug)]
-#[command(name = "psr", version, max_term_width = 100)]
+#[command(
+    name = "psr",
+    version,
+    max_term_width = 100,
+    after_help = "PoissonRecon 18.75 options not named above have no counterpart here, notably \
+                  --degree (psr's B-splines have degree 2; PoissonRecon's default is 1) and \
+                  --ascii (psr writes binary PLY only)."
+)]
 struct Args {
-    /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z nx ny nz.
-    #[arg(long = "in", value_name = "FILE")]
+    /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z nx ny nz; the
+    /// name must end in .ply. PoissonRecon: --in (which also reads .bnpts).
+    #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_input))]
     input: PathBuf,
 
-    /// Output mesh: binary little-endian PLY (vertex x y z [value], face vertex_indices).
-    #[arg(long = "out", value_name = "FILE")]
+    /// Output mesh: binary little-endian PLY (vertex x y z and, unless --no-density, value; face
+    /// vertex_indices); the name must end in .ply. PoissonRecon: --out.
+    #[arg(long = "out", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_output))]
     output: PathBuf,
 
     /// Maximum octree depth (1..=16): the finest cells are 2^-depth of the bounding cube.
+    /// PoissonRecon: --depth.
     #[arg(long, value_name = "D", default_value_t = Params::default().depth)]
     depth: u32,
 
     /// Depth down to which the octree is complete (0..=16; values above --depth act as it).
+    /// PoissonRecon: --fullDepth.
     #[arg(long, alias = "fullDepth", value_name = "D", default_value_t = Params::default().full_depth)]
     full_depth: u32,
 
     /// Depth at which the sampling density is estimated (0..=depth) [default: depth - 2].
+    /// PoissonRecon: --kernelDepth.
     #[arg(long, alias = "kernelDepth", value_name = "D")]
     kernel_depth: Option<u32>,
 
     /// Target number of samples per octree node (1..=1e6); higher is smoother for noisy data.
+    /// PoissonRecon: --samplesPerNode.
     #[arg(long, alias = "samplesPerNode", value_name = "N", default_value_t = Params::default().samples_per_node)]
     samples_per_node: f32,
 
     /// The bounding cube is the points' bounding box enlarged by this factor (1..=100).
+    /// PoissonRecon: --scale.
     #[arg(long, value_name = "S", default_value_t = Params::default().scale)]
     scale: f32,
 
-    /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples.
+    /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples; 0 is the
+    /// unscreened 2006 method. PoissonRecon: --pointWeight (default 2 × the B-spline degree there
+    /// too: 2 for its default --degree 1, 4 for psr's degree 2).
     #[arg(long, alias = "pointWeight", value_name = "W", default_value_t = Params::default().point_weight)]
     point_weight: f32,
 
-    /// Worker threads; 0 = all cores. The result does not depend on it.
+    /// Worker threads; 0 = all cores. The result does not depend on it. PoissonRecon: none in
+    /// 18.75 (it uses all cores).
     #[arg(long, value_name = "N", default_value_t = Params::default().threads)]
     threads: usize,
 
-    /// Conjugate-gradient iterations per depth at most (1..=10000).
+    /// Conjugate-gradient iterations per depth at most (1..=10000). PoissonRecon: --iters, in
+    /// another unit (Gauss–Seidel relaxations per level of its multigrid solver, default 8).
     #[arg(long, value_name = "N", default_value_t = Params::default().max_solver_iterations)]
     iters: u32,
 
-    /// Relative residual at which a depth's solve stops (1e-12 <= t < 1).
+    /// Relative residual at which a depth's solve stops (1e-12 <= t < 1). PoissonRecon:
+    /// --cgAccuracy (which applies to its coarsest levels' conjugate gradients only).
     #[arg(long, value_name = "T", default_value_t = Params::default().solver_tolerance)]
     tolerance: f64,
 
     /// Boundary condition at the bounding cube: neumann (PoissonRecon's and Open3D's default) or
-    /// free (the 2006 paper).
+    /// free (the 2006 paper). PoissonRecon: --bType (3 = neumann, 1 = free; its 2, Dirichlet, has
+    /// no counterpart).
     #[arg(long, value_enum, default_value_t = BoundaryArg::Neumann)]
     boundary: BoundaryArg,
 
     /// Splatting weights: bspline (smoother, more accurate) or trilinear (the 2006 paper).
+    /// PoissonRecon: none (it splats with degree-2 B-splines, as bspline).
     #[arg(long, value_enum, default_value_t = SplattingArg::Bspline)]
     splatting: SplattingArg,
 
     /// Where the vertices go: fitted (moved off the isosurface by the mean sag of their chords,
-    /// so that the flat triangles straddle it) or on-isosurface (exactly on it, as PoissonRecon).
+    /// so that the flat triangles straddle it) or on-isosurface (exactly on it). PoissonRecon:
+    /// none (its vertices are on the isosurface, as on-isosurface).
     #[arg(long, value_enum, default_value_t = VerticesArg::Fitted)]
     vertices: VerticesArg,
 
-    /// Weigh each point by the input's `confidence` (or `value`) property.
+    /// Weigh each point by the input's `confidence` (or `value`) property. PoissonRecon:
+    /// --confidence (which takes each point's weight from its normal's length instead).
     #[arg(long)]
     confidence: bool,
 
-    /// Do not write the per-vertex density (`value` property) to the output.
+    /// Do not write the per-vertex density (`value` property) to the output. PoissonRecon: the
+    /// inverse of --density (it writes the density only when asked).
     #[arg(long)]
     no_density: bool,
 
-    /// Print nothing but errors.
+    /// Print nothing but errors. PoissonRecon: none (it is quiet unless --verbose).
     #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
 
-    /// Also print the per-depth node counts and solves, and the isovalue.
+    /// Also print the per-depth node counts and solves, the isovalue, and the peak memory after
+    /// each stage. PoissonRecon: --verbose.
     #[arg(long, short)]
     verbose: bool,
 }
 
+/// The value of `--in`: a file psr can read, which is PLY (the name says so).
+fn ply_input(name: OsString) -> Result<PathBuf, String> {
+    ply_path(name, "psr reads point clouds from PLY files only")
+}
+
+/// The value of `--out`: psr writes binary PLY, so the name must say PLY; a mesh.obj that holds
+/// PLY would mislead whatever opens it.
+fn ply_output(name: OsString) -> Result<PathBuf, String> {
+    ply_path(name, "psr writes meshes as binary PLY only")
+}
+
+/// `name` as a path if its extension is `.ply` (any case); otherwise why not.
+fn ply_path(name: OsString, what: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(name);
+    match path.extension() {
+        Some(ext) if ext.eq_ignore_ascii_case("ply") => Ok(path),
+        Some(ext) => Err(format!(
+            "{what}: give a file name ending in .ply, not .{}",
+            ext.to_string_lossy()
+        )),
+        None => Err(format!("{what}: give a file name ending in .ply")),
+    }
+}
+
 impl Args {
+    /// The parameters the options give; a parameter the library adds keeps its default here
+    /// until it gets an option.
     fn params(&self) -> Params {
         Params::default()
             .with_depth(self.depth)

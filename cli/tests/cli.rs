@@ -1,0 +1,215 @@
+//! The `psr` program as a user meets it: file names it refuses, exit statuses, and the help text
+//! that promises a PoissonRecon equivalent for every option.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const PSR: &str = env!("CARGO_BIN_EXE_psr");
+
+/// The shipped sample cloud (5,210 points; depth 4 reconstructs it in milliseconds).
+fn kitten() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/data/kitten_cgal.ply")
+}
+
+/// A fresh, empty directory of this test's own.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("psr-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn psr(args: &[&str]) -> Output {
+    Command::new(PSR)
+        .args(args)
+        .output()
+        .expect("the psr binary runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn an_output_name_that_is_not_ply_is_a_usage_error() {
+    let dir = scratch("out-ext");
+    let kitten = kitten();
+    for name in ["mesh.obj", "mesh.stl", "mesh", "mesh.ply.gz"] {
+        let out_path = dir.join(name);
+        let out = psr(&[
+            "--in",
+            kitten.to_str().unwrap(),
+            "--out",
+            out_path.to_str().unwrap(),
+            "--depth",
+            "4",
+        ]);
+        let message = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "--out {name}: {message}");
+        assert!(
+            message.contains("--out") && message.contains("binary PLY") && message.contains(".ply"),
+            "--out {name}: the message should name the option, what psr writes and the extension it wants: {message}"
+        );
+        assert!(!out_path.exists(), "--out {name} was written anyway");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn an_input_name_that_is_not_ply_is_a_usage_error() {
+    let dir = scratch("in-ext");
+    let xyz = dir.join("cloud.xyz");
+    std::fs::write(&xyz, "0 0 0 0 0 1\n").unwrap();
+    let out_path = dir.join("mesh.ply");
+    let out = psr(&[
+        "--in",
+        xyz.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    let message = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("--in") && message.contains("PLY") && message.contains(".xyz"),
+        "{message}"
+    );
+    assert!(!out_path.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn ply_names_in_any_case_are_accepted_and_reconstructed() {
+    let dir = scratch("ply-case");
+    let input = dir.join("KITTEN.PLY");
+    std::fs::copy(kitten(), &input).unwrap();
+    let output = dir.join("Mesh.Ply");
+    let out = psr(&[
+        "--in",
+        input.to_str().unwrap(),
+        "--out",
+        output.to_str().unwrap(),
+        "--depth",
+        "4",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let bytes = std::fs::read(&output).expect("the mesh was written");
+    assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_parameter_out_of_range_is_a_usage_error_naming_the_option() {
+    let dir = scratch("range");
+    let kitten = kitten();
+    let out_path = dir.join("mesh.ply");
+    let out = psr(&[
+        "--in",
+        kitten.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+        "--depth",
+        "0",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--depth"), "{}", stderr(&out));
+    assert!(!out_path.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_missing_input_file_is_a_run_error() {
+    let dir = scratch("missing");
+    let out = psr(&[
+        "--in",
+        dir.join("absent.ply").to_str().unwrap(),
+        "--out",
+        dir.join("mesh.ply").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--help` split into one entry per option: (the option's long name, its whole help text).
+fn help_entries() -> Vec<(String, String)> {
+    let out = psr(&["--help"]);
+    assert!(out.status.success());
+    let help = String::from_utf8(out.stdout).unwrap();
+    let options = help
+        .split_once("\nOptions:\n")
+        .expect("an Options section")
+        .1;
+    let mut entries: Vec<(String, String)> = Vec::new();
+    for line in options.lines() {
+        let trimmed = line.trim_start();
+        let indent = line.len() - trimmed.len();
+        if (2..=6).contains(&indent) && trimmed.starts_with('-') {
+            let long = trimmed
+                .split([',', ' '])
+                .map(str::trim)
+                .find(|word| word.starts_with("--"))
+                .expect("every option has a long name")
+                .to_string();
+            entries.push((long, String::new()));
+        } else if indent == 0 && !trimmed.is_empty() {
+            break; // the text after the options
+        } else if let Some((_, text)) = entries.last_mut() {
+            text.push(' ');
+            text.push_str(trimmed);
+        }
+    }
+    entries
+}
+
+#[test]
+fn help_gives_every_option_its_poissonrecon_equivalent() {
+    let entries = help_entries();
+    let names: Vec<&str> = entries.iter().map(|(name, _)| name.as_str()).collect();
+    for (name, text) in &entries {
+        if name == "--help" || name == "--version" {
+            continue;
+        }
+        assert!(
+            text.contains("PoissonRecon:"),
+            "{name}'s help does not say its PoissonRecon equivalent: {text}"
+        );
+    }
+    // The equivalents themselves (PoissonRecon 18.75's option names).
+    let expected = [
+        ("--in", "--in"),
+        ("--out", "--out"),
+        ("--depth", "--depth"),
+        ("--full-depth", "--fullDepth"),
+        ("--kernel-depth", "--kernelDepth"),
+        ("--samples-per-node", "--samplesPerNode"),
+        ("--scale", "--scale"),
+        ("--point-weight", "--pointWeight"),
+        ("--threads", "none"),
+        ("--iters", "--iters"),
+        ("--tolerance", "--cgAccuracy"),
+        ("--boundary", "--bType"),
+        ("--splatting", "none"),
+        ("--vertices", "none"),
+        ("--confidence", "--confidence"),
+        ("--no-density", "--density"),
+        ("--quiet", "none"),
+        ("--verbose", "--verbose"),
+    ];
+    for (ours, theirs) in expected {
+        let (_, text) = entries
+            .iter()
+            .find(|(name, _)| name == ours)
+            .unwrap_or_else(|| panic!("{ours} is missing from --help: {names:?}"));
+        let equivalent = text.split("PoissonRecon:").nth(1).unwrap_or_default();
+        assert!(
+            equivalent.trim_start().starts_with(theirs)
+                || equivalent.contains(&format!(" {theirs}")),
+            "{ours} should name PoissonRecon's {theirs}: {text}"
+        );
+    }
+    assert_eq!(
+        names.len(),
+        expected.len() + 2,
+        "an option was added or removed: give it a PoissonRecon equivalent here: {names:?}"
+    );
+}
