@@ -15,9 +15,10 @@
 #      libgtest-dev when missing; refreshes docs/comparisons.md);
 #   7. every Rust test in release mode (unit, pipeline, real scans, FFI contract, CLI);
 #   8. the unit tests once more in the test profile, whose debug assertions and overflow checks
-#      release builds compile out (optimised all the same: [profile.test] opt-level = 3). The
-#      integration tests in tests/ (reconstructions of real scans) are left to step 7: in this
-#      profile they would take far longer and check nothing more.
+#      release builds compile out (optimised all the same: [profile.test] opt-level = 3), and the
+#      small whole-pipeline tests (bad_input, worker_threads: every stage on small clouds, in
+#      seconds), so the pipeline's debug assertions run too. The reconstructions of real scans
+#      in tests/ are left to step 7: in this profile they would take far longer.
 # Step 0 installs what steps 1-4 need when it is missing: rustfmt, clippy (rustup components) and
 # the minimum toolchain (rustup toolchain install --profile minimal).
 # Real-scan tests read ../shared/data (or $PSR_DATA_DIR); they skip with a visible message when
@@ -60,7 +61,7 @@ bash .ci/cpp_tests.sh
 heading "7. Rust tests, release: cargo test --release --workspace --all-targets"
 cargo test --release --workspace --all-targets 2>&1
 
-heading "8. unit tests with debug assertions: cargo test --workspace --lib --bins"
-cargo test --workspace --lib --bins 2>&1
+heading "8. with debug assertions: cargo test --workspace --lib --bins --test bad_input --test worker_threads"
+cargo test --workspace --lib --bins --test bad_input --test worker_threads 2>&1
 
 heading "all steps passed"
