@@ -14,7 +14,7 @@
 #      tests through the installed package; installs libcgal-dev, libpcl-dev, libeigen3-dev and
 #      libgtest-dev when missing; refreshes docs/comparisons.md);
 #   7. every Rust test in release mode (unit, pipeline, real scans, FFI contract, CLI);
-#   8. the unit tests once more in the test profile, whose debug assertions and overflow checks
+#   8. the library's unit tests once more in the test profile, whose debug assertions and overflow checks
 #      release builds compile out (optimised all the same: [profile.test] opt-level = 3), and the
 #      small whole-pipeline tests (bad_input, worker_threads: every stage on small clouds, in
 #      seconds), so the pipeline's debug assertions run too. The reconstructions of real scans
@@ -29,6 +29,9 @@ cd "$root"
 export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
 start=$SECONDS
 heading() { printf '\n==== %s (%ds)\n' "$*" "$((SECONDS - start))"; }
+# The Rust test runs' output is also kept here, for the closing count of passed and failed tests.
+rust_log="$(mktemp)"
+trap 'rm -f "$rust_log"' EXIT
 
 msrv="$(bash scripts/msrv.sh)"
 heading "0. tools: rustfmt, clippy, Rust $msrv (installed when missing)"
@@ -59,9 +62,12 @@ heading "6. comparisons with CGAL and PCL (.ci/cpp_tests.sh)"
 bash .ci/cpp_tests.sh
 
 heading "7. Rust tests, release: cargo test --release --workspace --all-targets"
-cargo test --release --workspace --all-targets 2>&1
+cargo test --release --workspace --all-targets 2>&1 | tee -a "$rust_log"
 
-heading "8. with debug assertions: cargo test --workspace --lib --bins --test bad_input --test worker_threads"
-cargo test --workspace --lib --bins --test bad_input --test worker_threads 2>&1
+heading "8. with debug assertions: cargo test -p psr --lib --test bad_input --test worker_threads"
+cargo test -p psr --lib --test bad_input --test worker_threads 2>&1 | tee -a "$rust_log"
 
 heading "all steps passed"
+# One closing line over every Rust test run above (steps 7 and 8).
+awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i) ~ /^passed;?$/) p += $(i - 1); if ($(i) ~ /^failed;?$/) f += $(i - 1) } }
+     END { printf "%d passed, %d failed\n", p, f }' "$rust_log"
