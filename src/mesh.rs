@@ -88,3 +88,39 @@ pub(crate) fn in_input_coordinates(
         stats: Stats::default(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// Proves: stage 9 maps every vertex back through the unit-cube map and gives it the
+    /// density there, keeping the triangles as they are.
+    #[test]
+    fn vertices_go_back_to_input_coordinates_with_their_density() {
+        let map = UnitCubeMap::fit(&[[10.0, 20.0, 30.0], [14.0, 22.0, 31.0]], 1.0);
+        let samples: Vec<DVec3> = (0..50)
+            .map(|i| DVec3::new(0.2 + 0.01 * i as f64, 0.5, 0.5))
+            .collect();
+        let density = DensityField::splat(&samples, None, 5);
+        let vertices = vec![DVec3::new(0.25, 0.5, 0.5), DVec3::new(0.9, 0.1, 0.1)];
+        let raw = RawMesh {
+            vertices: vertices.clone(),
+            triangles: vec![[0, 1, 0]],
+            normals: Vec::new(),
+        };
+        let mesh = in_input_coordinates(raw, &map, &density);
+        assert_eq!(mesh.triangles, vec![[0, 1, 0]]);
+        for (k, v) in vertices.iter().enumerate() {
+            let want = map.to_input(*v);
+            let got = mesh.positions[k];
+            assert!(
+                (0..3).all(|a| (got[a] as f64 - want[a]).abs() < 1e-5),
+                "{got:?}"
+            );
+            assert_eq!(mesh.densities[k], density.evaluate(*v) as f32);
+        }
+        assert!(mesh.densities[0] > 0.0, "near the samples");
+        assert_eq!(mesh.densities[1], 0.0, "far from every sample");
+    }
+}
