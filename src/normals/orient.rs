@@ -3,7 +3,11 @@
 //! * Towards a viewpoint, or towards each point's own sensor: n ← −n where n·(v − p) < 0.
 //! * Propagation (Hoppe, DeRose, Duchamp, McDonald & Stuetzle 1992, §3.3): the symmetrised kNN
 //!   graph gets edge weights w_ij = 1 − |n_i·n_j| (small where the two tangent planes agree, so
-//!   the sign is carried across where it is least ambiguous); its minimum spanning forest is
+//!   the sign is carried across where it is least ambiguous) plus (|n_i·d| + |n_j·d|)/2, d the
+//!   unit vector from p_i to p_j: how far the edge leaves the two tangent planes. Without that
+//!   term an edge straight across a thin wall (parallel planes, weight 0) is as good as one
+//!   along the wall and the two sides get one sign (measured: a 2 × 2 × 0.08 plate sampled
+//!   10× unevenly had 47.5 % of its normals flipped, 0.04 % with it). Its minimum spanning forest is
 //!   found by Kruskal's algorithm over edges sorted by (w rounded to f32, edge number), the
 //!   edge number being i·k + rank of j among i's neighbours (nearer first), so that equal
 //!   weights go to the smaller index and then to the shorter edge, and the forest does not
@@ -128,7 +132,10 @@ pub(super) fn propagate(
                 if j < i && neighbors.of(j).contains(&(i as u32)) {
                     return None;
                 }
-                let weight = (1.0 - normals_in[i].dot(normals_in[j]).abs()).max(0.0) as f32;
+                let (a, b) = (normals_in[i], normals_in[j]);
+                let d = (positions[j] - positions[i]).normalize_or_zero();
+                let out_of_plane = 0.5 * (a.dot(d).abs() + b.dot(d).abs());
+                let weight = ((1.0 - a.dot(b).abs()).max(0.0) + out_of_plane) as f32;
                 // Non-negative f32s order like their bit patterns.
                 Some(((weight.to_bits() as u64) << 32) | (i * k + rank) as u64)
             })
