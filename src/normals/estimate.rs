@@ -12,7 +12,7 @@
 //!
 //! A neighbourhood whose points coincide (C = 0) or lie on one line (λ₁ ≤ [`PLANE_RATIO`] · λ₂)
 //! defines no plane. Such a point is marked; `fill_undefined` then gives it the normal of its
-//! nearest neighbour that has one, in synchronous rounds (each round reads only the previous
+//! nearest graph neighbour (kNN in either direction) that has one, in synchronous rounds (each round reads only the previous
 //! round's normals), so the result is deterministic. Points with no defined normal anywhere in
 //! reach keep the Jacobi vector (finite, unit, deterministic).
 
@@ -69,20 +69,52 @@ pub(super) fn fit_planes(positions: &[DVec3], neighbors: &Neighbors) -> Vec<Fit>
         .collect()
 }
 
-/// Gives every point without a defined normal the normal of its nearest neighbour that has one,
-/// round by round. Returns how many points are still undefined.
-pub(super) fn fill_undefined(fits: &mut [Fit], neighbors: &Neighbors) -> usize {
+/// Gives every point without a defined normal the normal of its nearest graph neighbour that
+/// has one, round by round (graph neighbours: its own k nearest and the points that count it
+/// among theirs, so that a stack of more than k duplicates still reaches the surface around
+/// it; nearest by (squared distance, index)). Returns how many points are still undefined.
+pub(super) fn fill_undefined(
+    positions: &[DVec3],
+    fits: &mut [Fit],
+    neighbors: &Neighbors,
+) -> usize {
     let mut pending: Vec<usize> = (0..fits.len()).filter(|&i| !fits[i].defined).collect();
+    if pending.is_empty() {
+        return 0;
+    }
+    // The points that count each point among their neighbours (CSR, by index).
+    let n = fits.len();
+    let mut start = vec![0u32; n + 1];
+    for row in neighbors.rows() {
+        for &j in row {
+            start[j as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut next = start.clone();
+    let mut reverse = vec![0u32; n * neighbors.k()];
+    for (i, row) in neighbors.rows().enumerate() {
+        for &j in row {
+            reverse[next[j as usize] as usize] = i as u32;
+            next[j as usize] += 1;
+        }
+    }
     loop {
         let found: Vec<(usize, DVec3)> = pending
             .iter()
             .filter_map(|&i| {
+                let around = &reverse[start[i] as usize..start[i + 1] as usize];
                 neighbors
                     .of(i)
                     .iter()
-                    .map(|&j| fits[j as usize])
-                    .find(|f| f.defined)
-                    .map(|f| (i, f.normal))
+                    .chain(around)
+                    .map(|&j| j as usize)
+                    .filter(|&j| fits[j].defined)
+                    .map(|j| ((positions[j] - positions[i]).length_squared(), j))
+                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                    .map(|(_, j)| (i, fits[j].normal))
             })
             .collect();
         if found.is_empty() {

@@ -178,7 +178,7 @@ pub fn estimate_normals(
                 points: positions.len(),
             });
         }
-        estimate::fill_undefined(&mut fits, &neighbors);
+        estimate::fill_undefined(&positions, &mut fits, &neighbors);
         let mut normals: Vec<DVec3> = fits.into_iter().map(|f| f.normal).collect();
         orient(
             &positions,
