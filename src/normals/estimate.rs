@@ -54,11 +54,7 @@ pub(super) fn fit_planes(positions: &[DVec3], neighbors: &Neighbors) -> Vec<Fit>
                     }
                 }
             }
-            for a in 0..3 {
-                for b in 0..a {
-                    c[a][b] = c[b][a];
-                }
-            }
+            (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
             let (values, vectors) = jacobi_eigen(c);
             let defined = values[2] > 0.0 && values[1] > PLANE_RATIO * values[2];
             Fit {

@@ -217,7 +217,7 @@ pub fn orient_normals(
             return Err(Error::NonFiniteNormal { index });
         }
         let length = n.length();
-        if !(length >= f32::MIN_POSITIVE as f64) {
+        if length < f32::MIN_POSITIVE as f64 {
             return Err(Error::ZeroNormal { index });
         }
         unit.push(n / length);

@@ -341,7 +341,7 @@ mod tests {
                 }
             }
         }
-        lattice.extend_from_slice(&lattice[..40].to_vec());
+        lattice.extend_from_within(..40);
         clouds.push(lattice);
         // Two clusters far apart.
         clouds.push(

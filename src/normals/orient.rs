@@ -190,11 +190,11 @@ pub(super) fn propagate(
     // Walk each tree from its seed, flipping children to agree with their parents.
     let mut visited = vec![false; n];
     let mut stack: Vec<u32> = Vec::new();
-    for i in 0..n {
-        if seed_of_root[i] == u32::MAX {
+    for &seed in &seed_of_root {
+        if seed == u32::MAX {
             continue;
         }
-        let seed = seed_of_root[i] as usize;
+        let seed = seed as usize;
         if normals[seed].x < 0.0 {
             normals[seed] = -normals[seed];
         }
