@@ -47,6 +47,19 @@ pub enum Error {
         /// how many points there are
         points: usize,
     },
+    /// Normal estimation was asked for more neighbours than the cloud has other points.
+    TooFewPoints {
+        /// how many points there are
+        points: usize,
+        /// the neighbours asked for per point ([`crate::NormalEstimation::neighbors`])
+        neighbors: usize,
+    },
+    /// Normal estimation found no neighbourhood that spans a plane: every point's neighbours
+    /// coincide or lie on one line, so no normal is defined anywhere.
+    NoPlaneDefined {
+        /// how many points there are
+        points: usize,
+    },
     /// A parameter is outside its documented range.
     InvalidParameter {
         /// the parameter's name, as in [`crate::Params`]
@@ -99,6 +112,15 @@ impl fmt::Display for Error {
             Error::DegenerateInput { points } => write!(
                 f,
                 "all {points} points coincide: a surface needs points spread in space (at least two distinct positions)"
+            ),
+            Error::TooFewPoints { points, neighbors } => write!(
+                f,
+                "{points} points cannot each have {neighbors} neighbours: give at least {} points or ask for fewer neighbours",
+                neighbors.saturating_add(1)
+            ),
+            Error::NoPlaneDefined { points } => write!(
+                f,
+                "the neighbourhoods of all {points} points are single points or lines, so no normal is defined: the points must sample a surface (use more neighbours if the sampling is very anisotropic)"
             ),
             Error::InvalidParameter { name, value, expected } => {
                 write!(f, "parameter {name} = {value} is out of range: expected {expected}")

@@ -31,6 +31,7 @@ pub mod ffi;
 mod grid;
 mod isovalue;
 mod mesh;
+mod normals;
 mod octree;
 mod parallel;
 mod params;
@@ -43,6 +44,7 @@ mod system;
 
 pub use error::{Error, Result};
 pub use mesh::{DepthSolve, Mesh, Stats};
+pub use normals::{estimate_normals, orient_normals, NormalEstimation, Orientation};
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
 pub use points::PointSet;
@@ -63,38 +65,8 @@ pub fn reconstruct_with_progress(
     if points.is_empty() {
         return Err(Error::EmptyInput);
     }
-    let threads = if params.threads == 0 {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    } else {
-        params.threads
-    };
-    // The pipeline runs on the caller's thread (so the progress callback does too); only its
-    // parallel sections run inside this reconstruction's own pool.
-    let mut threads_started = Vec::with_capacity(threads);
-    let built = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .spawn_handler(|thread| {
-            let name = format!("psr-worker-{}", thread.index());
-            threads_started.push(
-                std::thread::Builder::new()
-                    .name(name)
-                    .spawn(move || thread.run())?,
-            );
-            Ok(())
-        })
-        .build();
-    let mut workers = Workers {
-        pool: None,
-        threads: threads_started,
-    };
-    workers.pool = Some(built.map_err(|e| Error::ThreadsUnavailable {
-        threads,
-        reason: e.to_string(),
-    })?);
-    let pool = workers.pool.as_ref().expect("set just above");
-    pipeline::run(points, params, pool, progress)
+    let workers = Workers::start(params.threads)?;
+    pipeline::run(points, params, workers.pool(), progress)
 }
 
 /// A reconstruction's own worker threads. Dropping it, on return and while a panic unwinds
@@ -103,6 +75,48 @@ pub fn reconstruct_with_progress(
 struct Workers {
     pool: Option<rayon::ThreadPool>,
     threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Workers {
+    /// Starts `threads` worker threads (0 = one per core) named `psr-worker-N`.
+    fn start(threads: usize) -> Result<Workers> {
+        let threads = if threads == 0 {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+        } else {
+            threads
+        };
+        // The caller's work runs on the caller's thread (so a progress callback does too); only
+        // its parallel sections run inside this pool.
+        let mut threads_started = Vec::with_capacity(threads);
+        let built = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .spawn_handler(|thread| {
+                let name = format!("psr-worker-{}", thread.index());
+                threads_started.push(
+                    std::thread::Builder::new()
+                        .name(name)
+                        .spawn(move || thread.run())?,
+                );
+                Ok(())
+            })
+            .build();
+        let mut workers = Workers {
+            pool: None,
+            threads: threads_started,
+        };
+        workers.pool = Some(built.map_err(|e| Error::ThreadsUnavailable {
+            threads,
+            reason: e.to_string(),
+        })?);
+        Ok(workers)
+    }
+
+    /// The pool (present from `start` until `drop`).
+    fn pool(&self) -> &rayon::ThreadPool {
+        self.pool.as_ref().expect("set by Workers::start")
+    }
 }
 
 impl Drop for Workers {

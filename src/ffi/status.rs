@@ -100,6 +100,9 @@ impl Failure {
             Error::InvalidWeight { .. } => psr_status::InvalidArgument,
             Error::NoPositiveWeight => psr_status::InvalidArgument,
             Error::DegenerateInput { .. } => psr_status::InvalidArgument,
+            // Normal estimation is not exposed to C yet; these get statuses when it is.
+            Error::TooFewPoints { .. } => psr_status::InvalidArgument,
+            Error::NoPlaneDefined { .. } => psr_status::InvalidArgument,
             Error::InvalidParameter { .. } => psr_status::InvalidParameter,
             Error::Cancelled => psr_status::Cancelled,
             Error::ThreadsUnavailable { .. } => psr_status::ThreadsUnavailable,

@@ -4,7 +4,8 @@
 //!
 //! * [`Rng`]: a deterministic SplitMix64 generator, so every test input is fixed by its seed.
 //! * Point samplers for analytic shapes with outward unit normals: [`sample_sphere`],
-//!   [`sample_torus`], [`sample_sphere_nonuniform`]; noise: [`perturb_normals`],
+//!   [`sample_torus`], [`sample_sphere_nonuniform`], [`sample_box`] (sharp edges; thin plates),
+//!   [`sample_two_tori`] (two nearly touching parts), [`thin_unevenly`]; noise: [`perturb_normals`],
 //!   [`perturb_normals_gaussian`], [`jitter_positions`].
 //! * Exact distances to those shapes: [`sphere_distance`], [`torus_distance`], and their
 //!   bounding-box diagonals for normalisation.

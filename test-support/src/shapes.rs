@@ -93,6 +93,105 @@ pub fn sample_sphere_nonuniform(n: usize, seed: u64, ratio: f64) -> (Vec<[f32; 3
     (positions, normals)
 }
 
+/// `n` points area-uniform on the surface of the axis-aligned box with the given half extents
+/// about the origin (sharp edges and corners), each with the outward normal of its face.
+/// A thin plate is a box with one small half extent. Returns (positions, normals).
+pub fn sample_box(n: usize, half_extents: [f64; 3], seed: u64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    assert!(
+        half_extents.iter().all(|&h| h > 0.0),
+        "half extents must be positive"
+    );
+    let [hx, hy, hz] = half_extents;
+    // Face pairs by normal axis, with their areas (each face of the pair has this area).
+    let areas = [hy * hz, hx * hz, hx * hy];
+    let total: f64 = areas.iter().sum();
+    let mut rng = Rng::new(seed);
+    let mut positions = Vec::with_capacity(n);
+    let mut normals = Vec::with_capacity(n);
+    for _ in 0..n {
+        let pick = rng.next_f64() * total;
+        let axis = if pick < areas[0] {
+            0
+        } else if pick < areas[0] + areas[1] {
+            1
+        } else {
+            2
+        };
+        let side = if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
+        let mut p = [0.0; 3];
+        for (a, coordinate) in p.iter_mut().enumerate() {
+            *coordinate = if a == axis {
+                side * half_extents[a]
+            } else {
+                rng.uniform(-half_extents[a], half_extents[a])
+            };
+        }
+        let mut normal = [0.0f32; 3];
+        normal[axis] = side as f32;
+        positions.push(f32x3(DVec3::from_array(p)));
+        normals.push(normal);
+    }
+    (positions, normals)
+}
+
+/// `n` points on two copies of the torus of [`sample_torus`] (both about axes parallel to z,
+/// in the plane z = 0), centred at x = ±(R + r + gap/2): their outer walls face each other
+/// `gap` apart. Half the points on each, outward normals. Returns (positions, normals).
+pub fn sample_two_tori(
+    n: usize,
+    major_radius: f64,
+    minor_radius: f64,
+    gap: f64,
+    seed: u64,
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let offset = major_radius + minor_radius + 0.5 * gap;
+    let (mut positions, mut normals) = sample_torus(n / 2, major_radius, minor_radius, seed);
+    for p in positions.iter_mut() {
+        p[0] = (p[0] as f64 - offset) as f32;
+    }
+    let (second, second_normals) =
+        sample_torus(n - n / 2, major_radius, minor_radius, seed.wrapping_add(1));
+    positions.extend(
+        second
+            .iter()
+            .map(|p| [(p[0] as f64 + offset) as f32, p[1], p[2]]),
+    );
+    normals.extend(second_normals);
+    (positions, normals)
+}
+
+/// Thins a sampling unevenly: each point is kept with probability
+/// ratio^((t − 1) / 2), t = the point's x mapped linearly from the points' x range onto
+/// [−1, 1], so the density falls `ratio`× from the largest x to the smallest. Returns the kept
+/// (positions, normals).
+pub fn thin_unevenly(
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    ratio: f64,
+    seed: u64,
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    assert!(ratio >= 1.0, "ratio must be >= 1");
+    let (lo, hi) = positions
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p[0] as f64), hi.max(p[0] as f64))
+        });
+    let mut rng = Rng::new(seed);
+    let mut kept = (Vec::new(), Vec::new());
+    for (p, n) in positions.iter().zip(normals) {
+        let t = if hi > lo {
+            2.0 * (p[0] as f64 - lo) / (hi - lo) - 1.0
+        } else {
+            1.0
+        };
+        if rng.next_f64() < ratio.powf((t - 1.0) / 2.0) {
+            kept.0.push(*p);
+            kept.1.push(*n);
+        }
+    }
+    kept
+}
+
 /// A unit vector perpendicular to `n` (unit), in a uniformly random direction about it.
 fn random_tangent(rng: &mut Rng, n: DVec3) -> DVec3 {
     loop {

@@ -1,0 +1,236 @@
+//! Normals by principal component analysis of each point's neighbourhood.
+//!
+//! The neighbourhood of point i is i itself and its k nearest neighbours. Its covariance
+//! C = Σ (p − p̄)(p − p̄)ᵀ (p̄ their mean; f64 throughout) has eigenvalues λ₀ ≤ λ₁ ≤ λ₂; the
+//! least-squares plane through the neighbourhood has the normal e₀, the eigenvector of λ₀
+//! (Hoppe et al. 1992, "Surface reconstruction from unorganized points", §3.2). Its sign is
+//! arbitrary here; `orient.rs` chooses it.
+//!
+//! The eigenvectors come from cyclic Jacobi rotations on the 3×3 matrix: accurate to a few ulps
+//! of ‖C‖ whatever the eigenvalue gaps, and for repeated eigenvalues still an orthonormal basis,
+//! so never NaN. Each point's result depends on its own neighbourhood only.
+//!
+//! A neighbourhood whose points coincide (C = 0) or lie on one line (λ₁ ≤ [`PLANE_RATIO`] · λ₂)
+//! defines no plane. Such a point is marked; `fill_undefined` then gives it the normal of its
+//! nearest graph neighbour (kNN in either direction) that has one, in synchronous rounds (each round reads only the previous
+//! round's normals), so the result is deterministic. Points with no defined normal anywhere in
+//! reach keep the Jacobi vector (finite, unit, deterministic).
+
+use super::neighbors::Neighbors;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// A neighbourhood defines a plane when its middle eigenvalue is above this fraction of its
+/// largest. f32 coordinates put rounding noise of about 1e-14 relative into collinear
+/// neighbourhoods and Jacobi's error is about 1e-16 · ‖C‖; a neighbourhood that is spread in
+/// two directions at all is many orders above this.
+pub(super) const PLANE_RATIO: f64 = 1e-8;
+
+/// A fitted normal (unit, f64) and whether the neighbourhood defines it.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Fit {
+    pub(super) normal: DVec3,
+    pub(super) defined: bool,
+}
+
+/// The PCA normal of every point's neighbourhood (point itself + its neighbours).
+pub(super) fn fit_planes(positions: &[DVec3], neighbors: &Neighbors) -> Vec<Fit> {
+    let k = neighbors.k();
+    (0..positions.len())
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|i| {
+            let row = neighbors.of(i);
+            let points =
+                std::iter::once(positions[i]).chain(row.iter().map(|&j| positions[j as usize]));
+            let count = (k + 1) as f64;
+            let mean = points.clone().fold(DVec3::ZERO, |s, p| s + p) / count;
+            let mut c = [[0.0f64; 3]; 3];
+            for p in points {
+                let d = p - mean;
+                for (a, row) in c.iter_mut().enumerate() {
+                    for (b, entry) in row.iter_mut().enumerate().skip(a) {
+                        *entry += d[a] * d[b];
+                    }
+                }
+            }
+            (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
+            let (values, vectors) = jacobi_eigen(c);
+            let defined = values[2] > 0.0 && values[1] > PLANE_RATIO * values[2];
+            Fit {
+                normal: vectors[0],
+                defined,
+            }
+        })
+        .collect()
+}
+
+/// Gives every point without a defined normal the normal of its nearest graph neighbour that
+/// has one, round by round (graph neighbours: its own k nearest and the points that count it
+/// among theirs, so that a stack of more than k duplicates still reaches the surface around
+/// it; nearest by (squared distance, index)). Returns how many points are still undefined.
+pub(super) fn fill_undefined(
+    positions: &[DVec3],
+    fits: &mut [Fit],
+    neighbors: &Neighbors,
+) -> usize {
+    let mut pending: Vec<usize> = (0..fits.len()).filter(|&i| !fits[i].defined).collect();
+    if pending.is_empty() {
+        return 0;
+    }
+    // The points that count each point among their neighbours (CSR, by index).
+    let n = fits.len();
+    let mut start = vec![0u32; n + 1];
+    for row in neighbors.rows() {
+        for &j in row {
+            start[j as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut next = start.clone();
+    let mut reverse = vec![0u32; n * neighbors.k()];
+    for (i, row) in neighbors.rows().enumerate() {
+        for &j in row {
+            reverse[next[j as usize] as usize] = i as u32;
+            next[j as usize] += 1;
+        }
+    }
+    loop {
+        let found: Vec<(usize, DVec3)> = pending
+            .iter()
+            .filter_map(|&i| {
+                let around = &reverse[start[i] as usize..start[i + 1] as usize];
+                neighbors
+                    .of(i)
+                    .iter()
+                    .chain(around)
+                    .map(|&j| j as usize)
+                    .filter(|&j| fits[j].defined)
+                    .map(|j| ((positions[j] - positions[i]).length_squared(), j))
+                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                    .map(|(_, j)| (i, fits[j].normal))
+            })
+            .collect();
+        if found.is_empty() {
+            return pending.len();
+        }
+        for &(i, normal) in &found {
+            fits[i] = Fit {
+                normal,
+                defined: true,
+            };
+        }
+        pending.retain(|&i| !fits[i].defined);
+    }
+}
+
+/// Eigenvalues (ascending) and unit eigenvectors of the symmetric matrix `a`, by cyclic Jacobi
+/// rotations (Golub & Van Loan §8.5), to full f64 accuracy.
+pub(super) fn jacobi_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [DVec3; 3]) {
+    // Columns of v are the eigenvectors.
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _sweep in 0..50 {
+        let off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+        let diag = a[0][0] * a[0][0] + a[1][1] * a[1][1] + a[2][2] * a[2][2];
+        if off == 0.0 || off <= 1e-36 * diag {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            let apq = a[p][q];
+            if apq == 0.0 {
+                continue;
+            }
+            // The rotation in the (p, q) plane that zeroes a[p][q].
+            let theta = (a[q][q] - a[p][p]) / (2.0 * apq);
+            let t = if theta.abs() > 1e150 {
+                0.5 / theta
+            } else {
+                theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt())
+            };
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            let r = 3 - p - q;
+            let (app, aqq, arp, arq) = (a[p][p], a[q][q], a[r][p], a[r][q]);
+            a[p][p] = app - t * apq;
+            a[q][q] = aqq + t * apq;
+            a[p][q] = 0.0;
+            a[q][p] = 0.0;
+            a[r][p] = c * arp - s * arq;
+            a[p][r] = a[r][p];
+            a[r][q] = s * arp + c * arq;
+            a[q][r] = a[r][q];
+            for row in v.iter_mut() {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let mut order = [0usize, 1, 2];
+    // Ascending eigenvalue; equal values keep their column order (a stable sort).
+    order.sort_by(|&x, &y| a[x][x].total_cmp(&a[y][y]));
+    let values = order.map(|i| a[i][i]);
+    let vectors = order.map(|i| DVec3::new(v[0][i], v[1][i], v[2][i]).normalize());
+    (values, vectors)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mat_vec(a: &[[f64; 3]; 3], x: DVec3) -> DVec3 {
+        DVec3::new(
+            a[0][0] * x.x + a[0][1] * x.y + a[0][2] * x.z,
+            a[1][0] * x.x + a[1][1] * x.y + a[1][2] * x.z,
+            a[2][0] * x.x + a[2][1] * x.y + a[2][2] * x.z,
+        )
+    }
+
+    /// A = Q diag(λ) Qᵀ for a rotation Q.
+    fn compose(values: [f64; 3], q: [DVec3; 3]) -> [[f64; 3]; 3] {
+        let mut a = [[0.0; 3]; 3];
+        for (l, v) in values.iter().zip(q.iter()) {
+            for r in 0..3 {
+                for c in 0..3 {
+                    a[r][c] += l * v[r] * v[c];
+                }
+            }
+        }
+        a
+    }
+
+    #[test]
+    fn jacobi_recovers_known_eigenpairs_including_repeated_and_zero_values() {
+        let e0 = DVec3::new(1.0, 2.0, 2.0) / 3.0;
+        let e1 = DVec3::new(2.0, 1.0, -2.0) / 3.0;
+        let e2 = e0.cross(e1);
+        for values in [
+            [1e-3, 0.5, 2.0],
+            [0.0, 1.0, 1.0],
+            [1e-12, 1e-12, 7.0],
+            [3.0, 3.0, 3.0],
+            [0.0, 0.0, 0.0],
+            [1e-20, 1.0, 1e6],
+        ] {
+            let a = compose(values, [e0, e1, e2]);
+            let (got, vectors) = jacobi_eigen(a);
+            let scale = values[2].max(1e-300);
+            for i in 0..3 {
+                assert!(
+                    (got[i] - values[i]).abs() <= 1e-13 * scale,
+                    "{values:?}: eigenvalue {i} = {}",
+                    got[i]
+                );
+                let v = vectors[i];
+                assert!((v.length() - 1.0).abs() < 1e-14 && v.is_finite());
+                let residual = (mat_vec(&a, v) - got[i] * v).length();
+                assert!(residual <= 1e-13 * scale, "{values:?}: residual {residual}");
+            }
+            if values[1] - values[0] > 1e-6 * scale {
+                assert!(vectors[0].dot(e0).abs() > 1.0 - 1e-12, "{values:?}");
+            }
+        }
+    }
+}

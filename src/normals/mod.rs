@@ -1,0 +1,318 @@
+//! Normal estimation and orientation for unoriented point clouds: a stage before `points`.
+//!
+//! [`estimate_normals`] gives every point a unit normal from its positions alone, in three
+//! steps, each in its own file:
+//!
+//! 1. `neighbors.rs`: the k nearest other points of every point, exact, on a uniform bucket
+//!    grid searched ring by ring until the k-th distance is certified; ties by index.
+//! 2. `estimate.rs`: the normal of the least-squares plane through the point and its
+//!    neighbours, the eigenvector of the smallest eigenvalue of their covariance (PCA; Hoppe et
+//!    al. 1992, §3.2), in f64 by Jacobi rotations.
+//! 3. `orient.rs`: the sign of each normal, by [`Orientation`]: propagation along a minimum
+//!    spanning forest of the kNN graph (Hoppe et al. 1992, §3.3), or towards a viewpoint, or
+//!    towards each point's sensor.
+//!
+//! [`orient_normals`] runs step 3 alone on normals the caller already has but whose signs are
+//! unreliable (e.g. normals from a mesher or a scanner that does not orient them).
+//!
+//! Deterministic like the rest of psr: every step reads only its inputs, neighbour lists and
+//! the spanning forest break ties by index, and reductions run in index order, so the normals
+//! are the same bit for bit at any thread count.
+//!
+//! Nothing here reads or changes the reconstruction's state; feed the result to
+//! [`crate::PointSet::from_slices`].
+
+mod estimate;
+mod neighbors;
+mod orient;
+
+use crate::error::{Error, Result};
+use crate::Workers;
+use glam::DVec3;
+
+/// How the sign of each normal is chosen.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Orientation {
+    /// Consistent signs by propagation (Hoppe et al. 1992): along the minimum spanning forest of
+    /// the kNN graph with edge weights 1 − |n_i·n_j| plus how far the edge leaves the two
+    /// tangent planes, each child flipped to agree with its parent. Each connected part of the cloud is oriented on its own: outward when it
+    /// encloses volume (its net flux Σ a_i n_i·(p_i − centroid) is clearly positive for outward
+    /// normals), else so that its point of largest x has a normal with non-negative x. The
+    /// default. Open3D `orient_normals_consistent_tangent_plane`, PCL has none.
+    ///
+    /// Known limit: where two sheets of the surface are closer than the neighbourhood (thin
+    /// plates, touching parts) the graph joins them and one side may be flipped; use a
+    /// viewpoint or sensors there, or fewer neighbours.
+    Propagate,
+    /// Every normal faces this point (n·(viewpoint − p) ≥ 0), as for a single scan. Open3D
+    /// `orient_normals_towards_camera_location`, PCL `setViewPoint`.
+    Viewpoint([f64; 3]),
+    /// Every normal faces its own point's sensor: one position per input point (e.g. the scanner
+    /// origin of each scan). Length must equal the number of points.
+    Sensors(Vec<[f32; 3]>),
+}
+
+/// Options of [`estimate_normals`] and [`orient_normals`]. `NormalEstimation::default()` works;
+/// set fields directly or with the `with_*` builders:
+///
+/// ```
+/// let options = psr::NormalEstimation::default()
+///     .with_neighbors(12)
+///     .with_orientation(psr::Orientation::Viewpoint([0.0, 0.0, 10.0]));
+/// assert_eq!(options.neighbors, 12);
+/// ```
+///
+/// New fields may be added in any release (the struct is `#[non_exhaustive]`), so build it
+/// from `NormalEstimation::default()`.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct NormalEstimation {
+    /// Neighbours per point (besides the point itself) for the plane fit and the orientation
+    /// graph. Default 20, range 1..=1000 (at least 3 for the fit to define a plane; 10–30 is
+    /// usual). More smooths noise and bridges uneven sampling, fewer keeps sharp edges and thin
+    /// parts apart. Open3D `KDTreeSearchParamKNN(knn)` (its k counts the point itself),
+    /// PCL `setKSearch`, PoissonRecon's `--nearest` in its normal tools.
+    pub neighbors: usize,
+    /// How signs are chosen. Default [`Orientation::Propagate`].
+    pub orientation: Orientation,
+    /// Worker threads; 0 = all cores. Default 0. The normals do not depend on it.
+    pub threads: usize,
+}
+
+impl Default for NormalEstimation {
+    fn default() -> Self {
+        NormalEstimation {
+            neighbors: 20,
+            orientation: Orientation::Propagate,
+            threads: 0,
+        }
+    }
+}
+
+impl NormalEstimation {
+    /// These options with [`NormalEstimation::neighbors`] set to `neighbors`.
+    pub fn with_neighbors(mut self, neighbors: usize) -> Self {
+        self.neighbors = neighbors;
+        self
+    }
+
+    /// These options with [`NormalEstimation::orientation`] set to `orientation`.
+    pub fn with_orientation(mut self, orientation: Orientation) -> Self {
+        self.orientation = orientation;
+        self
+    }
+
+    /// These options with [`NormalEstimation::threads`] set to `threads`.
+    pub fn with_threads(mut self, threads: usize) -> Self {
+        self.threads = threads;
+        self
+    }
+
+    /// Checks every field against its documented range.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=1000).contains(&self.neighbors) {
+            return Err(Error::InvalidParameter {
+                name: "neighbors",
+                value: self.neighbors.to_string(),
+                expected: "an integer in 1..=1000",
+            });
+        }
+        if self.threads > 4096 {
+            return Err(Error::InvalidParameter {
+                name: "threads",
+                value: self.threads.to_string(),
+                expected: "0 (all cores) or a count up to 4096",
+            });
+        }
+        if let Orientation::Viewpoint(v) = &self.orientation {
+            if !v.iter().all(|c| c.is_finite()) {
+                return Err(Error::InvalidParameter {
+                    name: "orientation",
+                    value: format!("Viewpoint({v:?})"),
+                    expected: "a viewpoint with finite coordinates",
+                });
+            }
+        }
+        if let Orientation::Sensors(sensors) = &self.orientation {
+            if let Some(index) = sensors
+                .iter()
+                .position(|s| !s.iter().all(|c| c.is_finite()))
+            {
+                return Err(Error::InvalidParameter {
+                    name: "orientation",
+                    value: format!("Sensors(..) with sensor {index} = {:?}", sensors[index]),
+                    expected: "sensor positions with finite coordinates",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Estimates an oriented unit normal for every point of an unoriented cloud (one per position,
+/// in the same order).
+///
+/// Errors: [`Error::InvalidParameter`] for options out of range, [`Error::EmptyInput`],
+/// [`Error::NonFinitePosition`] (the first bad index), [`Error::TooFewPoints`] when there are
+/// not more points than `neighbors`, [`Error::DegenerateInput`] when all points coincide,
+/// [`Error::NoPlaneDefined`] when no neighbourhood spans a plane (e.g. all points on a line),
+/// [`Error::LengthMismatch`] when [`Orientation::Sensors`] has the wrong length,
+/// [`Error::ThreadsUnavailable`].
+///
+/// Duplicates and locally collinear points never give NaN: a neighbourhood that spans no plane
+/// takes the normal of its nearest neighbour that has one (see `estimate.rs`); a part of the
+/// cloud where no neighbourhood spans a plane keeps a deterministic unit vector perpendicular
+/// to nothing in particular.
+pub fn estimate_normals(
+    positions: &[[f32; 3]],
+    options: &NormalEstimation,
+) -> Result<Vec<[f32; 3]>> {
+    let positions = checked_positions(positions, options)?;
+    let workers = Workers::start(options.threads)?;
+    workers.pool().install(|| {
+        let neighbors = neighbors::k_nearest(&positions, options.neighbors);
+        let mut fits = estimate::fit_planes(&positions, &neighbors);
+        if fits.iter().all(|f| !f.defined) {
+            return Err(Error::NoPlaneDefined {
+                points: positions.len(),
+            });
+        }
+        estimate::fill_undefined(&positions, &mut fits, &neighbors);
+        let mut normals: Vec<DVec3> = fits.into_iter().map(|f| f.normal).collect();
+        orient(
+            &positions,
+            &mut normals,
+            Some(&neighbors),
+            &options.orientation,
+        )?;
+        Ok(to_f32(&normals))
+    })
+}
+
+/// Re-orients normals whose directions are right but whose signs are unreliable: keeps each
+/// line, chooses each sign by `options.orientation` ([`Orientation::Propagate`] makes the signs
+/// consistent and outward). Returns unit normals.
+///
+/// Errors: those of [`estimate_normals`] (but not [`Error::NoPlaneDefined`]), and
+/// [`Error::LengthMismatch`], [`Error::NonFiniteNormal`], [`Error::ZeroNormal`] for the
+/// normals.
+pub fn orient_normals(
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    options: &NormalEstimation,
+) -> Result<Vec<[f32; 3]>> {
+    if normals.len() != positions.len() {
+        return Err(Error::LengthMismatch {
+            what: "normals",
+            positions: positions.len(),
+            other: normals.len(),
+        });
+    }
+    let positions = checked_positions(positions, options)?;
+    let mut unit = Vec::with_capacity(normals.len());
+    for (index, n) in normals.iter().enumerate() {
+        let n = to_f64(*n);
+        if !n.is_finite() {
+            return Err(Error::NonFiniteNormal { index });
+        }
+        let length = n.length();
+        if length < f32::MIN_POSITIVE as f64 {
+            return Err(Error::ZeroNormal { index });
+        }
+        unit.push(n / length);
+    }
+    let workers = Workers::start(options.threads)?;
+    workers.pool().install(|| {
+        let neighbors = matches!(options.orientation, Orientation::Propagate)
+            .then(|| neighbors::k_nearest(&positions, options.neighbors));
+        orient(
+            &positions,
+            &mut unit,
+            neighbors.as_ref(),
+            &options.orientation,
+        )?;
+        Ok(to_f32(&unit))
+    })
+}
+
+/// Validates the options and the positions, and returns the positions in f64.
+fn checked_positions(positions: &[[f32; 3]], options: &NormalEstimation) -> Result<Vec<DVec3>> {
+    options.validate()?;
+    if positions.is_empty() {
+        return Err(Error::EmptyInput);
+    }
+    if let Some(index) = positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(Error::NonFinitePosition { index });
+    }
+    if let Orientation::Sensors(sensors) = &options.orientation {
+        if sensors.len() != positions.len() {
+            return Err(Error::LengthMismatch {
+                what: "sensors",
+                positions: positions.len(),
+                other: sensors.len(),
+            });
+        }
+    }
+    if positions.len() <= options.neighbors {
+        return Err(Error::TooFewPoints {
+            points: positions.len(),
+            neighbors: options.neighbors,
+        });
+    }
+    if positions.len() > u32::MAX as usize {
+        return Err(Error::InvalidParameter {
+            name: "positions",
+            value: positions.len().to_string(),
+            expected: "at most 2^32 - 1 points",
+        });
+    }
+    if positions.iter().all(|p| *p == positions[0]) {
+        return Err(Error::DegenerateInput {
+            points: positions.len(),
+        });
+    }
+    Ok(positions.iter().map(|&p| to_f64(p)).collect())
+}
+
+/// Chooses the signs of `normals` by `orientation` (`neighbors` is needed for propagation).
+fn orient(
+    positions: &[DVec3],
+    normals: &mut [DVec3],
+    neighbors: Option<&neighbors::Neighbors>,
+    orientation: &Orientation,
+) -> Result<()> {
+    match orientation {
+        Orientation::Propagate => match neighbors {
+            Some(neighbors) => orient::propagate(positions, normals, neighbors),
+            None => Err(Error::Internal(
+                "propagation without the neighbour graph".into(),
+            )),
+        },
+        Orientation::Viewpoint(v) => {
+            orient::towards_viewpoint(positions, normals, DVec3::from_array(*v));
+            Ok(())
+        }
+        Orientation::Sensors(sensors) => {
+            orient::towards_sensors(positions, normals, sensors);
+            Ok(())
+        }
+    }
+}
+
+fn to_f64(p: [f32; 3]) -> DVec3 {
+    DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+}
+
+fn to_f32(normals: &[DVec3]) -> Vec<[f32; 3]> {
+    normals
+        .iter()
+        .map(|n| {
+            let n = n.normalize();
+            [n.x as f32, n.y as f32, n.z as f32]
+        })
+        .collect()
+}
