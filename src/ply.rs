@@ -2,6 +2,8 @@
 //!
 //! * [`read_point_cloud`] reads oriented points: the `vertex` element's `x y z nx ny nz`
 //!   (any PLY scalar type), plus `red green blue` and `confidence` (or `value`) when present.
+//! * [`read_points`] reads the same, with normals when the file has them and none otherwise
+//!   (for clouds whose normals psr estimates).
 //! * [`read_mesh`] reads a triangle mesh: `vertex` `x y z` and the `face` element's
 //!   `vertex_indices` (or `vertex_index`) lists, with polygons split into fans of triangles.
 //! * [`write_mesh`] writes a [`Mesh`] as binary little-endian PLY, with the per-vertex density as
@@ -988,17 +990,42 @@ fn open(path: &Path) -> Result<(BufReader<File>, Option<u64>), PlyError> {
 /// Reads oriented points from a PLY file (see [`read_point_cloud_from`]).
 pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
     let (reader, len) = open(path)?;
-    read_points(reader, len).map_err(|e| PlyError::new(e).with_path(path))
+    read_vertex_points(reader, len, Normals::Required).map_err(|e| PlyError::new(e).with_path(path))
 }
 
 /// Reads oriented points from PLY data: the `vertex` element's `x y z nx ny nz`, and
 /// `red green blue` and `confidence` (or `value`) when present. Other properties and elements
 /// are skipped. The normals `normal_x normal_y normal_z` are accepted in place of `nx ny nz`.
 pub fn read_point_cloud_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
-    read_points(reader, None).map_err(PlyError::new)
+    read_vertex_points(reader, None, Normals::Required).map_err(PlyError::new)
 }
 
-fn read_points<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<PlyPoints, PlyErrorKind> {
+/// Reads points that may lack normals (see [`read_points_from`]).
+pub fn read_points(path: &Path) -> Result<PlyPoints, PlyError> {
+    let (reader, len) = open(path)?;
+    read_vertex_points(reader, len, Normals::IfPresent)
+        .map_err(|e| PlyError::new(e).with_path(path))
+}
+
+/// [`read_point_cloud_from`] for clouds that may have no normals (a scanner's or
+/// photogrammetry's `x y z` export): `normals` is empty when the vertex element has no
+/// `nx ny nz`, for [`crate::estimate_normals`] to fill.
+pub fn read_points_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
+    read_vertex_points(reader, None, Normals::IfPresent).map_err(PlyError::new)
+}
+
+/// Whether a point cloud must have normals.
+#[derive(Clone, Copy, PartialEq)]
+enum Normals {
+    Required,
+    IfPresent,
+}
+
+fn read_vertex_points<R: BufRead>(
+    mut r: R,
+    file_len: Option<u64>,
+    normals: Normals,
+) -> Result<PlyPoints, PlyErrorKind> {
     let header = parse_header(&mut r)?;
     let Some(vi) = header.element("vertex") else {
         return Err(PlyErrorKind::MissingElement {
@@ -1020,11 +1047,12 @@ fn read_points<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<PlyPoints,
             present: vertex.prop_names(),
         });
     };
-    let Some(nrm) = find3([["nx", "normal_x"], ["ny", "normal_y"], ["nz", "normal_z"]]) else {
+    let nrm = find3([["nx", "normal_x"], ["ny", "normal_y"], ["nz", "normal_z"]]);
+    if nrm.is_none() && normals == Normals::Required {
         return Err(PlyErrorKind::MissingNormals {
             present: vertex.prop_names(),
         });
-    };
+    }
     let rgb = find3([
         ["red", "diffuse_red"],
         ["green", "diffuse_green"],
@@ -1033,7 +1061,7 @@ fn read_points<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<PlyPoints,
     let conf = vertex.find(&["confidence", "value"]);
 
     let mut plan = Plan::skip(vertex);
-    for (slot, &p) in pos.iter().chain(&nrm).enumerate() {
+    for (slot, &p) in pos.iter().chain(nrm.iter().flatten()).enumerate() {
         plan.slots[p] = Some(slot);
     }
     let mut float_colors = false;
@@ -1068,7 +1096,7 @@ fn read_points<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<PlyPoints,
     let cap = capacity(vertex.count, size_checked);
     let mut out = PlyPoints {
         positions: Vec::with_capacity(cap),
-        normals: Vec::with_capacity(cap),
+        normals: Vec::with_capacity(if nrm.is_some() { cap } else { 0 }),
         colors: rgb.map(|_| Vec::with_capacity(cap)),
         confidence: conf.map(|_| Vec::with_capacity(cap)),
     };
@@ -1082,7 +1110,9 @@ fn read_points<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<PlyPoints,
     };
     body.read_element(vertex, &plan, |_, v, _| {
         out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
-        out.normals.push([v[3] as f32, v[4] as f32, v[5] as f32]);
+        if nrm.is_some() {
+            out.normals.push([v[3] as f32, v[4] as f32, v[5] as f32]);
+        }
         if let Some(c) = &mut out.colors {
             c.push([color(v[6]), color(v[7]), color(v[8])]);
         }
@@ -1440,6 +1470,25 @@ mod tests {
     /// A file name in the temporary directory, unique to this process and test.
     fn temp_path(name: &str) -> PathBuf {
         std::env::temp_dir().join(format!("psr-ply-test-{}-{name}", std::process::id()))
+    }
+
+    /// Proves: read_points reads a cloud with no normals (empty normals), and reads the
+    /// normals when they are there; read_point_cloud still refuses the first.
+    #[test]
+    fn points_without_normals_read_with_read_points_only() {
+        let bare = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                    property float z\nend_header\n1 2 3\n4 5 6\n";
+        let points = read_points_from(bare.as_bytes()).unwrap();
+        assert_eq!(points.positions, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert!(points.normals.is_empty());
+        let err = read_point_cloud_from(bare.as_bytes()).unwrap_err();
+        assert!(matches!(err.kind(), PlyErrorKind::MissingNormals { .. }));
+        let oriented =
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                        property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+                        end_header\n1 2 3 0 0 1\n";
+        let points = read_points_from(oriented.as_bytes()).unwrap();
+        assert_eq!(points.normals, vec![[0.0, 0.0, 1.0]]);
     }
 
     #[test]

@@ -1,9 +1,12 @@
-//! `psr`: reconstructs a watertight triangle mesh from an oriented point cloud.
+//! `psr`: reconstructs a watertight triangle mesh from a point cloud, oriented or not.
 //!
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
-//!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear] [--vertices fitted|on-isosurface] [--confidence] [--no-density] [--quiet] [--verbose]
+//!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
+//!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
+//!     [--orientation propagate|viewpoint] [--viewpoint X,Y,Z] [--confidence] [--no-density]
+//!     [--quiet] [--verbose]
 //! ```
 //!
 //! Both file names must end in `.ply` (any case): psr reads PLY point clouds and writes binary
@@ -21,10 +24,14 @@ use std::time::Instant;
 
 use clap::builder::{OsStringValueParser, TypedValueParser};
 use clap::Parser;
-use psr::{ply, Boundary, Mesh, Params, PointSet, Splatting, Stage, VertexPlacement};
+use psr::{
+    ply, Boundary, Mesh, NormalEstimation, Orientation, Params, PointSet, Splatting, Stage,
+    VertexPlacement,
+};
 
-/// Poisson surface reconstruction: turns an oriented point cloud (PLY with x y z nx ny nz)
-/// into a watertight triangle mesh (binary PLY).
+/// Poisson surface reconstruction: turns a point cloud (PLY with x y z, and nx ny nz when it has
+/// normals; psr estimates and orients them when it has not) into a watertight triangle mesh
+/// (binary PLY).
 ///
 /// Each option's help ends with its equivalent in Kazhdan's PoissonRecon 18.75, or says that
 /// there is none.
@@ -38,7 +45,8 @@ use psr::{ply, Boundary, Mesh, Params, PointSet, Splatting, Stage, VertexPlaceme
                   --ascii (psr writes binary PLY only)."
 )]
 struct Args {
-    /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z nx ny nz; the
+    /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z (and nx ny nz, or
+    /// see --normals); the
     /// name must end in .ply. PoissonRecon: --in (which also reads .bnpts).
     #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_input))]
     input: PathBuf,
@@ -111,6 +119,30 @@ struct Args {
     #[arg(long, value_enum, default_value_t = VerticesArg::Fitted)]
     vertices: VerticesArg,
 
+    /// Where the normals come from: auto (the file's when it has nx ny nz, else estimated),
+    /// estimate (estimated from the positions even when the file has normals), or reorient (the
+    /// file's directions, their signs chosen again consistently, for normals whose sign is
+    /// unreliable). PoissonRecon: none (it needs oriented points).
+    #[arg(long, value_enum, default_value_t = NormalsArg::Auto)]
+    normals: NormalsArg,
+
+    /// Neighbours per point for estimating and orienting normals (1..=1000; 10-30 is usual).
+    /// PoissonRecon: none (Open3D's KDTreeSearchParamKNN counts the point itself).
+    #[arg(long, value_name = "K", default_value_t = NormalEstimation::default().neighbors)]
+    neighbors: usize,
+
+    /// How estimated normals get their signs: propagate (consistent over each connected part,
+    /// outward where a part encloses volume) or viewpoint (facing --viewpoint, as for a single
+    /// scan). PoissonRecon: none (Open3D's orient_normals_consistent_tangent_plane /
+    /// orient_normals_towards_camera_location).
+    #[arg(long, value_enum, default_value_t = OrientationArg::Propagate)]
+    orientation: OrientationArg,
+
+    /// The scanner's position X,Y,Z for --orientation viewpoint (input coordinates); giving it
+    /// alone selects that orientation. PoissonRecon: none.
+    #[arg(long, value_name = "X,Y,Z", value_parser = point3)]
+    viewpoint: Option<[f64; 3]>,
+
     /// Weigh each point by the input's `confidence` (or `value`) property. PoissonRecon:
     /// --confidence (which takes each point's weight from its normal's length instead).
     #[arg(long)]
@@ -129,6 +161,18 @@ struct Args {
     /// each stage. PoissonRecon: --verbose.
     #[arg(long, short)]
     verbose: bool,
+}
+
+/// A point given as `X,Y,Z` (three finite numbers).
+fn point3(text: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
+        .collect::<Result<_, _>>()?;
+    match parts[..] {
+        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("expected three finite numbers X,Y,Z, got '{text}'")),
+    }
 }
 
 /// The value of `--in`: a file psr can read, which is PLY (the name says so).
@@ -182,6 +226,19 @@ impl Args {
                 VerticesArg::OnIsosurface => VertexPlacement::OnIsosurface,
             })
     }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, clap::ValueEnum)]
+enum NormalsArg {
+    Auto,
+    Estimate,
+    Reorient,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, clap::ValueEnum)]
+enum OrientationArg {
+    Propagate,
+    Viewpoint,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -242,6 +299,44 @@ fn keep_large_blocks_out_of_the_heap() {
     }
 }
 
+/// Fills or re-orients `cloud`'s normals as `--normals` asks, and says where they came from.
+fn oriented_normals(args: &Args, cloud: &mut ply::PlyPoints) -> Result<&'static str, Failure> {
+    let orientation = match (&args.viewpoint, args.orientation) {
+        (Some(v), _) => Orientation::Viewpoint(*v),
+        (None, OrientationArg::Viewpoint) => {
+            return Err(Failure::Usage(
+                "--orientation viewpoint needs --viewpoint X,Y,Z".to_string(),
+            ))
+        }
+        (None, OrientationArg::Propagate) => Orientation::Propagate,
+    };
+    let options = NormalEstimation::default()
+        .with_neighbors(args.neighbors)
+        .with_orientation(orientation)
+        .with_threads(args.threads);
+    let failed = |e: psr::Error| match e {
+        psr::Error::InvalidParameter { .. } => Failure::Usage(format!("{e} (option --neighbors)")),
+        _ => Failure::Run(format!("{}: normals: {e}", args.input.display())),
+    };
+    let has_normals = !cloud.normals.is_empty();
+    match args.normals {
+        NormalsArg::Auto if has_normals => Ok("normals from the file"),
+        NormalsArg::Auto | NormalsArg::Estimate => {
+            cloud.normals = psr::estimate_normals(&cloud.positions, &options).map_err(failed)?;
+            Ok("normals estimated")
+        }
+        NormalsArg::Reorient if has_normals => {
+            cloud.normals =
+                psr::orient_normals(&cloud.positions, &cloud.normals, &options).map_err(failed)?;
+            Ok("normals re-oriented")
+        }
+        NormalsArg::Reorient => Err(Failure::Usage(format!(
+            "--normals reorient needs normals, and {} has no nx ny nz (use --normals estimate)",
+            args.input.display()
+        ))),
+    }
+}
+
 fn run(args: &Args) -> Result<(), Failure> {
     let params = args.params();
     params.validate().map_err(|e| match &e {
@@ -253,7 +348,8 @@ fn run(args: &Args) -> Result<(), Failure> {
     check_output_dir(&args.output)?;
 
     let start = Instant::now();
-    let cloud = ply::read_point_cloud(&args.input).map_err(|e| Failure::Run(e.to_string()))?;
+    let mut cloud = ply::read_points(&args.input).map_err(|e| Failure::Run(e.to_string()))?;
+    let normals_from = oriented_normals(args, &mut cloud)?;
     let weights = if args.confidence {
         match &cloud.confidence {
             Some(c) => Some(c.as_slice()),
@@ -275,7 +371,7 @@ fn run(args: &Args) -> Result<(), Failure> {
     let read_seconds = start.elapsed().as_secs_f64();
     if args.verbose {
         eprintln!(
-            "psr: read {} points from {} in {read_seconds:.2}s{}",
+            "psr: read {} points from {} ({normals_from}) in {read_seconds:.2}s{}",
             points.len(),
             args.input.display(),
             if points.weights().is_some() {
