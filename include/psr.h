@@ -251,6 +251,23 @@ typedef enum {
 } psr_vertex_placement;
 
 /**
+ * How the normals psr estimates get their signs (psr_reconstructor_set_normal_orientation).
+ */
+typedef enum {
+    /**
+     * Consistent over each connected part of the cloud by propagation along a minimum spanning
+     * tree (Hoppe et al. 1992), outward where a part encloses volume. The default. Open3D
+     * orient_normals_consistent_tangent_plane.
+     */
+    PSR_ORIENTATION_PROPAGATE = 0,
+    /**
+     * Facing the point set with psr_reconstructor_set_viewpoint (a single scan's scanner).
+     * Open3D orient_normals_towards_camera_location, PCL setViewPoint.
+     */
+    PSR_ORIENTATION_VIEWPOINT = 1,
+} psr_orientation;
+
+/**
  * A reconstructed triangle mesh. Created by psr_reconstructor_solve, destroyed by
  * psr_mesh_free; independent of the reconstructor that made it. Opaque to C.
  */
@@ -639,7 +656,7 @@ psr_status psr_reconstructor_get_vertex_placement(const psr_reconstructor *r, in
 psr_status psr_reconstructor_add_points(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, const float *normals, size_t normal_stride_bytes, size_t count);
 
 /**
- * Writes the number of points r holds to *out. r and out must not be NULL. Returns
+ * Writes the number of points r holds to *out (with and without normals). r and out must not be NULL. Returns
  * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED,
  * PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback) or PSR_STATUS_INTERNAL_ERROR;
  * *out is written only on success.
@@ -650,7 +667,7 @@ psr_status psr_reconstructor_add_points(psr_reconstructor *r, const float *posit
 psr_status psr_reconstructor_point_count(const psr_reconstructor *r, size_t *out);
 
 /**
- * Removes every point from r (parameters and callback stay), so the handle can be reused for
+ * Removes every point from r, with and without normals (parameters and callback stay), so the handle can be reused for
  * another cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
  * PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
  * or PSR_STATUS_INTERNAL_ERROR.
@@ -683,9 +700,12 @@ psr_status psr_reconstructor_set_progress_callback(psr_reconstructor *r, psr_pro
  * r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
  * PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
  * PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
- * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, or all points coincide)
- * or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
- * left untouched.
+ * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, or
+ * the points added with psr_reconstructor_add_positions cannot be given normals: fewer of them
+ * than the neighbour count + 1, or all on a line), PSR_STATUS_THREADS_UNAVAILABLE or
+ * PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
+ * left untouched. Points added without normals get them (estimated and oriented, see
+ * psr_reconstructor_add_positions) before the reconstruction starts.
  *
  * # Safety
  * `r` is NULL or a live handle; `out` is NULL or valid for writing one pointer.
@@ -810,6 +830,89 @@ psr_status psr_mesh_copy_densities(const psr_mesh *m, float *dst, size_t capacit
  * `m` is NULL or a live mesh from psr_reconstructor_solve, not used again afterwards.
  */
 void psr_mesh_free(psr_mesh *m);
+
+/**
+ * Appends `count` points without normals to r: position i is the 3 floats at
+ * `(const char *)positions + i * position_stride_bytes` (0 = packed). psr_reconstructor_solve
+ * estimates their normals from these positions (a plane through each point and its nearest
+ * neighbours, see psr_reconstructor_set_normal_neighbors), orients them (see
+ * psr_reconstructor_set_normal_orientation) and reconstructs them together with the points added
+ * with normals. Use it for a scanner's or photogrammetry's x y z export; add all of one cloud's
+ * unoriented points before solving, since the neighbourhoods are found among them.
+ *
+ * The positions are copied; the batch is checked whole first (a NaN or infinite coordinate
+ * appends nothing and the message names its index in this batch). psr_reconstructor_point_count
+ * counts these points too and psr_reconstructor_clear_points removes them. Normal estimation
+ * reports no progress of its own (it takes about 2 s per million points per core).
+ *
+ * r must not be NULL; positions may be NULL only when count is 0. Returns PSR_STATUS_OK,
+ * PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a stride below 12, or count * stride
+ * overflowing), PSR_STATUS_NON_FINITE_POSITION, PSR_STATUS_HANDLE_POISONED or
+ * PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `positions` is NULL or valid for reads of the strided span
+ * described above.
+ */
+psr_status psr_reconstructor_add_positions(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, size_t count);
+
+/**
+ * Sets how many nearest neighbours (besides the point itself) fit each estimated normal's plane
+ * and link the points for orientation. Default 20, range 1 to 1000 (10 to 30 is usual; at
+ * least 3 for a plane): more smooths noise and bridges uneven sampling, fewer keeps sharp edges
+ * and thin parts apart. Open3D KDTreeSearchParamKNN (which counts the point itself), PCL
+ * setKSearch.
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_normal_neighbors(psr_reconstructor *r, uint32_t neighbors);
+
+/**
+ * Writes the neighbour count of normal estimation to *out. r and out must not be NULL. Returns
+ * the statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_normal_neighbors(const psr_reconstructor *r, uint32_t *out);
+
+/**
+ * Sets how estimated normals get their signs: PSR_ORIENTATION_PROPAGATE (0, the default) or
+ * PSR_ORIENTATION_VIEWPOINT (1, facing the point given to psr_reconstructor_set_viewpoint,
+ * which must be called first).
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+ * (PSR_STATUS_INVALID_PARAMETER for any other value, or for VIEWPOINT before a viewpoint).
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_normal_orientation(psr_reconstructor *r, int32_t orientation);
+
+/**
+ * Writes the orientation of estimated normals (a psr_orientation value) to *out. r and out must
+ * not be NULL. Returns the statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_normal_orientation(const psr_reconstructor *r, int32_t *out);
+
+/**
+ * Sets the viewpoint (x, y, z, in the points' coordinates, e.g. the scanner's position) that
+ * estimated normals face, and selects PSR_ORIENTATION_VIEWPOINT. The coordinates must be
+ * finite. Open3D orient_normals_towards_camera_location, PCL setViewPoint.
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+ * (PSR_STATUS_INVALID_PARAMETER for a NaN or infinite coordinate).
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_viewpoint(psr_reconstructor *r, double x, double y, double z);
 
 #ifdef __cplusplus
 }  // extern "C"

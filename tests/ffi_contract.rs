@@ -1305,3 +1305,163 @@ fn boundary_splatting_and_vertex_placement_choices_round_trip_and_reject_unknown
         psr_reconstructor_free(r);
     }
 }
+
+/// Six times the signed volume of a mesh handle's triangles: positive when they face outward.
+fn signed_volume6(m: *const psr_mesh) -> f64 {
+    unsafe {
+        let (nv, nt) = (psr_mesh_vertex_count(m), psr_mesh_triangle_count(m));
+        let v = std::slice::from_raw_parts(psr_mesh_positions(m), 3 * nv);
+        let t = std::slice::from_raw_parts(psr_mesh_triangles(m), 3 * nt);
+        t.chunks_exact(3)
+            .map(|tri| {
+                let p = |k: usize| {
+                    let i = tri[k] as usize;
+                    [v[3 * i] as f64, v[3 * i + 1] as f64, v[3 * i + 2] as f64]
+                };
+                let (a, b, c) = (p(0), p(1), p(2));
+                a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                    + a[2] * (b[0] * c[1] - b[1] * c[0])
+            })
+            .sum()
+    }
+}
+
+/// Proves: points added without normals are counted, cleared, checked like other points, and
+/// reconstructed with estimated normals into an outward-facing closed mesh; too few of them for
+/// the neighbour count is a clear error at solve.
+#[test]
+fn points_without_normals_are_estimated_at_solve() {
+    let r = new_handle();
+    let (p, _) = sphere(3000, [0.1, -0.2, 0.3], 1.0);
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_add_positions(r, ptr::null(), 0, 3),
+            psr_status::NullArgument
+        );
+        let mut bad = p[..9].to_vec();
+        bad[4] = f32::NAN;
+        assert_eq!(
+            psr_reconstructor_add_positions(r, bad.as_ptr(), 0, 3),
+            psr_status::NonFinitePosition
+        );
+        assert!(last_error(r).contains("1"), "{}", last_error(r));
+        assert_eq!(point_count(r), 0);
+        assert_eq!(
+            psr_reconstructor_add_positions(r, p.as_ptr(), 0, 10),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 10);
+        assert_eq!(
+            psr_reconstructor_set_normal_neighbors(r, 20),
+            psr_status::Ok
+        );
+        let mut mesh = ptr::null_mut();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::InvalidArgument
+        );
+        assert!(mesh.is_null());
+        assert!(last_error(r).contains("neighbo"), "{}", last_error(r));
+        assert_eq!(psr_reconstructor_clear_points(r), psr_status::Ok);
+        assert_eq!(point_count(r), 0);
+        assert_eq!(
+            psr_reconstructor_add_positions(r, p.as_ptr(), 0, 3000),
+            psr_status::Ok
+        );
+        assert_eq!(psr_reconstructor_set_depth(r, 6), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::Ok,
+            "{}",
+            last_error(r)
+        );
+        // A unit sphere: 6 × its volume is 8π; the mesh lies just inside the samples.
+        let volume6 = signed_volume6(mesh);
+        assert!(
+            (volume6 / (8.0 * std::f64::consts::PI) - 1.0).abs() < 0.05,
+            "6 × volume {volume6}: inside-out or wrong"
+        );
+        psr_mesh_free(mesh);
+        psr_reconstructor_free(r);
+    }
+}
+
+/// Proves: the estimation's settings have their documented defaults, keep their value when a
+/// value is refused, and a viewpoint selects the viewpoint orientation.
+#[test]
+fn normal_estimation_settings_round_trip_and_refuse_bad_values() {
+    let r = new_handle();
+    unsafe {
+        let (mut k, mut o) = (0u32, -1i32);
+        assert_eq!(
+            psr_reconstructor_get_normal_neighbors(r, &mut k),
+            psr_status::Ok
+        );
+        assert_eq!(k, psr::NormalEstimation::default().neighbors as u32);
+        assert_eq!(
+            psr_reconstructor_get_normal_orientation(r, &mut o),
+            psr_status::Ok
+        );
+        assert_eq!(o, psr_orientation::Propagate as i32);
+        for bad in [0, 1001] {
+            assert_eq!(
+                psr_reconstructor_set_normal_neighbors(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(last_error(r).contains("neighbors"), "{}", last_error(r));
+        }
+        assert_eq!(
+            psr_reconstructor_set_normal_neighbors(r, 12),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_normal_neighbors(r, &mut k),
+            psr_status::Ok
+        );
+        assert_eq!(k, 12);
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, 1),
+            psr_status::InvalidParameter,
+            "viewpoint orientation before any viewpoint"
+        );
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, 7),
+            psr_status::InvalidParameter
+        );
+        assert_eq!(
+            psr_reconstructor_set_viewpoint(r, 0.0, f64::NAN, 1.0),
+            psr_status::InvalidParameter
+        );
+        assert_eq!(
+            psr_reconstructor_set_viewpoint(r, 0.0, 0.0, 10.0),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_normal_orientation(r, &mut o),
+            psr_status::Ok
+        );
+        assert_eq!(o, psr_orientation::Viewpoint as i32);
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, 0),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, 1),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_normal_orientation(r, &mut o),
+            psr_status::Ok
+        );
+        assert_eq!(o, psr_orientation::Viewpoint as i32);
+        assert_eq!(
+            psr_reconstructor_set_normal_neighbors(ptr::null_mut(), 5),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_normal_orientation(r, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        psr_reconstructor_free(r);
+    }
+}

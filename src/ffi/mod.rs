@@ -36,6 +36,8 @@
 //! - `solve.rs`: psr_reconstructor_set_progress_callback, psr_reconstructor_solve and the
 //!   panic test hooks.
 //! - `mesh.rs`: the `psr_mesh` handle: counts, borrowed views, copy-outs, psr_mesh_free.
+//! - `normals.rs`: psr_reconstructor_add_positions (points without normals, estimated at solve)
+//!   and the estimation's settings; `psr_orientation`.
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -60,11 +62,18 @@ mod points;
 mod solve;
 // psr_mesh_*.
 mod mesh;
+// Points without normals and the estimation of their normals.
+mod normals;
 
 pub use self::mesh::{
     psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_triangles,
     psr_mesh_densities, psr_mesh_free, psr_mesh_isovalue, psr_mesh_positions,
     psr_mesh_triangle_count, psr_mesh_triangles, psr_mesh_vertex_count,
+};
+pub use self::normals::{
+    psr_orientation, psr_reconstructor_add_positions, psr_reconstructor_get_normal_neighbors,
+    psr_reconstructor_get_normal_orientation, psr_reconstructor_set_normal_neighbors,
+    psr_reconstructor_set_normal_orientation, psr_reconstructor_set_viewpoint,
 };
 pub use self::params::{
     psr_boundary, psr_reconstructor_get_boundary, psr_reconstructor_get_depth,

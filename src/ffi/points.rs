@@ -14,7 +14,7 @@ const VEC3_BYTES: usize = 3 * std::mem::size_of::<f32>();
 /// `base`, `stride` and `count` have passed [`check_array`] (so `base` is not NULL and the span
 /// fits in `isize`), and `base` is valid for reads of that whole span: `count` vectors of 12
 /// bytes, `stride` bytes apart.
-unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) -> Vec<[f32; 3]> {
+pub(super) unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) -> Vec<[f32; 3]> {
     let stride = if stride == 0 { VEC3_BYTES } else { stride };
     let bytes = base.cast::<u8>();
     (0..count)
@@ -28,7 +28,7 @@ unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) -> Vec<[f32
 }
 
 /// Checks one strided array argument; `stride` 0 means packed.
-fn check_array(
+pub(super) fn check_array(
     function: &str,
     name: &str,
     stride_name: &str,
@@ -139,7 +139,7 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
     unsafe { guard(F, r, body) }
 }
 
-/// Writes the number of points r holds to *out. r and out must not be NULL. Returns
+/// Writes the number of points r holds to *out (with and without normals). r and out must not be NULL. Returns
 /// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED,
 /// PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback) or PSR_STATUS_INTERNAL_ERROR;
 /// *out is written only on success.
@@ -156,15 +156,16 @@ pub unsafe extern "C" fn psr_reconstructor_point_count(
         // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
         // only when no other call on r is under way.
         let handle = unsafe { handle_ref(F, r) }?;
+        let count = handle.points.len() + handle.positions_without_normals.len();
         // SAFETY: `out` is NULL or valid for writes (this function's contract).
-        unsafe { write_out(F, "out", out, handle.points.len()) }
+        unsafe { write_out(F, "out", out, count) }
     };
     // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
     // it ends with the body.
     unsafe { guard(F, r, body) }
 }
 
-/// Removes every point from r (parameters and callback stay), so the handle can be reused for
+/// Removes every point from r, with and without normals (parameters and callback stay), so the handle can be reused for
 /// another cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
 /// PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
 /// or PSR_STATUS_INTERNAL_ERROR.
@@ -177,7 +178,9 @@ pub unsafe extern "C" fn psr_reconstructor_clear_points(r: *mut psr_reconstructo
     let body = || {
         // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
         // only when no other call on r is under way and holds no reference to r meanwhile.
-        unsafe { handle_mut(F, r) }?.points.clear();
+        let handle = unsafe { handle_mut(F, r) }?;
+        handle.points.clear();
+        handle.positions_without_normals = Vec::new();
         Ok(())
     };
     // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to

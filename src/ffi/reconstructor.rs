@@ -4,7 +4,7 @@
 use super::panic_boundary::{guard_no_handle, guard_value, require_out, write_out};
 use super::stage::psr_progress_fn;
 use super::status::psr_status;
-use crate::{Params, PointSet};
+use crate::{NormalEstimation, Params, PointSet};
 use std::cell::{Cell, RefCell};
 use std::ffi::{c_char, c_void, CString};
 use std::ptr;
@@ -23,6 +23,13 @@ unsafe impl Send for UserPointer {}
 pub struct psr_reconstructor {
     pub(super) params: Params,
     pub(super) points: PointSet,
+    /// Points added without normals (psr_reconstructor_add_positions); the solve estimates
+    /// their normals.
+    pub(super) positions_without_normals: Vec<[f32; 3]>,
+    /// How those normals are estimated and oriented.
+    pub(super) normal_estimation: NormalEstimation,
+    /// The last viewpoint set, for PSR_ORIENTATION_VIEWPOINT.
+    pub(super) viewpoint: Option<[f64; 3]>,
     pub(super) progress: psr_progress_fn,
     pub(super) user: UserPointer,
     /// The last failed call's message, returned by psr_reconstructor_last_error. Interior
@@ -43,6 +50,9 @@ impl psr_reconstructor {
         psr_reconstructor {
             params: Params::default(),
             points: PointSet::new(),
+            positions_without_normals: Vec::new(),
+            normal_estimation: NormalEstimation::default(),
+            viewpoint: None,
             progress: None,
             user: UserPointer(ptr::null_mut()),
             last_error: RefCell::new(None),

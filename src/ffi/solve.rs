@@ -47,9 +47,12 @@ pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
 /// r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
 /// PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
 /// PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
-/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, or all points coincide)
-/// or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
-/// left untouched.
+/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, or
+/// the points added with psr_reconstructor_add_positions cannot be given normals: fewer of them
+/// than the neighbour count + 1, or all on a line), PSR_STATUS_THREADS_UNAVAILABLE or
+/// PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
+/// left untouched. Points added without normals get them (estimated and oriented, see
+/// psr_reconstructor_add_positions) before the reconstruction starts.
 ///
 /// # Safety
 /// `r` is NULL or a live handle; `out` is NULL or valid for writing one pointer.
@@ -90,7 +93,27 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
             Some(f) => unsafe { f(user.0, stage.into(), fraction) },
             None => true,
         };
-        let result = crate::reconstruct_with_progress(&handle.points, &params, &mut progress);
+        let with_estimated_normals;
+        let points = if handle.positions_without_normals.is_empty() {
+            &handle.points
+        } else {
+            // The points added without normals get theirs here and join the others (a copy of
+            // the oriented points while the solve runs).
+            let options = handle
+                .normal_estimation
+                .clone()
+                .with_threads(params.threads);
+            let unoriented = &handle.positions_without_normals;
+            // (guard clears `busy` whichever way the body ends.)
+            let estimated = crate::estimate_normals(unoriented, &options)
+                .map_err(|e| Failure::from_error(F, e))?;
+            let mut all = handle.points.clone();
+            all.extend(unoriented, &estimated)
+                .map_err(|e| Failure::from_error(F, e))?;
+            with_estimated_normals = all;
+            &with_estimated_normals
+        };
+        let result = crate::reconstruct_with_progress(points, &params, &mut progress);
         handle.busy.set(false);
         let mesh = result.map_err(|e| Failure::from_error(F, e))?;
         let mesh = Box::into_raw(Box::new(psr_mesh { mesh }));

@@ -284,6 +284,56 @@ static void test_mesh(void) {
     psr_mesh_free(m);
 }
 
+/* Points without normals: counted, refused when bad, and reconstructed with estimated
+ * normals into a mesh whose triangles face outward (positive signed volume). */
+static void test_positions_without_normals(void) {
+    enum { N = 2000 };
+    float *positions = malloc(3 * N * sizeof(float)), *normals = malloc(3 * N * sizeof(float));
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL;
+    size_t count = 0, k, nt;
+    uint32_t neighbors = 0;
+    int32_t orientation = -1;
+    double volume6 = 0.0;
+
+    section("points without normals: add_positions, estimation settings, solve");
+    sphere(N, positions, normals);
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions(r, NULL, 0, 3), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_positions(r, positions, 4, 3), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_normal_neighbors(r, &neighbors), PSR_STATUS_OK);
+    CHECK(neighbors == 20);
+    CHECK_STATUS(psr_reconstructor_set_normal_neighbors(r, 0), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_reconstructor_set_normal_orientation(r, PSR_ORIENTATION_VIEWPOINT),
+                 PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_reconstructor_set_viewpoint(r, 0.0, 0.0, 50.0), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, &orientation), PSR_STATUS_OK);
+    CHECK(orientation == PSR_ORIENTATION_VIEWPOINT);
+    CHECK_STATUS(psr_reconstructor_set_normal_orientation(r, PSR_ORIENTATION_PROPAGATE),
+                 PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions(r, positions, 0, N), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == N);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    if (m != NULL) {
+        const float *v = psr_mesh_positions(m);
+        const uint32_t *t = psr_mesh_triangles(m);
+        nt = psr_mesh_triangle_count(m);
+        for (k = 0; k < nt; k++) {
+            const float *a = v + 3 * t[3 * k], *b = v + 3 * t[3 * k + 1], *c = v + 3 * t[3 * k + 2];
+            volume6 += (double)a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) -
+                       (double)a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
+                       (double)a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0]);
+        }
+        CHECK(volume6 > 0.0);
+    }
+    psr_mesh_free(m);
+    psr_reconstructor_free(r);
+    free(positions);
+    free(normals);
+}
+
 struct progress_state {
     int calls, stop_at, named;
 };
@@ -403,6 +453,7 @@ int main(void) {
     test_order_and_parameters();
     test_bad_batches();
     test_mesh();
+    test_positions_without_normals();
     test_cancel();
     test_panic();
     test_threads();
