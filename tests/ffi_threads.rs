@@ -3,19 +3,9 @@
 //! threads. In a test binary of its own, since other tests' solves would run workers meanwhile.
 
 use psr::ffi::*;
+#[cfg(target_os = "linux")]
+use psr_test_support::running_threads_named;
 use std::ptr;
-
-/// Names of this process's threads (Linux: /proc/self/task/*/comm).
-fn thread_names() -> Vec<String> {
-    let mut names = Vec::new();
-    for task in std::fs::read_dir("/proc/self/task").expect("/proc/self/task is readable") {
-        let comm = task.unwrap().path().join("comm");
-        if let Ok(name) = std::fs::read_to_string(comm) {
-            names.push(name.trim().to_string());
-        }
-    }
-    names
-}
 
 #[test]
 #[cfg(target_os = "linux")]
@@ -30,7 +20,7 @@ fn solve_returns_only_after_its_worker_threads_have_exited() {
         p.extend(d.map(|c| c as f32));
         nrm.extend(d.map(|c| c as f32));
     }
-    let before = thread_names().len();
+    let before = running_threads_named("").len();
     for threads in [2u32, 4] {
         unsafe {
             let mut r = ptr::null_mut();
@@ -43,12 +33,10 @@ fn solve_returns_only_after_its_worker_threads_have_exited() {
             );
             let mut m = ptr::null_mut();
             assert_eq!(psr_reconstructor_solve(r, &mut m), psr_status::Ok);
-            // Checked at once: no grace period.
-            let names = thread_names();
-            let workers: Vec<&String> = names
-                .iter()
-                .filter(|n| n.starts_with("psr-worker"))
-                .collect();
+            // Checked at once: no grace period (threads already in the kernel's exit path, after
+            // their join, are not counted: see running_threads_named).
+            let names = running_threads_named("");
+            let workers = running_threads_named("psr-worker");
             assert!(
                 workers.is_empty(),
                 "worker threads still alive after solve returned: {workers:?}"

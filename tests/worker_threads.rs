@@ -4,21 +4,8 @@
 //! reconstructions would run workers meanwhile.
 
 use psr::{reconstruct_with_progress, Params, PointSet, Stage};
-
-/// Names of this process's threads (Linux: /proc/self/task/*/comm).
 #[cfg(target_os = "linux")]
-fn worker_threads() -> Vec<String> {
-    let mut names = Vec::new();
-    for task in std::fs::read_dir("/proc/self/task").expect("/proc/self/task is readable") {
-        let comm = task.unwrap().path().join("comm");
-        if let Ok(name) = std::fs::read_to_string(comm) {
-            if name.starts_with("psr-worker") {
-                names.push(name.trim().to_string());
-            }
-        }
-    }
-    names
-}
+use psr_test_support::running_threads_named;
 
 #[test]
 #[cfg(target_os = "linux")]
@@ -45,7 +32,7 @@ fn a_panic_inside_a_reconstruction_still_joins_its_workers() {
         });
         assert!(outcome.is_err(), "the panic reaches the caller");
         // Checked at once: no grace period.
-        let left = worker_threads();
+        let left = running_threads_named("psr-worker");
         assert!(
             left.is_empty(),
             "workers alive after a panic in {stage:?}: {left:?}"

@@ -16,6 +16,7 @@
 //!   point–triangle distances), [`sample_mesh`], [`chamfer_to_surface`],
 //!   [`one_sided_mesh_distance`].
 //! * Small reference meshes ([`octahedron`], [`icosphere`], [`torus_mesh`]).
+//! * The process's running threads by name ([`running_threads_named`], Linux).
 //! * The shared data directory ([`data_dir`]) and the rule for tests that read it
 //!   ([`data_or_skip`]: skip visibly on a developer's machine without the data, fail on CI).
 //!   PLY files are read with the library's own reader, `psr::ply` (`read_point_cloud`,
@@ -34,6 +35,7 @@ mod distance;
 mod point;
 mod rng;
 mod shapes;
+mod threads;
 mod topology;
 
 pub use data::*;
@@ -41,4 +43,6 @@ pub use distance::*;
 pub use point::*;
 pub use rng::*;
 pub use shapes::*;
+#[cfg(target_os = "linux")]
+pub use threads::running_threads_named;
 pub use topology::*;
