@@ -307,6 +307,7 @@ fn conjugate_gradients(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::{cell_of, morton_nested};
 
     fn pool(threads: usize) -> rayon::ThreadPool {
         rayon::ThreadPoolBuilder::new()
@@ -321,12 +322,14 @@ mod tests {
         let tree = Octree::build(vec![Vec::new(); 5], 4, false);
         let level = &tree.levels[4];
         // Proxies in a band of cells, so the screening varies from node to node.
-        let positions: Vec<DVec3> = (0..4000)
+        let mut positions: Vec<DVec3> = (0..4000)
             .map(|i| {
                 let t = i as f64 / 4000.0;
                 DVec3::new(0.1 + 0.8 * t, 0.5 + 0.3 * (17.0 * t).sin(), 0.4)
             })
             .collect();
+        // In Morton order, as the pipeline's samples are (Proxies::build relies on it).
+        positions.sort_by_key(|&p| morton_nested(cell_of(p, 1024.0).map(|v| v as u32)));
         let weights = vec![1e-3; positions.len()];
         let proxies = Proxies::build(level, &positions, &weights, 4);
         assert!(!proxies.is_empty());
