@@ -656,7 +656,8 @@ psr_status psr_reconstructor_get_vertex_placement(const psr_reconstructor *r, in
 psr_status psr_reconstructor_add_points(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, const float *normals, size_t normal_stride_bytes, size_t count);
 
 /**
- * Writes the number of points r holds to *out (with and without normals). r and out must not be NULL. Returns
+ * Writes the number of points r holds to *out (with and without normals). r and out must not
+ * be NULL. Returns
  * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED,
  * PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback) or PSR_STATUS_INTERNAL_ERROR;
  * *out is written only on success.
@@ -667,10 +668,10 @@ psr_status psr_reconstructor_add_points(psr_reconstructor *r, const float *posit
 psr_status psr_reconstructor_point_count(const psr_reconstructor *r, size_t *out);
 
 /**
- * Removes every point from r, with and without normals (parameters and callback stay), so the handle can be reused for
- * another cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
- * PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
- * or PSR_STATUS_INTERNAL_ERROR.
+ * Removes every point from r, with and without normals (parameters and callback stay), so the
+ * handle can be reused for another cloud. r must not be NULL. Returns PSR_STATUS_OK,
+ * PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from
+ * r's progress callback) or PSR_STATUS_INTERNAL_ERROR.
  *
  * # Safety
  * `r` is NULL or a live handle from psr_reconstructor_new.

@@ -2,7 +2,7 @@
 //! estimates and orients (crate::estimate_normals), and the estimation's settings.
 
 use super::panic_boundary::{guard, handle_mut, handle_ref, require_out, write_out};
-use super::points::{check_array, gather_vec3};
+use super::points::{batch_failure, check_array, gather_vec3};
 use super::reconstructor::psr_reconstructor;
 use super::status::{psr_status, Failure};
 use crate::{Error, NormalEstimation, Orientation};
@@ -68,11 +68,7 @@ pub unsafe extern "C" fn psr_reconstructor_add_positions(
         // function's contract).
         let batch = unsafe { gather_vec3(positions, position_stride_bytes, count) };
         if let Some(index) = batch.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            let mut failure = Failure::from_error(F, Error::NonFinitePosition { index });
-            failure
-                .message
-                .push_str(" (index within this batch; nothing from this batch was added)");
-            return Err(failure);
+            return Err(batch_failure(F, Error::NonFinitePosition { index }));
         }
         handle.positions_without_normals.extend(batch);
         Ok(())

@@ -27,6 +27,16 @@ pub(super) unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) 
         .collect()
 }
 
+/// A rejected batch's failure: the error's message says that its index counts within the batch
+/// and that nothing from the batch was added.
+pub(super) fn batch_failure(function: &str, error: crate::Error) -> Failure {
+    let mut failure = Failure::from_error(function, error);
+    failure
+        .message
+        .push_str(" (index within this batch; nothing from this batch was added)");
+    failure
+}
+
 /// Checks one strided array argument; `stride` 0 means packed.
 pub(super) fn check_array(
     function: &str,
@@ -126,20 +136,18 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
                 gather_vec3(normals, normal_stride_bytes, count),
             )
         };
-        handle.points.extend(&p, &n).map_err(|e| {
-            let mut failure = Failure::from_error(F, e);
-            failure
-                .message
-                .push_str(" (index within this batch; nothing from this batch was added)");
-            failure
-        })
+        handle
+            .points
+            .extend(&p, &n)
+            .map_err(|e| batch_failure(F, e))
     };
     // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
     // it ends with the body.
     unsafe { guard(F, r, body) }
 }
 
-/// Writes the number of points r holds to *out (with and without normals). r and out must not be NULL. Returns
+/// Writes the number of points r holds to *out (with and without normals). r and out must not
+/// be NULL. Returns
 /// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED,
 /// PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback) or PSR_STATUS_INTERNAL_ERROR;
 /// *out is written only on success.
@@ -165,10 +173,10 @@ pub unsafe extern "C" fn psr_reconstructor_point_count(
     unsafe { guard(F, r, body) }
 }
 
-/// Removes every point from r, with and without normals (parameters and callback stay), so the handle can be reused for
-/// another cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
-/// PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
-/// or PSR_STATUS_INTERNAL_ERROR.
+/// Removes every point from r, with and without normals (parameters and callback stay), so the
+/// handle can be reused for another cloud. r must not be NULL. Returns PSR_STATUS_OK,
+/// PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from
+/// r's progress callback) or PSR_STATUS_INTERNAL_ERROR.
 ///
 /// # Safety
 /// `r` is NULL or a live handle from psr_reconstructor_new.
