@@ -26,6 +26,18 @@ fn psr(args: &[&str]) -> Output {
         .expect("the psr binary runs")
 }
 
+/// Runs the program on `input`, writing `output`, with the options `extra`.
+fn psr_on(input: &Path, output: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "--in",
+        input.to_str().unwrap(),
+        "--out",
+        output.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    psr(&args)
+}
+
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
@@ -36,14 +48,7 @@ fn an_output_name_that_is_not_ply_is_a_usage_error() {
     let kitten = kitten();
     for name in ["mesh.obj", "mesh.stl", "mesh", "mesh.ply.gz"] {
         let out_path = dir.join(name);
-        let out = psr(&[
-            "--in",
-            kitten.to_str().unwrap(),
-            "--out",
-            out_path.to_str().unwrap(),
-            "--depth",
-            "4",
-        ]);
+        let out = psr_on(&kitten, &out_path, &["--depth", "4"]);
         let message = stderr(&out);
         assert_eq!(out.status.code(), Some(2), "--out {name}: {message}");
         assert!(
@@ -61,12 +66,7 @@ fn an_input_name_that_is_not_ply_is_a_usage_error() {
     let xyz = dir.join("cloud.xyz");
     std::fs::write(&xyz, "0 0 0 0 0 1\n").unwrap();
     let out_path = dir.join("mesh.ply");
-    let out = psr(&[
-        "--in",
-        xyz.to_str().unwrap(),
-        "--out",
-        out_path.to_str().unwrap(),
-    ]);
+    let out = psr_on(&xyz, &out_path, &[]);
     let message = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{message}");
     assert!(
@@ -83,15 +83,7 @@ fn ply_names_in_any_case_are_accepted_and_reconstructed() {
     let input = dir.join("KITTEN.PLY");
     std::fs::copy(kitten(), &input).unwrap();
     let output = dir.join("Mesh.Ply");
-    let out = psr(&[
-        "--in",
-        input.to_str().unwrap(),
-        "--out",
-        output.to_str().unwrap(),
-        "--depth",
-        "4",
-        "--quiet",
-    ]);
+    let out = psr_on(&input, &output, &["--depth", "4", "--quiet"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let bytes = std::fs::read(&output).expect("the mesh was written");
     assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
@@ -103,14 +95,7 @@ fn a_parameter_out_of_range_is_a_usage_error_naming_the_option() {
     let dir = scratch("range");
     let kitten = kitten();
     let out_path = dir.join("mesh.ply");
-    let out = psr(&[
-        "--in",
-        kitten.to_str().unwrap(),
-        "--out",
-        out_path.to_str().unwrap(),
-        "--depth",
-        "0",
-    ]);
+    let out = psr_on(&kitten, &out_path, &["--depth", "0"]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("--depth"), "{}", stderr(&out));
     assert!(!out_path.exists());
@@ -259,15 +244,7 @@ fn a_cloud_without_normals_is_reconstructed_facing_outward() {
     let from_bare = dir.join("estimated.ply");
     let from_given = dir.join("given.ply");
     for (input, output) in [(&bare, &from_bare), (&kitten(), &from_given)] {
-        let out = psr(&[
-            "--in",
-            input.to_str().unwrap(),
-            "--out",
-            output.to_str().unwrap(),
-            "--depth",
-            "6",
-            "--quiet",
-        ]);
+        let out = psr_on(input, output, &["--depth", "6", "--quiet"]);
         assert!(out.status.success(), "{}", stderr(&out));
     }
     let (positions, triangles) = psr::ply::read_mesh(&from_bare).unwrap();
@@ -308,16 +285,9 @@ fn normal_options_that_cannot_be_honoured_are_usage_errors() {
             "--neighbors",
         ),
     ] {
-        let mut args = vec![
-            "--in",
-            input.to_str().unwrap(),
-            "--out",
-            out_path.to_str().unwrap(),
-            "--depth",
-            "4",
-        ];
+        let mut args = vec!["--depth", "4"];
         args.extend_from_slice(extra);
-        let out = psr(&args);
+        let out = psr_on(input, &out_path, &args);
         assert_eq!(out.status.code(), Some(2), "{extra:?}: {}", stderr(&out));
         assert!(stderr(&out).contains(wanted), "{extra:?}: {}", stderr(&out));
     }
@@ -331,17 +301,11 @@ fn a_viewpoint_orients_the_normals() {
     let dir = scratch("viewpoint");
     let bare = kitten_without_normals(&dir);
     let out_path = dir.join("mesh.ply");
-    let out = psr(&[
-        "--in",
-        bare.to_str().unwrap(),
-        "--out",
-        out_path.to_str().unwrap(),
-        "--depth",
-        "5",
-        "--viewpoint",
-        "0,0,1000",
-        "--quiet",
-    ]);
+    let out = psr_on(
+        &bare,
+        &out_path,
+        &["--depth", "5", "--viewpoint", "0,0,1000", "--quiet"],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(out_path.exists());
     let _ = std::fs::remove_dir_all(&dir);
