@@ -163,8 +163,9 @@ typedef enum {
 } psr_status;
 
 /**
- * The pipeline stages reported to the progress callback, in order. psr_stage_string gives their
- * names.
+ * The pipeline stages reported to the progress callback, numbered in pipeline order except
+ * PSR_STAGE_NORMALS, which comes first (only when points were added without normals).
+ * psr_stage_string gives their names.
  */
 typedef enum {
     /**
@@ -203,6 +204,12 @@ typedef enum {
      * Assembling the output mesh.
      */
     PSR_STAGE_MESH = 8,
+    /**
+     * Estimating and orienting the normals of the points added with
+     * psr_reconstructor_add_positions, before all the others (numbered last because it was
+     * added later).
+     */
+    PSR_STAGE_NORMALS = 9,
 } psr_stage;
 
 /**
@@ -308,7 +315,7 @@ const char *psr_status_string(int status);
 /**
  * The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
  * (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
- * "extract" or "mesh", in psr_stage's order. Any int is accepted: unknown values give
+ * "extract", "mesh" or "normals", in psr_stage's order. Any int is accepted: unknown values give
  * "unknown". Never NULL.
  */
 const char *psr_stage_string(int stage);
@@ -843,8 +850,9 @@ void psr_mesh_free(psr_mesh *m);
  *
  * The positions are copied; the batch is checked whole first (a NaN or infinite coordinate
  * appends nothing and the message names its index in this batch). psr_reconstructor_point_count
- * counts these points too and psr_reconstructor_clear_points removes them. Normal estimation
- * reports no progress of its own (it takes about 2 s per million points per core).
+ * counts these points too and psr_reconstructor_clear_points removes them. The estimation is
+ * reported to the progress callback as PSR_STAGE_NORMALS (before PSR_STAGE_POINTS) and may be
+ * cancelled there like any stage; it takes about 2 s per million points per core.
  *
  * r must not be NULL; positions may be NULL only when count is 0. Returns PSR_STATUS_OK,
  * PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a stride below 12, or count * stride

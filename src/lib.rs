@@ -44,7 +44,10 @@ mod system;
 
 pub use error::{Error, Result};
 pub use mesh::{DepthSolve, Mesh, Stats};
-pub use normals::{estimate_normals, orient_normals, NormalEstimation, Orientation};
+pub use normals::{
+    estimate_normals, estimate_normals_with_progress, orient_normals, orient_normals_with_progress,
+    NormalEstimation, Orientation,
+};
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
 pub use points::PointSet;

@@ -21,6 +21,10 @@ use std::time::Instant;
 #[repr(u32)]
 #[non_exhaustive]
 pub enum Stage {
+    /// Before the reconstruction, for points without normals only: estimating and orienting
+    /// their normals (`normals/`, [`crate::estimate_normals_with_progress`]). Numbered after
+    /// the others because it was added later; it comes first in [`Stage::ALL`].
+    Normals = 9,
     /// Stage 1: Validating the points and mapping them into the unit cube (`points.rs`).
     Points = 0,
     /// Stage 2: The sampling density and each sample's depth (`density.rs`); before the octree,
@@ -44,7 +48,8 @@ pub enum Stage {
 
 impl Stage {
     /// All stages in pipeline order.
-    pub const ALL: [Stage; 9] = [
+    pub const ALL: [Stage; 10] = [
+        Stage::Normals,
         Stage::Points,
         Stage::Density,
         Stage::Octree,
@@ -59,6 +64,7 @@ impl Stage {
     /// A short lower-case name ("solve").
     pub fn name(self) -> &'static str {
         match self {
+            Stage::Normals => "normals",
             Stage::Points => "points",
             Stage::Octree => "octree",
             Stage::Density => "density",

@@ -1386,6 +1386,77 @@ fn points_without_normals_are_estimated_at_solve() {
     }
 }
 
+/// Proves: estimating the normals of points added without them is reported as
+/// PSR_STAGE_NORMALS, first and in one stretch, on the calling thread, and a callback that says
+/// stop there cancels the solve (no mesh, no further call) and leaves the handle usable.
+#[test]
+fn normal_estimation_reports_progress_first_and_can_be_cancelled() {
+    let (p, _) = sphere(3000, [0.0, 0.0, 0.0], 1.0);
+    for cancel_on_call in [0, 1, 2] {
+        let r = new_handle();
+        let mut rec = Recorder {
+            cancel_on_call,
+            ..Default::default()
+        };
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        let status = unsafe {
+            assert_eq!(psr_reconstructor_set_depth(r, 5), psr_status::Ok);
+            let user = ptr::addr_of_mut!(rec).cast::<c_void>();
+            assert_eq!(
+                psr_reconstructor_set_progress_callback(r, Some(record), user),
+                psr_status::Ok
+            );
+            assert_eq!(
+                psr_reconstructor_add_positions(r, p.as_ptr(), 0, 3000),
+                psr_status::Ok
+            );
+            psr_reconstructor_solve(r, &mut mesh)
+        };
+        assert_eq!(
+            rec.stages.first(),
+            Some(&psr_stage::Normals),
+            "{:?}",
+            rec.stages
+        );
+        assert_eq!(rec.names.first().map(String::as_str), Some("normals"));
+        assert_eq!(rec.bad_fractions, 0, "fractions within [0, 1]");
+        let me = std::thread::current().id();
+        assert!(rec.threads.iter().all(|&t| t == me));
+        if cancel_on_call == 0 {
+            assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+            assert_eq!(
+                &rec.stages[..2],
+                &[psr_stage::Normals, psr_stage::Points],
+                "normals once, then the pipeline: {:?}",
+                rec.stages
+            );
+            assert_eq!(rec.stages.last(), Some(&psr_stage::Mesh));
+            unsafe { psr_mesh_free(mesh) };
+        } else {
+            assert_eq!(status, psr_status::Cancelled, "{}", last_error(r));
+            assert_eq!(mesh, sentinel_ptr(), "no mesh on cancellation");
+            assert_eq!(rec.calls, cancel_on_call, "no call after the stop");
+            assert_eq!(rec.stages, [psr_stage::Normals]);
+            // Still usable: without the callback the same solve succeeds.
+            unsafe {
+                assert_eq!(
+                    psr_reconstructor_set_progress_callback(r, None, ptr::null_mut()),
+                    psr_status::Ok
+                );
+                let mut mesh = ptr::null_mut();
+                assert_eq!(
+                    psr_reconstructor_solve(r, &mut mesh),
+                    psr_status::Ok,
+                    "{}",
+                    last_error(r)
+                );
+                psr_mesh_free(mesh);
+            }
+        }
+        unsafe { psr_reconstructor_free(r) };
+    }
+}
+
 /// Proves: the estimation's settings have their documented defaults, keep their value when a
 /// value is refused, and a viewpoint selects the viewpoint orientation.
 #[test]

@@ -145,6 +145,57 @@ fn one_and_two_threads_give_the_same_normals_bit_for_bit() {
     assert!(bits(1) == bits(2), "1 and 2 threads differ");
 }
 
+/// Proves: estimation and re-orientation report `Stage::Normals` on the calling thread with
+/// fractions rising from 0 to 1, many times over a cloud of several batches (so that a host can
+/// cancel mid-way), and a stop at any report (in the neighbour search, the fits or the
+/// orientation) ends the work with `Error::Cancelled` and no further call.
+#[test]
+fn progress_is_reported_throughout_and_a_stop_cancels() {
+    let (p, truth) = sample_torus(60_000, 1.0, 0.35, 3);
+    let options = NormalEstimation::default().with_threads(2);
+    let me = std::thread::current().id();
+    let mut fractions = Vec::new();
+    let normals = psr::estimate_normals_with_progress(&p, &options, &mut |stage, fraction| {
+        assert_eq!(stage, psr::Stage::Normals);
+        assert_eq!(
+            std::thread::current().id(),
+            me,
+            "called on the calling thread"
+        );
+        fractions.push(fraction);
+        true
+    })
+    .unwrap();
+    assert!(normals == estimate_normals(&p, &options).unwrap());
+    assert_eq!(fractions.first(), Some(&0.0));
+    assert_eq!(fractions.last(), Some(&1.0));
+    assert!(
+        fractions.windows(2).all(|w| w[0] <= w[1]),
+        "fractions rise: {fractions:?}"
+    );
+    assert!(fractions.len() >= 8, "reported often: {fractions:?}");
+    for stop_at in [1, 2, fractions.len() / 2, fractions.len() - 1] {
+        let mut calls = 0;
+        let result = psr::estimate_normals_with_progress(&p, &options, &mut |_, _| {
+            calls += 1;
+            calls < stop_at
+        });
+        assert!(
+            matches!(result, Err(Error::Cancelled)),
+            "stop at call {stop_at}"
+        );
+        assert_eq!(calls, stop_at, "no call after the stop");
+    }
+    let mut calls = 0;
+    let result = psr::orient_normals_with_progress(&p, &truth, &options, &mut |stage, _| {
+        assert_eq!(stage, psr::Stage::Normals);
+        calls += 1;
+        calls < 3
+    });
+    assert!(matches!(result, Err(Error::Cancelled)));
+    assert_eq!(calls, 3);
+}
+
 /// Proves: a viewpoint orients every normal towards it; orient_normals repairs randomly
 /// flipped (and slightly perturbed) normals on a sphere to point outward everywhere.
 #[test]

@@ -299,8 +299,13 @@ fn keep_large_blocks_out_of_the_heap() {
     }
 }
 
-/// Fills or re-orients `cloud`'s normals as `--normals` asks, and says where they came from.
-fn oriented_normals(args: &Args, cloud: &mut ply::PlyPoints) -> Result<&'static str, Failure> {
+/// Fills or re-orients `cloud`'s normals as `--normals` asks, reporting to `progress`, and says
+/// where they came from.
+fn oriented_normals(
+    args: &Args,
+    cloud: &mut ply::PlyPoints,
+    progress: psr::Progress<'_>,
+) -> Result<&'static str, Failure> {
     let orientation = match (&args.viewpoint, args.orientation) {
         (Some(v), _) => Orientation::Viewpoint(*v),
         (None, OrientationArg::Viewpoint) => {
@@ -322,12 +327,19 @@ fn oriented_normals(args: &Args, cloud: &mut ply::PlyPoints) -> Result<&'static 
     match args.normals {
         NormalsArg::Auto if has_normals => Ok("normals from the file"),
         NormalsArg::Auto | NormalsArg::Estimate => {
-            cloud.normals = psr::estimate_normals(&cloud.positions, &options).map_err(failed)?;
+            cloud.normals =
+                psr::estimate_normals_with_progress(&cloud.positions, &options, progress)
+                    .map_err(failed)?;
             Ok("normals estimated")
         }
         NormalsArg::Reorient if has_normals => {
-            cloud.normals =
-                psr::orient_normals(&cloud.positions, &cloud.normals, &options).map_err(failed)?;
+            cloud.normals = psr::orient_normals_with_progress(
+                &cloud.positions,
+                &cloud.normals,
+                &options,
+                progress,
+            )
+            .map_err(failed)?;
             Ok("normals re-oriented")
         }
         NormalsArg::Reorient => Err(Failure::Usage(format!(
@@ -347,9 +359,18 @@ fn run(args: &Args) -> Result<(), Failure> {
     })?;
     check_output_dir(&args.output)?;
 
+    let show_progress = !args.quiet && std::io::stderr().is_terminal();
+    let mut progress = ProgressLine::default();
     let start = Instant::now();
     let mut cloud = ply::read_points(&args.input).map_err(|e| Failure::Run(e.to_string()))?;
-    let normals_from = oriented_normals(args, &mut cloud)?;
+    let normals_from = oriented_normals(args, &mut cloud, &mut |stage, fraction| {
+        if show_progress {
+            progress.update(stage, fraction);
+        }
+        true
+    });
+    progress.clear();
+    let normals_from = normals_from?;
     let weights = if args.confidence {
         match &cloud.confidence {
             Some(c) => Some(c.as_slice()),
@@ -383,8 +404,6 @@ fn run(args: &Args) -> Result<(), Failure> {
         eprintln!("psr: {params:?}");
     }
 
-    let show_progress = !args.quiet && std::io::stderr().is_terminal();
-    let mut progress = ProgressLine::default();
     let mut peaks: Vec<(Stage, u64)> = Vec::new();
     let start = Instant::now();
     let result = psr::reconstruct_with_progress(&points, &params, &mut |stage, fraction| {

@@ -30,8 +30,9 @@ pub enum psr_orientation {
 ///
 /// The positions are copied; the batch is checked whole first (a NaN or infinite coordinate
 /// appends nothing and the message names its index in this batch). psr_reconstructor_point_count
-/// counts these points too and psr_reconstructor_clear_points removes them. Normal estimation
-/// reports no progress of its own (it takes about 2 s per million points per core).
+/// counts these points too and psr_reconstructor_clear_points removes them. The estimation is
+/// reported to the progress callback as PSR_STAGE_NORMALS (before PSR_STAGE_POINTS) and may be
+/// cancelled there like any stage; it takes about 2 s per million points per core.
 ///
 /// r must not be NULL; positions may be NULL only when count is 0. Returns PSR_STATUS_OK,
 /// PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a stride below 12, or count * stride

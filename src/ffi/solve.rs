@@ -105,8 +105,9 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
                 .with_threads(params.threads);
             let unoriented = &handle.positions_without_normals;
             // (guard clears `busy` whichever way the body ends.)
-            let estimated = crate::estimate_normals(unoriented, &options)
-                .map_err(|e| Failure::from_error(F, e))?;
+            let estimated =
+                crate::estimate_normals_with_progress(unoriented, &options, &mut progress)
+                    .map_err(|e| Failure::from_error(F, e))?;
             let mut all = handle.points.clone();
             all.extend(unoriented, &estimated)
                 .map_err(|e| Failure::from_error(F, e))?;

@@ -6,8 +6,9 @@ use crate::Stage;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::sync::OnceLock;
 
-/// The pipeline stages reported to the progress callback, in order. psr_stage_string gives their
-/// names.
+/// The pipeline stages reported to the progress callback, numbered in pipeline order except
+/// PSR_STAGE_NORMALS, which comes first (only when points were added without normals).
+/// psr_stage_string gives their names.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum psr_stage {
@@ -29,11 +30,16 @@ pub enum psr_stage {
     Extract = 7,
     /// Assembling the output mesh.
     Mesh = 8,
+    /// Estimating and orienting the normals of the points added with
+    /// psr_reconstructor_add_positions, before all the others (numbered last because it was
+    /// added later).
+    Normals = 9,
 }
 
 impl From<Stage> for psr_stage {
     fn from(stage: Stage) -> Self {
         match stage {
+            Stage::Normals => psr_stage::Normals,
             Stage::Points => psr_stage::Points,
             Stage::Octree => psr_stage::Octree,
             Stage::Density => psr_stage::Density,
@@ -57,7 +63,7 @@ static UNKNOWN_STAGE: &CStr = c"unknown";
 
 /// The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
 /// (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
-/// "extract" or "mesh", in psr_stage's order. Any int is accepted: unknown values give
+/// "extract", "mesh" or "normals", in psr_stage's order. Any int is accepted: unknown values give
 /// "unknown". Never NULL.
 #[no_mangle]
 pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
@@ -111,6 +117,7 @@ mod tests {
             (psr_stage::Isovalue, "isovalue"),
             (psr_stage::Extract, "extract"),
             (psr_stage::Mesh, "mesh"),
+            (psr_stage::Normals, "normals"),
         ];
         for (stage, text) in expected {
             assert_eq!(name(stage as c_int), text);
@@ -122,7 +129,7 @@ mod tests {
             psr_stage_string(psr_stage::Solve as c_int),
             psr_stage_string(psr_stage::Solve as c_int)
         );
-        for unknown in [-1, 9, 10, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 10, 11, c_int::MAX, c_int::MIN] {
             assert_eq!(name(unknown), "unknown");
         }
     }

@@ -17,6 +17,8 @@
 //! reach keep the Jacobi vector (finite, unit, deterministic).
 
 use super::neighbors::Neighbors;
+use super::{StepProgress, BATCH};
+use crate::error::Result;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -33,36 +35,55 @@ pub(super) struct Fit {
     pub(super) defined: bool,
 }
 
-/// The PCA normal of every point's neighbourhood (point itself + its neighbours).
-pub(super) fn fit_planes(positions: &[DVec3], neighbors: &Neighbors) -> Vec<Fit> {
+/// The PCA normal of every point's neighbourhood (point itself + its neighbours), in `pool`,
+/// [`BATCH`] points at a time, with `progress(fraction done)` called on the calling thread after
+/// each batch (it may stop the work).
+pub(super) fn fit_planes(
+    positions: &[DVec3],
+    neighbors: &Neighbors,
+    pool: &rayon::ThreadPool,
+    progress: StepProgress<'_>,
+) -> Result<Vec<Fit>> {
+    let mut fits = Vec::with_capacity(positions.len());
+    let batches = positions.len().div_ceil(BATCH);
+    for batch in 0..batches {
+        let points = batch * BATCH..((batch + 1) * BATCH).min(positions.len());
+        pool.install(|| {
+            fits.par_extend(
+                points
+                    .into_par_iter()
+                    .with_min_len(256)
+                    .map(|i| fit_plane(positions, neighbors, i)),
+            )
+        });
+        progress((batch + 1) as f32 / batches as f32)?;
+    }
+    Ok(fits)
+}
+
+/// The PCA normal of point `i`'s neighbourhood.
+fn fit_plane(positions: &[DVec3], neighbors: &Neighbors, i: usize) -> Fit {
     let k = neighbors.k();
-    (0..positions.len())
-        .into_par_iter()
-        .with_min_len(256)
-        .map(|i| {
-            let row = neighbors.of(i);
-            let points =
-                std::iter::once(positions[i]).chain(row.iter().map(|&j| positions[j as usize]));
-            let count = (k + 1) as f64;
-            let mean = points.clone().fold(DVec3::ZERO, |s, p| s + p) / count;
-            let mut c = [[0.0f64; 3]; 3];
-            for p in points {
-                let d = p - mean;
-                for (a, row) in c.iter_mut().enumerate() {
-                    for (b, entry) in row.iter_mut().enumerate().skip(a) {
-                        *entry += d[a] * d[b];
-                    }
-                }
+    let row = neighbors.of(i);
+    let points = std::iter::once(positions[i]).chain(row.iter().map(|&j| positions[j as usize]));
+    let count = (k + 1) as f64;
+    let mean = points.clone().fold(DVec3::ZERO, |s, p| s + p) / count;
+    let mut c = [[0.0f64; 3]; 3];
+    for p in points {
+        let d = p - mean;
+        for (a, row) in c.iter_mut().enumerate() {
+            for (b, entry) in row.iter_mut().enumerate().skip(a) {
+                *entry += d[a] * d[b];
             }
-            (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
-            let (values, vectors) = jacobi_eigen(c);
-            let defined = values[2] > 0.0 && values[1] > PLANE_RATIO * values[2];
-            Fit {
-                normal: vectors[0],
-                defined,
-            }
-        })
-        .collect()
+        }
+    }
+    (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
+    let (values, vectors) = jacobi_eigen(c);
+    let defined = values[2] > 0.0 && values[1] > PLANE_RATIO * values[2];
+    Fit {
+        normal: vectors[0],
+        defined,
+    }
 }
 
 /// Gives every point without a defined normal the normal of its nearest graph neighbour that

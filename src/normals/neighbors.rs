@@ -14,6 +14,8 @@
 //! is final: the search is exact, not approximate. Ties in distance go to the smaller index, so
 //! the lists do not depend on the grid, the thread count or the order of the work.
 
+use super::{StepProgress, BATCH};
+use crate::error::Result;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -263,29 +265,44 @@ impl Grid {
 }
 
 /// The `k` nearest other points of every point (exact; ties by index). Needs more than `k`
-/// points, all finite (the caller checks both); runs on the current rayon pool.
-pub(super) fn k_nearest(positions: &[DVec3], k: usize) -> Neighbors {
+/// points, all finite (the caller checks both). The searches run in `pool`, [`BATCH`] points at
+/// a time, with `progress(fraction done)` called on the calling thread after each batch (it may
+/// stop the work).
+pub(super) fn k_nearest(
+    positions: &[DVec3],
+    k: usize,
+    pool: &rayon::ThreadPool,
+    progress: StepProgress<'_>,
+) -> Result<Neighbors> {
     assert!(k >= 1 && positions.len() > k && positions.len() <= u32::MAX as usize);
-    let grid = Grid::new(positions);
+    let grid = pool.install(|| Grid::new(positions));
     let mut by_slot = vec![0u32; positions.len() * k];
-    by_slot.par_chunks_mut(k).enumerate().for_each_init(
-        || Vec::with_capacity(k + 1),
-        |best, (slot, row)| grid.query(slot, k, best, row),
-    );
+    let batches = positions.len().div_ceil(BATCH);
+    for (batch, rows) in by_slot.chunks_mut(BATCH * k).enumerate() {
+        pool.install(|| {
+            rows.par_chunks_mut(k).enumerate().for_each_init(
+                || Vec::with_capacity(k + 1),
+                |best, (row_in_batch, row)| grid.query(batch * BATCH + row_in_batch, k, best, row),
+            )
+        });
+        progress((batch + 1) as f32 / batches as f32)?;
+    }
     // Back to the points' own order.
     let mut slot_of = vec![0u32; positions.len()];
     for (slot, &i) in grid.order.iter().enumerate() {
         slot_of[i as usize] = slot as u32;
     }
     let mut indices = vec![0u32; positions.len() * k];
-    indices
-        .par_chunks_mut(k)
-        .zip(slot_of.par_iter())
-        .for_each(|(row, &slot)| {
-            let slot = slot as usize;
-            row.copy_from_slice(&by_slot[slot * k..(slot + 1) * k]);
-        });
-    Neighbors { k, indices }
+    pool.install(|| {
+        indices
+            .par_chunks_mut(k)
+            .zip(slot_of.par_iter())
+            .for_each(|(row, &slot)| {
+                let slot = slot as usize;
+                row.copy_from_slice(&by_slot[slot * k..(slot + 1) * k]);
+            })
+    });
+    Ok(Neighbors { k, indices })
 }
 
 #[cfg(test)]
@@ -352,9 +369,13 @@ mod tests {
                 })
                 .collect(),
         );
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
         for (c, cloud) in clouds.iter().enumerate() {
             for k in [1, 6, 20] {
-                let got = k_nearest(cloud, k);
+                let got = k_nearest(cloud, k, &pool, &mut |_| Ok(())).unwrap();
                 assert_eq!(got.indices, brute_force(cloud, k), "cloud {c}, k = {k}");
             }
         }

@@ -26,6 +26,7 @@
 //!   open sheet, where the flux is near zero either way) the seed's rule stands.
 
 use super::neighbors::Neighbors;
+use super::{StepProgress, BATCH};
 use crate::error::{Error, Result};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -35,6 +36,9 @@ use rayon::prelude::*;
 /// has ratio 1, a ring torus with R/r = 1/0.35 about 0.8, a flat box of thickness t and side L
 /// about 1. An open sheet has a net flux near 0.
 const CLOSED_FLUX_FRACTION: f64 = 0.25;
+
+/// Edges of Kruskal's loop between two progress reports (a few milliseconds of work).
+const KRUSKAL_EDGES_PER_REPORT: usize = 1 << 18;
 
 /// Flips every normal to face `viewpoint`.
 pub(super) fn towards_viewpoint(positions: &[DVec3], normals: &mut [DVec3], viewpoint: DVec3) {
@@ -101,11 +105,15 @@ impl Forest {
 }
 
 /// Orients `normals` consistently by propagation along the minimum spanning forest of the
-/// kNN graph, each component's sign set as the module documentation says.
+/// kNN graph, each component's sign set as the module documentation says. The parallel parts
+/// run in `pool`; `progress(fraction done)` is called on the calling thread between the steps
+/// and every [`KRUSKAL_EDGES_PER_REPORT`] edges of Kruskal's loop (it may stop the work).
 pub(super) fn propagate(
     positions: &[DVec3],
     normals: &mut [DVec3],
     neighbors: &Neighbors,
+    pool: &rayon::ThreadPool,
+    progress: StepProgress<'_>,
 ) -> Result<()> {
     let n = positions.len();
     let k = neighbors.k();
@@ -118,36 +126,27 @@ pub(super) fn propagate(
             expected: "a count with points × neighbors below 2^32 for orientation by propagation",
         });
     }
-    // Each undirected edge once: i→j is kept unless j→i is also a kNN edge and j < i.
-    let normals_in: &[DVec3] = normals;
-    let mut keys: Vec<u64> = neighbors
-        .rows()
-        .enumerate()
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .with_min_len(1024)
-        .flat_map_iter(|(i, row)| {
-            row.iter().enumerate().filter_map(move |(rank, &j)| {
-                let j = j as usize;
-                if j < i && neighbors.of(j).contains(&(i as u32)) {
-                    return None;
-                }
-                let (a, b) = (normals_in[i], normals_in[j]);
-                let d = (positions[j] - positions[i]).normalize_or_zero();
-                let out_of_plane = 0.5 * (a.dot(d).abs() + b.dot(d).abs());
-                let weight = ((1.0 - a.dot(b).abs()).max(0.0) + out_of_plane) as f32;
-                // Non-negative f32s order like their bit patterns.
-                Some(((weight.to_bits() as u64) << 32) | (i * k + rank) as u64)
-            })
-        })
-        .collect();
-    // The keys are distinct (distinct edge numbers), so the order is unique.
-    keys.par_sort_unstable();
+    let mut keys = Vec::new();
+    let batches = n.div_ceil(BATCH);
+    for batch in 0..batches {
+        let points = batch * BATCH..((batch + 1) * BATCH).min(n);
+        pool.install(|| keys.par_extend(edge_keys(positions, normals, neighbors, points)));
+        progress(0.3 * (batch + 1) as f32 / batches as f32)?;
+    }
+    // The keys are distinct (distinct edge numbers), so the order is unique. (One call: the
+    // only step that reports no progress for longer than a batch, about 0.1 s per million
+    // points per core.)
+    pool.install(|| keys.par_sort_unstable());
+    progress(0.45)?;
 
     // Kruskal: the minimum spanning forest's edges, as (parent-to-be, child-to-be) pairs.
     let mut forest = Forest::new(n);
     let mut tree_edges: Vec<(u32, u32)> = Vec::with_capacity(n);
-    for key in keys {
+    let edges = keys.len();
+    for (number, key) in keys.into_iter().enumerate() {
+        if number % KRUSKAL_EDGES_PER_REPORT == KRUSKAL_EDGES_PER_REPORT - 1 {
+            progress(0.45 + 0.4 * (number as f32 / edges as f32))?;
+        }
         let edge = (key & 0xffff_ffff) as usize;
         let (i, j) = ((edge / k) as u32, neighbors.of(edge / k)[edge % k]);
         if forest.union(i, j) {
@@ -157,6 +156,7 @@ pub(super) fn propagate(
             }
         }
     }
+    progress(0.85)?;
 
     // The forest's adjacency (CSR).
     let mut start = vec![0u32; n + 1];
@@ -216,16 +216,19 @@ pub(super) fn propagate(
         }
     }
     debug_assert!(visited.iter().all(|&v| v));
+    progress(0.93)?;
 
     // The net flux of each component decides its sign when it encloses volume.
-    let area: Vec<f64> = (0..n)
-        .into_par_iter()
-        .with_min_len(1024)
-        .map(|i| {
-            let far = neighbors.of(i)[k - 1] as usize;
-            (positions[far] - positions[i]).length_squared()
-        })
-        .collect();
+    let area: Vec<f64> = pool.install(|| {
+        (0..n)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let far = neighbors.of(i)[k - 1] as usize;
+                (positions[far] - positions[i]).length_squared()
+            })
+            .collect()
+    });
     let mut weight_sum = vec![0.0f64; n];
     let mut centroid = vec![DVec3::ZERO; n];
     for i in 0..n {
@@ -252,4 +255,34 @@ pub(super) fn propagate(
         }
     }
     Ok(())
+}
+
+/// The undirected edges of the kNN graph from the points in `from`, as sort keys: the weight
+/// (see the module documentation) as f32 bits in the high half, the edge number i·k + rank in
+/// the low half. Edge i→j is kept unless j→i is also a kNN edge and j < i, so that over all
+/// points each undirected edge appears once.
+fn edge_keys<'a>(
+    positions: &'a [DVec3],
+    normals: &'a [DVec3],
+    neighbors: &'a Neighbors,
+    from: std::ops::Range<usize>,
+) -> impl ParallelIterator<Item = u64> + 'a {
+    let k = neighbors.k();
+    from.into_par_iter()
+        .with_min_len(1024)
+        .flat_map_iter(move |i| {
+            let row = neighbors.of(i);
+            row.iter().enumerate().filter_map(move |(rank, &j)| {
+                let j = j as usize;
+                if j < i && neighbors.of(j).contains(&(i as u32)) {
+                    return None;
+                }
+                let (a, b) = (normals[i], normals[j]);
+                let d = (positions[j] - positions[i]).normalize_or_zero();
+                let out_of_plane = 0.5 * (a.dot(d).abs() + b.dot(d).abs());
+                let weight = ((1.0 - a.dot(b).abs()).max(0.0) + out_of_plane) as f32;
+                // Non-negative f32s order like their bit patterns.
+                Some(((weight.to_bits() as u64) << 32) | (i * k + rank) as u64)
+            })
+        })
 }

@@ -191,9 +191,10 @@ static void test_order_and_parameters(void) {
     CHECK(strcmp(psr_stage_string(PSR_STAGE_ISOVALUE), "isovalue") == 0);
     CHECK(strcmp(psr_stage_string(PSR_STAGE_EXTRACT), "extract") == 0);
     CHECK(strcmp(psr_stage_string(PSR_STAGE_MESH), "mesh") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_NORMALS), "normals") == 0);
     CHECK(psr_stage_string(PSR_STAGE_MESH) == psr_stage_string(PSR_STAGE_MESH)); /* static */
     CHECK(strcmp(psr_stage_string(-1), "unknown") == 0);
-    CHECK(strcmp(psr_stage_string(9), "unknown") == 0);
+    CHECK(strcmp(psr_stage_string(10), "unknown") == 0);
     CHECK(strcmp(psr_stage_string(1000), "unknown") == 0);
     CHECK(psr_version_major() == PSR_VERSION_MAJOR && psr_version_minor() == PSR_VERSION_MINOR &&
           psr_version_patch() == PSR_VERSION_PATCH);
