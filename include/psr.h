@@ -23,7 +23,9 @@
  *     result). Each psr_reconstructor_new has one psr_reconstructor_free; each mesh written by
  *     psr_reconstructor_solve has one psr_mesh_free. Both free functions accept NULL.
  *   - A mesh is independent of the reconstructor that made it: either may be freed first.
- *   - psr_reconstructor_add_points copies its input: free your arrays as soon as it returns.
+ *   - psr_reconstructor_add_points, psr_reconstructor_add_positions and its _seen_from and
+ *     _with_sensors variants copy their input (positions, normals, sensors): free your arrays
+ *     as soon as they return.
  *   - Pointers returned by psr_mesh_positions / _triangles / _densities are borrowed from the
  *     mesh and stay valid until psr_mesh_free. The psr_mesh_copy_* functions copy into your
  *     buffer instead, given its capacity. psr never hands you memory to free(); strings it
@@ -120,7 +122,8 @@ typedef enum {
      */
     PSR_STATUS_EMPTY_INPUT = 3,
     /**
-     * A position has a NaN or infinite coordinate (the message gives its index in the batch).
+     * A position, of a point or of a sensor, has a NaN or infinite coordinate (the message says
+     * which and gives its index in the batch).
      */
     PSR_STATUS_NON_FINITE_POSITION = 4,
     /**
@@ -272,6 +275,15 @@ typedef enum {
      * Open3D orient_normals_towards_camera_location, PCL setViewPoint.
      */
     PSR_ORIENTATION_VIEWPOINT = 1,
+    /**
+     * Each normal facing its own point's sensor, the scanner position given with the point by
+     * psr_reconstructor_add_positions_seen_from (one per batch, e.g. per scan of a registered
+     * multi-scan cloud) or psr_reconstructor_add_positions_with_sensors (one per point, e.g.
+     * a mobile scanner's trajectory); those functions select it. Every point added without
+     * normals must then have a sensor (psr_reconstructor_solve checks). PCL
+     * flipNormalTowardsViewpoint with each point's vp_x vp_y vp_z; Open3D has none.
+     */
+    PSR_ORIENTATION_SENSORS = 2,
 } psr_orientation;
 
 /**
@@ -675,10 +687,11 @@ psr_status psr_reconstructor_add_points(psr_reconstructor *r, const float *posit
 psr_status psr_reconstructor_point_count(const psr_reconstructor *r, size_t *out);
 
 /**
- * Removes every point from r, with and without normals (parameters and callback stay), so the
- * handle can be reused for another cloud. r must not be NULL. Returns PSR_STATUS_OK,
- * PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from
- * r's progress callback) or PSR_STATUS_INTERNAL_ERROR.
+ * Removes every point from r, with and without normals, and their sensors (parameters, the
+ * orientation among them, and the callback stay), so the handle can be reused for another
+ * cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
+ * or PSR_STATUS_INTERNAL_ERROR.
  *
  * # Safety
  * `r` is NULL or a live handle from psr_reconstructor_new.
@@ -708,11 +721,11 @@ psr_status psr_reconstructor_set_progress_callback(psr_reconstructor *r, psr_pro
  * r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
  * PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
  * PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
- * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, or
- * the points added with psr_reconstructor_add_positions cannot be given normals: fewer of them
- * than the neighbour count + 1, or all on a line), PSR_STATUS_THREADS_UNAVAILABLE or
- * PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
- * left untouched. Points added without normals get them (estimated and oriented, see
+ * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, the
+ * points added without normals cannot be given normals: fewer of them than the neighbour
+ * count + 1, or all on a line, or PSR_ORIENTATION_SENSORS while some of them have no sensor),
+ * PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is
+ * now poisoned). On failure *out is left untouched. Points added without normals get them (estimated and oriented, see
  * psr_reconstructor_add_positions) before the reconstruction starts.
  *
  * # Safety
@@ -846,7 +859,9 @@ void psr_mesh_free(psr_mesh *m);
  * neighbours, see psr_reconstructor_set_normal_neighbors), orients them (see
  * psr_reconstructor_set_normal_orientation) and reconstructs them together with the points added
  * with normals. Use it for a scanner's or photogrammetry's x y z export; add all of one cloud's
- * unoriented points before solving, since the neighbourhoods are found among them.
+ * unoriented points before solving, since the neighbourhoods are found among them. When the
+ * scanner's position is known, add the points with psr_reconstructor_add_positions_seen_from
+ * or psr_reconstructor_add_positions_with_sensors instead.
  *
  * The positions are copied; the batch is checked whole first (a NaN or infinite coordinate
  * appends nothing and the message names its index in this batch). psr_reconstructor_point_count
@@ -864,6 +879,60 @@ void psr_mesh_free(psr_mesh *m);
  * described above.
  */
 psr_status psr_reconstructor_add_positions(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, size_t count);
+
+/**
+ * Appends `count` points without normals that one sensor saw, e.g. one scan of a registered
+ * multi-scan cloud: like psr_reconstructor_add_positions, and `sensor` points to the 3 floats
+ * x, y, z of the scanner's origin in the points' coordinates. psr_reconstructor_solve turns
+ * each estimated normal to face its point's sensor (n · (sensor − p) ≥ 0), which is right
+ * wherever the sensor could see the point, thin walls and parts that touch included, where
+ * propagation can fail. Call it once per scan.
+ *
+ * Selects PSR_ORIENTATION_SENSORS, which needs a sensor for every point added without normals:
+ * psr_reconstructor_solve refuses a mix with points from psr_reconstructor_add_positions
+ * (PSR_STATUS_INVALID_ARGUMENT, naming the first point without a sensor). Choosing another
+ * orientation afterwards (psr_reconstructor_set_normal_orientation,
+ * psr_reconstructor_set_viewpoint) keeps the sensors but does not use them.
+ *
+ * The positions and the sensor are copied; the batch is checked whole first (nothing is
+ * appended and the orientation is unchanged if a position or the sensor has a NaN or infinite
+ * coordinate; the message says which). psr_reconstructor_clear_points removes the points and
+ * their sensors.
+ *
+ * r must not be NULL; positions and sensor may be NULL only when count is 0 (then nothing
+ * happens). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a
+ * stride below 12, or count * stride overflowing), PSR_STATUS_NON_FINITE_POSITION (a point's
+ * or the sensor's coordinate), PSR_STATUS_HANDLE_POISONED or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `positions` is NULL or valid for reads of the strided span
+ * described above; `sensor` is NULL or valid for reads of 3 floats.
+ */
+psr_status psr_reconstructor_add_positions_seen_from(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, size_t count, const float *sensor);
+
+/**
+ * Appends `count` points without normals, each with the position of the sensor that saw it,
+ * e.g. a mobile scanner's trajectory sampled at each shot: like
+ * psr_reconstructor_add_positions_seen_from, but sensor i is the 3 floats at
+ * `(const char *)sensors + i * sensor_stride_bytes` (0 = packed; interleaved x y z sx sy sz
+ * records work with both strides 24). When a batch of points shares one sensor,
+ * psr_reconstructor_add_positions_seen_from says so without repeating it.
+ *
+ * Selects PSR_ORIENTATION_SENSORS, with the same rule for points without sensors as
+ * psr_reconstructor_add_positions_seen_from. The arrays are copied and checked whole first
+ * (a NaN or infinite coordinate in either appends nothing, and the message names its index in
+ * this batch).
+ *
+ * r must not be NULL; positions and sensors may be NULL only when count is 0 (then nothing
+ * happens). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a
+ * stride below 12, or count * stride overflowing), PSR_STATUS_NON_FINITE_POSITION (a point's
+ * or a sensor's coordinate), PSR_STATUS_HANDLE_POISONED or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `positions` and `sensors` are NULL or valid for reads of the
+ * strided spans described above.
+ */
+psr_status psr_reconstructor_add_positions_with_sensors(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, const float *sensors, size_t sensor_stride_bytes, size_t count);
 
 /**
  * Sets how many nearest neighbours (besides the point itself) fit each estimated normal's plane
@@ -889,9 +958,11 @@ psr_status psr_reconstructor_set_normal_neighbors(psr_reconstructor *r, uint32_t
 psr_status psr_reconstructor_get_normal_neighbors(const psr_reconstructor *r, uint32_t *out);
 
 /**
- * Sets how estimated normals get their signs: PSR_ORIENTATION_PROPAGATE (0, the default) or
+ * Sets how estimated normals get their signs: PSR_ORIENTATION_PROPAGATE (0, the default),
  * PSR_ORIENTATION_VIEWPOINT (1, facing the point given to psr_reconstructor_set_viewpoint,
- * which must be called first).
+ * which must be called first) or PSR_ORIENTATION_SENSORS (2, each facing its point's sensor;
+ * adding points with a sensor selects it, and psr_reconstructor_solve refuses it unless every
+ * point added without normals has a sensor).
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
  * (PSR_STATUS_INVALID_PARAMETER for any other value, or for VIEWPOINT before a viewpoint).
@@ -912,8 +983,10 @@ psr_status psr_reconstructor_get_normal_orientation(const psr_reconstructor *r, 
 
 /**
  * Sets the viewpoint (x, y, z, in the points' coordinates, e.g. the scanner's position) that
- * estimated normals face, and selects PSR_ORIENTATION_VIEWPOINT. The coordinates must be
- * finite. Open3D orient_normals_towards_camera_location, PCL setViewPoint.
+ * estimated normals face, and selects PSR_ORIENTATION_VIEWPOINT (points' sensors, if any, are
+ * kept but not used). The coordinates must be finite. For several scans, give each its own
+ * sensor with psr_reconstructor_add_positions_seen_from instead. Open3D
+ * orient_normals_towards_camera_location, PCL setViewPoint.
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
  * (PSR_STATUS_INVALID_PARAMETER for a NaN or infinite coordinate).

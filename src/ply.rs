@@ -3,7 +3,8 @@
 //! * [`read_point_cloud`] reads oriented points: the `vertex` element's `x y z nx ny nz`
 //!   (any PLY scalar type), plus `red green blue` and `confidence` (or `value`) when present.
 //! * [`read_points`] reads the same, with normals when the file has them and none otherwise
-//!   (for clouds whose normals psr estimates).
+//!   (for clouds whose normals psr estimates), and each point's sensor position when the file
+//!   has one (see [`SENSOR_PROPERTIES`]).
 //! * [`read_mesh`] reads a triangle mesh: `vertex` `x y z` and the `face` element's
 //!   `vertex_indices` (or `vertex_index`) lists, with polygons split into fans of triangles.
 //! * [`write_mesh`] writes a [`Mesh`] as binary little-endian PLY, with the per-vertex density as
@@ -36,7 +37,25 @@ pub struct PlyPoints {
     pub colors: Option<Vec<[u8; 3]>>,
     /// The `confidence` property (or else `value`), when the vertex element has one.
     pub confidence: Option<Vec<f32>>,
+    /// The position of the sensor that saw each point (for [`crate::Orientation::Sensors`]),
+    /// when the vertex element has one of the triples of [`SENSOR_PROPERTIES`].
+    pub sensors: Option<Vec<[f32; 3]>>,
 }
+
+/// The vertex properties read as each point's sensor position, one triple per convention, in
+/// the order tried (the first complete triple wins). There is no standard; these are the names
+/// in use:
+///
+/// * `sensor_x sensor_y sensor_z`: plain names, used by mobile-mapping exports and scripts (and
+///   what [`write_point_cloud`] writes);
+/// * `vp_x vp_y vp_z`: PCL's `PointWithViewpoint`, as PCL's PLY writer saves it;
+/// * `beamoriginx beamoriginy beamoriginz`: PDAL's `BeamOriginX/Y/Z` dimensions (the origin of
+///   each laser shot, e.g. from `readers.rxp`), as PDAL's `writers.ply` spells them.
+pub const SENSOR_PROPERTIES: [[&str; 3]; 3] = [
+    ["sensor_x", "sensor_y", "sensor_z"],
+    ["vp_x", "vp_y", "vp_z"],
+    ["beamoriginx", "beamoriginy", "beamoriginz"],
+];
 
 impl PlyPoints {
     /// Number of points.
@@ -624,7 +643,7 @@ fn check_sizes(header: &Header, last: usize, available: u64) -> Result<(), PlyEr
 // ---------------------------------------------------------------------------------------------
 
 /// Number of values one entry can hand over.
-const SLOTS: usize = 10;
+const SLOTS: usize = 13;
 
 /// What to keep from one element: where each scalar property goes (a slot index) and which list
 /// property, if any, to collect.
@@ -994,7 +1013,8 @@ pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
 }
 
 /// Reads oriented points from PLY data: the `vertex` element's `x y z nx ny nz`, and
-/// `red green blue` and `confidence` (or `value`) when present. Other properties and elements
+/// `red green blue`, `confidence` (or `value`) and sensor positions ([`SENSOR_PROPERTIES`])
+/// when present. Other properties and elements
 /// are skipped. The normals `normal_x normal_y normal_z` are accepted in place of `nx ny nz`.
 pub fn read_point_cloud_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
     read_vertex_points(reader, None, Normals::Required).map_err(PlyError::new)
@@ -1059,6 +1079,9 @@ fn read_vertex_points<R: BufRead>(
         ["blue", "diffuse_blue"],
     ]);
     let conf = vertex.find(&["confidence", "value"]);
+    let sensor = SENSOR_PROPERTIES
+        .iter()
+        .find_map(|[x, y, z]| Some([vertex.find(&[x])?, vertex.find(&[y])?, vertex.find(&[z])?]));
 
     let mut plan = Plan::skip(vertex);
     for (slot, &p) in pos.iter().chain(nrm.iter().flatten()).enumerate() {
@@ -1073,6 +1096,9 @@ fn read_vertex_points<R: BufRead>(
     }
     if let Some(c) = conf {
         plan.slots[c] = Some(9);
+    }
+    for (k, &p) in sensor.iter().flatten().enumerate() {
+        plan.slots[p] = Some(10 + k);
     }
     for (p, slot) in vertex.props.iter().zip(&plan.slots) {
         if slot.is_some() && !matches!(p.ty, PropType::Scalar(_)) {
@@ -1099,6 +1125,7 @@ fn read_vertex_points<R: BufRead>(
         normals: Vec::with_capacity(if nrm.is_some() { cap } else { 0 }),
         colors: rgb.map(|_| Vec::with_capacity(cap)),
         confidence: conf.map(|_| Vec::with_capacity(cap)),
+        sensors: sensor.map(|_| Vec::with_capacity(cap)),
     };
     let mut body = Body::new(r, &header);
     for el in &header.elements[..vi] {
@@ -1119,6 +1146,9 @@ fn read_vertex_points<R: BufRead>(
         if let Some(c) = &mut out.confidence {
             c.push(v[9] as f32);
         }
+        if let Some(s) = &mut out.sensors {
+            s.push([v[10] as f32, v[11] as f32, v[12] as f32]);
+        }
         Ok(())
     })?;
     Ok(out)
@@ -1130,7 +1160,8 @@ pub fn write_point_cloud(path: &Path, points: &PlyPoints, format: PlyFormat) -> 
 }
 
 /// Writes oriented points as PLY in the given format: `float x y z nx ny nz`, then
-/// `uchar red green blue` and `float confidence` when present.
+/// `uchar red green blue`, `float confidence` and `float sensor_x sensor_y sensor_z` when
+/// present.
 pub fn write_point_cloud_to(
     mut w: impl Write,
     points: &PlyPoints,
@@ -1139,11 +1170,12 @@ pub fn write_point_cloud_to(
     let n = points.positions.len();
     let lengths_ok = points.normals.len() == n
         && points.colors.as_ref().is_none_or(|c| c.len() == n)
-        && points.confidence.as_ref().is_none_or(|c| c.len() == n);
+        && points.confidence.as_ref().is_none_or(|c| c.len() == n)
+        && points.sensors.as_ref().is_none_or(|s| s.len() == n);
     if !lengths_ok {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
-            "PlyPoints: normals, colors and confidence must have one entry per position",
+            "PlyPoints: normals, colors, confidence and sensors must have one entry per position",
         ));
     }
     let mut header = format!(
@@ -1160,6 +1192,11 @@ pub fn write_point_cloud_to(
     if points.confidence.is_some() {
         header.push_str("property float confidence\n");
     }
+    if points.sensors.is_some() {
+        for p in SENSOR_PROPERTIES[0] {
+            header.push_str(&format!("property float {p}\n"));
+        }
+    }
     header.push_str("end_header\n");
     w.write_all(header.as_bytes())?;
 
@@ -1168,6 +1205,7 @@ pub fn write_point_cloud_to(
         let floats = points.positions[i].iter().chain(&points.normals[i]);
         let rgb = points.colors.as_ref().map(|c| c[i]);
         let conf = points.confidence.as_ref().map(|c| c[i]);
+        let sensor = points.sensors.as_ref().map(|s| s[i]);
         match format {
             PlyFormat::Ascii => {
                 let mut line = String::with_capacity(96);
@@ -1182,6 +1220,9 @@ pub fn write_point_cloud_to(
                 }
                 if let Some(c) = conf {
                     line.push_str(&format!(" {c}"));
+                }
+                for v in sensor.iter().flatten() {
+                    line.push_str(&format!(" {v}"));
                 }
                 line.push('\n');
                 chunk.put(line.as_bytes())?;
@@ -1203,6 +1244,9 @@ pub fn write_point_cloud_to(
                 }
                 if let Some(c) = conf {
                     chunk.put(&f32_bytes(c))?;
+                }
+                for &v in sensor.iter().flatten() {
+                    chunk.put(&f32_bytes(v))?;
                 }
             }
         }
@@ -1454,6 +1498,8 @@ mod tests {
             normals,
             colors: with_extras.then(|| vec![[255, 0, 7], [1, 2, 3], [128, 64, 32]]),
             confidence: with_extras.then(|| vec![0.25, 1.0, 7.5]),
+            sensors: with_extras
+                .then(|| vec![[0.0, 0.0, 10.0], [-3.5, 1.0e5, 0.0], [1.0, 2.0, 3.0]]),
         }
     }
 
@@ -1489,6 +1535,44 @@ mod tests {
                         end_header\n1 2 3 0 0 1\n";
         let points = read_points_from(oriented.as_bytes()).unwrap();
         assert_eq!(points.normals, vec![[0.0, 0.0, 1.0]]);
+    }
+
+    /// Proves: each convention of SENSOR_PROPERTIES is read as the points' sensors, in any
+    /// order and type among other properties, the first complete triple wins, and an
+    /// incomplete triple is no sensor at all.
+    #[test]
+    fn sensor_positions_are_read_under_each_convention() {
+        for [x, y, z] in SENSOR_PROPERTIES {
+            let text = format!(
+                "ply\nformat ascii 1.0\nelement vertex 2\nproperty double {z}\nproperty float x\n\
+                 property float y\nproperty float z\nproperty uchar intensity\n\
+                 property double {x}\nproperty int {y}\nend_header\n\
+                 30 1 2 3 7 10 20\n-3 4 5 6 7 -1 -2\n"
+            );
+            let points = read_points_from(text.as_bytes()).unwrap();
+            assert_eq!(points.positions, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+            assert_eq!(
+                points.sensors,
+                Some(vec![[10.0, 20.0, 30.0], [-1.0, -2.0, -3.0]]),
+                "{x} {y} {z}"
+            );
+        }
+        let both = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                    property float z\nproperty float vp_x\nproperty float vp_y\n\
+                    property float vp_z\nproperty float sensor_x\nproperty float sensor_y\n\
+                    property float sensor_z\nend_header\n0 0 0 1 1 1 2 2 2\n";
+        let points = read_points_from(both.as_bytes()).unwrap();
+        assert_eq!(
+            points.sensors,
+            Some(vec![[2.0, 2.0, 2.0]]),
+            "sensor_* first"
+        );
+        let partial = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
+                       property float y\nproperty float z\nproperty float sensor_x\n\
+                       property float sensor_y\nproperty float vp_z\nend_header\n0 0 0 1 2 3\n";
+        let points = read_points_from(partial.as_bytes()).unwrap();
+        assert_eq!(points.sensors, None, "no complete triple");
+        assert_eq!(points.positions, vec![[0.0, 0.0, 0.0]]);
     }
 
     #[test]

@@ -199,6 +199,74 @@ fn null_for_every_pointer_argument() {
         );
         assert_eq!(point_count(r), 0);
         assert_eq!(psr_reconstructor_clear_points(null_r), NULL);
+
+        // Points without normals, with and without sensors, and the estimation's settings.
+        let s = [0.0f32, 0.0, 10.0];
+        assert_eq!(
+            psr_reconstructor_add_positions(null_r, p.as_ptr(), 0, 1),
+            NULL
+        );
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(null_r, p.as_ptr(), 0, 1, s.as_ptr()),
+            NULL
+        );
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(r, ptr::null(), 0, 1, s.as_ptr()),
+            NULL
+        );
+        assert!(last_error(r).contains("positions"), "{}", last_error(r));
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(r, p.as_ptr(), 0, 1, ptr::null()),
+            NULL
+        );
+        assert!(last_error(r).contains("sensor"), "{}", last_error(r));
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(null_r, p.as_ptr(), 0, s.as_ptr(), 0, 1),
+            NULL
+        );
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(r, ptr::null(), 0, s.as_ptr(), 0, 1),
+            NULL
+        );
+        assert!(last_error(r).contains("positions"), "{}", last_error(r));
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(r, p.as_ptr(), 0, ptr::null(), 0, 1),
+            NULL
+        );
+        assert!(last_error(r).contains("sensors"), "{}", last_error(r));
+        // NULL arrays are fine with a zero count, and then nothing happens at all.
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(r, ptr::null(), 0, 0, ptr::null()),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(r, ptr::null(), 0, ptr::null(), 0, 0),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 0);
+        let mut o = -1i32;
+        assert_eq!(
+            psr_reconstructor_get_normal_orientation(r, &mut o),
+            psr_status::Ok
+        );
+        assert_eq!(
+            o,
+            psr_orientation::Propagate as i32,
+            "count 0 selects nothing"
+        );
+        assert_eq!(psr_reconstructor_set_normal_neighbors(null_r, 5), NULL);
+        assert_eq!(psr_reconstructor_get_normal_neighbors(null_r, &mut u), NULL);
+        assert_eq!(psr_reconstructor_set_normal_orientation(null_r, 0), NULL);
+        assert_eq!(
+            psr_reconstructor_get_normal_orientation(null_r, &mut i),
+            NULL
+        );
+        assert_eq!(psr_reconstructor_set_viewpoint(null_r, 0.0, 0.0, 1.0), NULL);
+        assert_eq!((u, i), (77, 77), "out-parameters untouched on failure");
+        assert_eq!(
+            psr_reconstructor_get_normal_neighbors(r, ptr::null_mut()),
+            NULL
+        );
         assert_eq!(
             psr_reconstructor_set_progress_callback(null_r, None, ptr::null_mut()),
             NULL
@@ -1533,6 +1601,270 @@ fn normal_estimation_settings_round_trip_and_refuse_bad_values() {
             psr_reconstructor_get_normal_orientation(r, ptr::null_mut()),
             psr_status::NullArgument
         );
+        psr_reconstructor_free(r);
+    }
+}
+
+fn orientation_of(r: *const psr_reconstructor) -> i32 {
+    let mut o = -1;
+    assert_eq!(
+        unsafe { psr_reconstructor_get_normal_orientation(r, &mut o) },
+        psr_status::Ok
+    );
+    o
+}
+
+/// Proves: batches with sensors are checked whole (a NaN sensor or position, a short sensor
+/// stride: nothing appended, orientation unchanged), select PSR_ORIENTATION_SENSORS, and that
+/// orientation refuses at solve a cloud where some points without normals have no sensor,
+/// naming the first; choosing another orientation sets the sensors aside.
+#[test]
+fn sensor_batches_are_checked_whole_and_every_unoriented_point_needs_a_sensor() {
+    let r = new_handle();
+    let (p, _) = sphere(1500, [0.1, -0.2, 0.3], 1.0);
+    let outside = [0.0f32, 0.0, 10.0];
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 5), psr_status::Ok);
+        let nan = [0.0f32, f32::NAN, 10.0];
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(r, p.as_ptr(), 0, 10, nan.as_ptr()),
+            psr_status::NonFinitePosition
+        );
+        assert!(last_error(r).contains("sensor"), "{}", last_error(r));
+        let mut sensors = [0.0f32; 3 * 10];
+        sensors[3 * 2 + 2] = f32::INFINITY;
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(r, p.as_ptr(), 0, sensors.as_ptr(), 0, 10),
+            psr_status::NonFinitePosition
+        );
+        assert!(last_error(r).contains("sensor 2"), "{}", last_error(r));
+        sensors[3 * 2 + 2] = 0.0;
+        let mut bad = p[..30].to_vec();
+        bad[3 + 1] = f32::NAN;
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(
+                r,
+                bad.as_ptr(),
+                0,
+                sensors.as_ptr(),
+                0,
+                10
+            ),
+            psr_status::NonFinitePosition
+        );
+        assert!(last_error(r).contains("point 1"), "{}", last_error(r));
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(r, p.as_ptr(), 0, sensors.as_ptr(), 8, 10),
+            psr_status::InvalidArgument
+        );
+        assert!(
+            last_error(r).contains("sensor_stride_bytes"),
+            "{}",
+            last_error(r)
+        );
+        assert_eq!(point_count(r), 0);
+        assert_eq!(orientation_of(r), psr_orientation::Propagate as i32);
+
+        // One scan seen from one sensor, then points with no sensor: refused at solve.
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(r, p.as_ptr(), 0, 1000, outside.as_ptr()),
+            psr_status::Ok
+        );
+        assert_eq!(orientation_of(r), psr_orientation::Sensors as i32);
+        assert_eq!(
+            psr_reconstructor_add_positions(r, p[3000..].as_ptr(), 0, 500),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 1500);
+        let mut mesh = ptr::null_mut();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::InvalidArgument
+        );
+        assert!(mesh.is_null());
+        let message = last_error(r);
+        assert!(
+            message.contains("500 of the 1500") && message.contains("point 1000"),
+            "{message}"
+        );
+        // Another orientation sets the sensors aside; selecting SENSORS again brings them back.
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, psr_orientation::Propagate as i32),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::Ok,
+            "{}",
+            last_error(r)
+        );
+        psr_mesh_free(mesh);
+        mesh = ptr::null_mut();
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, psr_orientation::Sensors as i32),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, 3),
+            psr_status::InvalidParameter
+        );
+        assert!(
+            last_error(r).contains("PSR_ORIENTATION_SENSORS"),
+            "{}",
+            last_error(r)
+        );
+        assert_eq!(orientation_of(r), psr_orientation::Sensors as i32);
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::InvalidArgument
+        );
+
+        // Cleared, the orientation stays; points without any sensor are refused too.
+        assert_eq!(psr_reconstructor_clear_points(r), psr_status::Ok);
+        assert_eq!(orientation_of(r), psr_orientation::Sensors as i32);
+        assert_eq!(
+            psr_reconstructor_add_positions(r, p.as_ptr(), 0, 1500),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::InvalidArgument
+        );
+        assert!(
+            last_error(r).contains("none of the 1500"),
+            "{}",
+            last_error(r)
+        );
+        assert!(mesh.is_null());
+        psr_reconstructor_free(r);
+    }
+}
+
+/// A sphere of `n` samples around `centre` (radius 1) seen from six sensors at distance 3 along
+/// the axes: each sample with the sensor that sees it most squarely (on a sphere n·(s − p) > 0
+/// holds for it, i.e. the sensor sees the sample). Returns the samples grouped by sensor, packed,
+/// and each group's sensor and length.
+fn sphere_seen_from_six(n: usize, centre: [f32; 3]) -> (Vec<f32>, Vec<([f32; 3], usize)>) {
+    let (p, normals) = sphere(n, centre, 1.0);
+    let mut groups: Vec<Vec<f32>> = vec![Vec::new(); 6];
+    let mut sensors = [[0.0f32; 3]; 6];
+    for (k, sensor) in sensors.iter_mut().enumerate() {
+        *sensor = centre;
+        sensor[k / 2] += if k % 2 == 0 { 3.0 } else { -3.0 };
+    }
+    for (point, normal) in p.chunks_exact(3).zip(normals.chunks_exact(3)) {
+        let axis = (0..3)
+            .max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs()))
+            .unwrap();
+        let k = 2 * axis + usize::from(normal[axis] < 0.0);
+        let s = sensors[k];
+        let facing: f32 = (0..3).map(|c| normal[c] * (s[c] - point[c])).sum();
+        assert!(facing > 0.0, "sensor {k} sees the sample");
+        groups[k].extend_from_slice(point);
+    }
+    let layout = groups
+        .iter()
+        .zip(sensors)
+        .map(|(g, s)| (s, g.len() / 3))
+        .collect();
+    (groups.concat(), layout)
+}
+
+/// Proves: sensor orientation gives outward normals on a sphere sampled from six outside sensor
+/// positions (the mesh encloses the sphere's volume with outward triangles), the same mesh bit
+/// for bit whether each scan is one batch with its sensor or each point carries its own
+/// (interleaved x y z sx sy sz records), and inward normals when every sensor is at the centre:
+/// the sensors, not propagation, decide the signs.
+#[test]
+fn sensors_orient_estimated_normals_towards_them() {
+    let centre = [0.1f32, -0.2, 0.3];
+    let (grouped, layout) = sphere_seen_from_six(3000, centre);
+    let sphere_volume6 = 8.0 * std::f64::consts::PI;
+    unsafe {
+        // One batch per scan.
+        let r = new_handle();
+        assert_eq!(psr_reconstructor_set_depth(r, 6), psr_status::Ok);
+        let mut start = 0;
+        for &(sensor, count) in &layout {
+            assert_eq!(
+                psr_reconstructor_add_positions_seen_from(
+                    r,
+                    grouped[3 * start..].as_ptr(),
+                    0,
+                    count,
+                    sensor.as_ptr()
+                ),
+                psr_status::Ok,
+                "{}",
+                last_error(r)
+            );
+            start += count;
+        }
+        let Some(per_scan) = solve_or_skip(r, "sensors_orient_estimated_normals_towards_them")
+        else {
+            psr_reconstructor_free(r);
+            return;
+        };
+        let volume6 = signed_volume6(per_scan);
+        assert!(
+            (volume6 / sphere_volume6 - 1.0).abs() < 0.05,
+            "6 × volume {volume6}: inside-out or wrong"
+        );
+        psr_reconstructor_free(r);
+
+        // The same points, each with its own sensor, interleaved.
+        let mut records = Vec::with_capacity(2 * grouped.len());
+        let mut points = grouped.chunks_exact(3);
+        for &(sensor, count) in &layout {
+            for point in points.by_ref().take(count) {
+                records.extend_from_slice(point);
+                records.extend_from_slice(&sensor);
+            }
+        }
+        let r = new_handle();
+        assert_eq!(psr_reconstructor_set_depth(r, 6), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_add_positions_with_sensors(
+                r,
+                records.as_ptr(),
+                24,
+                records[3..].as_ptr(),
+                24,
+                grouped.len() / 3
+            ),
+            psr_status::Ok,
+            "{}",
+            last_error(r)
+        );
+        let per_point = solve_or_skip(r, "sensors_orient_estimated_normals_towards_them").unwrap();
+        assert!(
+            mesh_arrays(per_point) == mesh_arrays(per_scan),
+            "one sensor per batch and one per point give different meshes"
+        );
+        psr_mesh_free(per_point);
+        psr_mesh_free(per_scan);
+        psr_reconstructor_free(r);
+
+        // Every sensor inside: every normal faces inward, and so does the mesh.
+        let r = new_handle();
+        assert_eq!(psr_reconstructor_set_depth(r, 6), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_add_positions_seen_from(
+                r,
+                grouped.as_ptr(),
+                0,
+                grouped.len() / 3,
+                centre.as_ptr()
+            ),
+            psr_status::Ok
+        );
+        let inside_out = solve_or_skip(r, "sensors_orient_estimated_normals_towards_them").unwrap();
+        let volume6 = signed_volume6(inside_out);
+        assert!(
+            (volume6 / sphere_volume6 + 1.0).abs() < 0.05,
+            "6 × volume {volume6}: should be minus the sphere's"
+        );
+        psr_mesh_free(inside_out);
         psr_reconstructor_free(r);
     }
 }

@@ -5,8 +5,8 @@
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
 //!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
-//!     [--orientation propagate|viewpoint] [--viewpoint X,Y,Z] [--confidence] [--no-density]
-//!     [--quiet] [--verbose]
+//!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
+//!     [--no-density] [--quiet] [--verbose]
 //! ```
 //!
 //! Both file names must end in `.ply` (any case): psr reads PLY point clouds and writes binary
@@ -132,14 +132,17 @@ struct Args {
     neighbors: usize,
 
     /// How estimated normals get their signs: propagate (consistent over each connected part,
-    /// outward where a part encloses volume) or viewpoint (facing --viewpoint, as for a single
-    /// scan). PoissonRecon: none (Open3D's orient_normals_consistent_tangent_plane /
+    /// outward where a part encloses volume), viewpoint (facing --viewpoint, as for a single
+    /// scan) or sensors (each facing its own point's sensor, e.g. the scanner origin of each
+    /// scan or a mobile scanner's trajectory, read from the vertex properties sensor_x sensor_y
+    /// sensor_z, or PCL's vp_x vp_y vp_z, or PDAL's beamoriginx beamoriginy beamoriginz).
+    /// PoissonRecon: none (Open3D's orient_normals_consistent_tangent_plane /
     /// orient_normals_towards_camera_location).
     #[arg(long, value_enum, default_value_t = OrientationArg::Propagate)]
     orientation: OrientationArg,
 
     /// The scanner's position X,Y,Z for --orientation viewpoint (input coordinates); giving it
-    /// alone selects that orientation. PoissonRecon: none.
+    /// alone selects that orientation (not with --orientation sensors). PoissonRecon: none.
     #[arg(long, value_name = "X,Y,Z", value_parser = point3)]
     viewpoint: Option<[f64; 3]>,
 
@@ -239,6 +242,7 @@ enum NormalsArg {
 enum OrientationArg {
     Propagate,
     Viewpoint,
+    Sensors,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -307,6 +311,26 @@ fn oriented_normals(
     progress: psr::Progress<'_>,
 ) -> Result<&'static str, Failure> {
     let orientation = match (&args.viewpoint, args.orientation) {
+        (Some(_), OrientationArg::Sensors) => {
+            return Err(Failure::Usage(
+                "--viewpoint and --orientation sensors exclude each other: give one".to_string(),
+            ))
+        }
+        (None, OrientationArg::Sensors) => match cloud.sensors.take() {
+            Some(sensors) => Orientation::Sensors(sensors),
+            None => {
+                let conventions: Vec<String> = ply::SENSOR_PROPERTIES
+                    .iter()
+                    .map(|names| names.join(" "))
+                    .collect();
+                return Err(Failure::Usage(format!(
+                    "--orientation sensors needs each point's sensor position, and {} has none: \
+                     give its vertex element the properties {} (or use another --orientation)",
+                    args.input.display(),
+                    conventions.join(", or ")
+                )));
+            }
+        },
         (Some(v), _) => Orientation::Viewpoint(*v),
         (None, OrientationArg::Viewpoint) => {
             return Err(Failure::Usage(

@@ -206,20 +206,34 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
 /// The kitten's positions alone, as a binary PLY with `x y z` only (a scanner's export).
 fn kitten_without_normals(dir: &Path) -> PathBuf {
     let cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
-    let mut bytes = format!(
+    positions_ply(&dir.join("kitten_xyz.ply"), &cloud.positions, None)
+}
+
+/// Writes `positions` as a binary PLY with `x y z` and, if given, a second float triple per
+/// vertex under the given property names (e.g. sensor positions); returns `path`.
+fn positions_ply(
+    path: &Path,
+    positions: &[[f32; 3]],
+    extra: Option<([&str; 3], &[[f32; 3]])>,
+) -> PathBuf {
+    let mut header = format!(
         "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\n\
-         property float y\nproperty float z\nend_header\n",
-        cloud.positions.len()
-    )
-    .into_bytes();
-    for p in &cloud.positions {
-        for c in p {
+         property float y\nproperty float z\n",
+        positions.len()
+    );
+    for name in extra.iter().flat_map(|(names, _)| names) {
+        header.push_str(&format!("property float {name}\n"));
+    }
+    header.push_str("end_header\n");
+    let mut bytes = header.into_bytes();
+    for (i, p) in positions.iter().enumerate() {
+        let more = extra.map(|(_, values)| values[i]);
+        for c in p.iter().chain(more.iter().flatten()) {
             bytes.extend_from_slice(&c.to_le_bytes());
         }
     }
-    let path = dir.join("kitten_xyz.ply");
-    std::fs::write(&path, bytes).unwrap();
-    path
+    std::fs::write(path, bytes).unwrap();
+    path.to_path_buf()
 }
 
 /// Six times the signed volume of a mesh: positive when its triangles face outward.
@@ -280,6 +294,21 @@ fn normal_options_that_cannot_be_honoured_are_usage_errors() {
         (&bare, &["--normals", "reorient"][..], "--normals estimate"),
         (&bare, &["--orientation", "viewpoint"][..], "--viewpoint"),
         (
+            &bare,
+            &["--orientation", "sensors"][..],
+            "sensor_x sensor_y sensor_z",
+        ),
+        (
+            &kitten(),
+            &["--orientation", "sensors"][..],
+            "vp_x vp_y vp_z",
+        ),
+        (
+            &bare,
+            &["--orientation", "sensors", "--viewpoint", "0,0,1"][..],
+            "--viewpoint",
+        ),
+        (
             &kitten(),
             &["--normals", "estimate", "--neighbors", "0"][..],
             "--neighbors",
@@ -308,5 +337,70 @@ fn a_viewpoint_orients_the_normals() {
     );
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(out_path.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: --orientation sensors reads each point's sensor from the file and turns its
+/// estimated normal to face it. The kitten scanned from six far positions along the axes, each
+/// point by the one its true normal faces most: the mesh faces outward with the volume the given
+/// normals give. Each point given the opposite sensor instead (under PCL's vp_x vp_y vp_z
+/// names): every normal flips and the mesh is inside out.
+#[test]
+fn sensors_in_the_file_orient_the_normals() {
+    let dir = scratch("sensors");
+    let cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
+    let (mut low, mut high) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for p in &cloud.positions {
+        for k in 0..3 {
+            low[k] = low[k].min(p[k]);
+            high[k] = high[k].max(p[k]);
+        }
+    }
+    let far = 1000.0 * (0..3).map(|k| high[k] - low[k]).fold(0.0, f32::max);
+    let sensor_of = |n: &[f32; 3], towards: f32| {
+        let axis = (0..3)
+            .max_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs()))
+            .unwrap();
+        let mut s: [f32; 3] = std::array::from_fn(|k| 0.5 * (low[k] + high[k]));
+        s[axis] += towards * far * n[axis].signum();
+        s
+    };
+    let seen: Vec<[f32; 3]> = cloud.normals.iter().map(|n| sensor_of(n, 1.0)).collect();
+    let behind: Vec<[f32; 3]> = cloud.normals.iter().map(|n| sensor_of(n, -1.0)).collect();
+    let scanned = positions_ply(
+        &dir.join("scanned.ply"),
+        &cloud.positions,
+        Some((psr::ply::SENSOR_PROPERTIES[0], &seen)),
+    );
+    let reversed = positions_ply(
+        &dir.join("reversed.ply"),
+        &cloud.positions,
+        Some((["vp_x", "vp_y", "vp_z"], &behind)),
+    );
+    let mut volumes = Vec::new();
+    for (input, extra) in [
+        (&kitten(), &[][..]),
+        (&scanned, &["--orientation", "sensors"][..]),
+        (&reversed, &["--orientation", "sensors"][..]),
+    ] {
+        let output = dir.join("mesh.ply");
+        let mut args = vec!["--depth", "6", "--quiet"];
+        args.extend_from_slice(extra);
+        let out = psr_on(input, &output, &args);
+        assert!(out.status.success(), "{extra:?}: {}", stderr(&out));
+        let (positions, triangles) = psr::ply::read_mesh(&output).unwrap();
+        volumes.push(signed_volume6(&positions, &triangles));
+    }
+    let [given, scanned, reversed] = volumes[..] else {
+        unreachable!()
+    };
+    assert!(
+        (scanned / given - 1.0).abs() < 0.05,
+        "volume {scanned} from sensor-oriented normals vs {given} from the given ones"
+    );
+    assert!(
+        (reversed / given + 1.0).abs() < 0.05,
+        "volume {reversed} with every sensor behind its point: should be minus {given}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -36,8 +36,9 @@
 //! - `solve.rs`: psr_reconstructor_set_progress_callback, psr_reconstructor_solve and the
 //!   panic test hooks.
 //! - `mesh.rs`: the `psr_mesh` handle: counts, borrowed views, copy-outs, psr_mesh_free.
-//! - `normals.rs`: psr_reconstructor_add_positions (points without normals, estimated at solve)
-//!   and the estimation's settings; `psr_orientation`.
+//! - `normals.rs`: psr_reconstructor_add_positions (points without normals, estimated at solve),
+//!   _seen_from and _with_sensors (with their sensors' positions), the estimation's settings;
+//!   `psr_orientation`.
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -71,7 +72,8 @@ pub use self::mesh::{
     psr_mesh_triangle_count, psr_mesh_triangles, psr_mesh_vertex_count,
 };
 pub use self::normals::{
-    psr_orientation, psr_reconstructor_add_positions, psr_reconstructor_get_normal_neighbors,
+    psr_orientation, psr_reconstructor_add_positions, psr_reconstructor_add_positions_seen_from,
+    psr_reconstructor_add_positions_with_sensors, psr_reconstructor_get_normal_neighbors,
     psr_reconstructor_get_normal_orientation, psr_reconstructor_set_normal_neighbors,
     psr_reconstructor_set_normal_orientation, psr_reconstructor_set_viewpoint,
 };

@@ -173,10 +173,11 @@ pub unsafe extern "C" fn psr_reconstructor_point_count(
     unsafe { guard(F, r, body) }
 }
 
-/// Removes every point from r, with and without normals (parameters and callback stay), so the
-/// handle can be reused for another cloud. r must not be NULL. Returns PSR_STATUS_OK,
-/// PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from
-/// r's progress callback) or PSR_STATUS_INTERNAL_ERROR.
+/// Removes every point from r, with and without normals, and their sensors (parameters, the
+/// orientation among them, and the callback stay), so the handle can be reused for another
+/// cloud. r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
+/// or PSR_STATUS_INTERNAL_ERROR.
 ///
 /// # Safety
 /// `r` is NULL or a live handle from psr_reconstructor_new.
@@ -189,6 +190,7 @@ pub unsafe extern "C" fn psr_reconstructor_clear_points(r: *mut psr_reconstructo
         let handle = unsafe { handle_mut(F, r) }?;
         handle.points.clear();
         handle.positions_without_normals = Vec::new();
+        handle.sensors = Vec::new();
         Ok(())
     };
     // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to

@@ -26,7 +26,13 @@ pub struct psr_reconstructor {
     /// Points added without normals (psr_reconstructor_add_positions); the solve estimates
     /// their normals.
     pub(super) positions_without_normals: Vec<[f32; 3]>,
-    /// How those normals are estimated and oriented.
+    /// The sensor position of each point without normals, in step with
+    /// `positions_without_normals` ([`super::normals::NO_SENSOR`] for a point added without
+    /// one), or empty while no point has one (psr_reconstructor_add_positions_seen_from and
+    /// _with_sensors).
+    pub(super) sensors: Vec<[f32; 3]>,
+    /// How those normals are estimated and oriented. `Orientation::Sensors` is kept with an
+    /// empty list here (the selection only); the solve fills it from `sensors`.
     pub(super) normal_estimation: NormalEstimation,
     /// The last viewpoint set, for PSR_ORIENTATION_VIEWPOINT.
     pub(super) viewpoint: Option<[f64; 3]>,
@@ -51,6 +57,7 @@ impl psr_reconstructor {
             params: Params::default(),
             points: PointSet::new(),
             positions_without_normals: Vec::new(),
+            sensors: Vec::new(),
             normal_estimation: NormalEstimation::default(),
             viewpoint: None,
             progress: None,

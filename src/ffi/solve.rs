@@ -47,11 +47,11 @@ pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
 /// r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
 /// PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
 /// PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
-/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, or
-/// the points added with psr_reconstructor_add_positions cannot be given normals: fewer of them
-/// than the neighbour count + 1, or all on a line), PSR_STATUS_THREADS_UNAVAILABLE or
-/// PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is now poisoned). On failure *out is
-/// left untouched. Points added without normals get them (estimated and oriented, see
+/// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, the
+/// points added without normals cannot be given normals: fewer of them than the neighbour
+/// count + 1, or all on a line, or PSR_ORIENTATION_SENSORS while some of them have no sensor),
+/// PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is
+/// now poisoned). On failure *out is left untouched. Points added without normals get them (estimated and oriented, see
 /// psr_reconstructor_add_positions) before the reconstruction starts.
 ///
 /// # Safety
@@ -99,10 +99,7 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
         } else {
             // The points added without normals get theirs here and join the others (a copy of
             // the oriented points while the solve runs).
-            let options = handle
-                .normal_estimation
-                .clone()
-                .with_threads(params.threads);
+            let options = super::normals::estimation_for_solve(F, handle, params.threads)?;
             let unoriented = &handle.positions_without_normals;
             // (guard clears `busy` whichever way the body ends.)
             let estimated =

@@ -19,7 +19,8 @@ pub enum psr_status {
     InvalidArgument = 2,
     /// psr_reconstructor_solve was called on a reconstructor holding no points.
     EmptyInput = 3,
-    /// A position has a NaN or infinite coordinate (the message gives its index in the batch).
+    /// A position, of a point or of a sensor, has a NaN or infinite coordinate (the message says
+    /// which and gives its index in the batch).
     NonFinitePosition = 4,
     /// A normal has a NaN or infinite component (the message gives its index in the batch).
     NonFiniteNormal = 5,

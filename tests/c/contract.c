@@ -1,7 +1,7 @@
 /*
  * Contract tests of the psr C API, from C, against the installed header and library:
  * NULL for every pointer argument, free(NULL), solve before any points, a bad point in the
- * middle of a second batch, strides and overflow, short copy-out buffers, out-parameters left
+ * middle of a second batch, strides and overflow, points without normals and with sensors, short copy-out buffers, out-parameters left
  * alone on failure, the names of statuses and stages, cancellation from the callback, a forced
  * internal panic (when the library was built with the test hook), and two handles on two
  * threads matching sequential runs.
@@ -116,6 +116,15 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_point_count(NULL, &z), PSR_STATUS_NULL_ARGUMENT);
     CHECK(u == 7 && i == 7 && f == 7.0f && d == 7.0 && z == 7);
     CHECK_STATUS(psr_reconstructor_add_points(NULL, p, 0, n, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_positions(NULL, p, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(NULL, p, 0, 1, n), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(NULL, p, 0, n, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_normal_neighbors(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_normal_neighbors(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_normal_orientation(NULL, PSR_ORIENTATION_SENSORS), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_normal_orientation(NULL, &i), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_viewpoint(NULL, 0.0, 0.0, 1.0), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(u == 7 && i == 7);
     CHECK_STATUS(psr_reconstructor_clear_points(NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_progress_callback(NULL, NULL, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_solve(NULL, &m), PSR_STATUS_NULL_ARGUMENT);
@@ -139,6 +148,18 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, NULL, 0, 1), PSR_STATUS_NULL_ARGUMENT);
     CHECK(contains(psr_reconstructor_last_error(r), "normals"));
     CHECK_STATUS(psr_reconstructor_add_points(r, NULL, 0, NULL, 0, 0), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, NULL, 0, 1, n), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "positions"));
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, p, 0, 1, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "sensor"));
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, NULL, 0, n, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "positions"));
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, p, 0, NULL, 0, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "sensors"));
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, NULL, 0, 0, NULL), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, NULL, 0, NULL, 0, 0), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_normal_neighbors(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_solve(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     psr_reconstructor_free(r);
 
@@ -335,6 +356,123 @@ static void test_positions_without_normals(void) {
     free(normals);
 }
 
+/* Six times the signed volume of a mesh: positive when its triangles face outward. */
+static double signed_volume6(const psr_mesh *m) {
+    const float *v = psr_mesh_positions(m);
+    const uint32_t *t = psr_mesh_triangles(m);
+    size_t k, nt = psr_mesh_triangle_count(m);
+    double volume6 = 0.0;
+    for (k = 0; k < nt; k++) {
+        const float *a = v + 3 * t[3 * k], *b = v + 3 * t[3 * k + 1], *c = v + 3 * t[3 * k + 2];
+        volume6 += (double)a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) -
+                   (double)a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
+                   (double)a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0]);
+    }
+    return volume6;
+}
+
+/* Points with the sensor that saw them: bad sensors and strides refused whole, the sensor
+ * orientation selected by them and refused at solve when some points have no sensor, and a
+ * sphere (centre (0.25, 0.25, 0.25), radius 1) scanned from six outside positions, one batch
+ * per scan, reconstructed facing outward; one sensor at the centre turns it inside out. */
+static void test_sensors(void) {
+    enum { N = 2000 };
+    float *positions = malloc(3 * N * sizeof(float)), *normals = malloc(3 * N * sizeof(float));
+    float *scans = malloc(3 * N * sizeof(float)), *records = malloc(6 * N * sizeof(float));
+    float sensors[6][3], centre[3] = {0.25f, 0.25f, 0.25f}, nan_sensor[3] = {0.0f, (float)NAN, 9.0f};
+    size_t scan_size[6] = {0, 0, 0, 0, 0, 0}, count = 0, start = 0, i, k;
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL;
+    int32_t orientation = -1;
+    const double sphere6 = 8.0 * 3.14159265358979323846;
+
+    section("points with sensors: add_positions_seen_from, _with_sensors, PSR_ORIENTATION_SENSORS");
+    sphere(N, positions, normals);
+    for (k = 0; k < 6; k++) {
+        for (i = 0; i < 3; i++) sensors[k][i] = centre[i];
+        sensors[k][k / 2] += k % 2 == 0 ? 3.0f : -3.0f;
+    }
+    /* Group the samples by the sensor that sees them most squarely (it sees them: on a sphere
+     * n . (s - p) > 0 for it). */
+    for (k = 0; k < 6; k++) {
+        for (i = 0; i < N; i++) {
+            const float *nr = normals + 3 * i;
+            size_t axis = 0;
+            if (fabsf(nr[1]) > fabsf(nr[axis])) axis = 1;
+            if (fabsf(nr[2]) > fabsf(nr[axis])) axis = 2;
+            if (2 * axis + (nr[axis] < 0.0f ? 1 : 0) != k) continue;
+            memcpy(scans + 3 * count, positions + 3 * i, 3 * sizeof(float));
+            memcpy(records + 6 * count, positions + 3 * i, 3 * sizeof(float));
+            memcpy(records + 6 * count + 3, sensors[k], 3 * sizeof(float));
+            count++;
+            scan_size[k]++;
+        }
+    }
+    CHECK(count == N);
+
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, scans, 0, 10, nan_sensor),
+                 PSR_STATUS_NON_FINITE_POSITION);
+    CHECK(contains(psr_reconstructor_last_error(r), "sensor"));
+    records[6 * 4 + 5] = (float)INFINITY;
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, records, 24, records + 3, 24, 10),
+                 PSR_STATUS_NON_FINITE_POSITION);
+    CHECK(contains(psr_reconstructor_last_error(r), "sensor 4"));
+    records[6 * 4 + 5] = sensors[0][2];
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, records, 24, records + 3, 6, 10),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "sensor_stride_bytes"));
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == 0);
+    CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, &orientation), PSR_STATUS_OK);
+    CHECK(orientation == PSR_ORIENTATION_PROPAGATE);
+    CHECK_STATUS(psr_reconstructor_set_normal_orientation(r, 3), PSR_STATUS_INVALID_PARAMETER);
+
+    /* Mismatched use: one scan with its sensor, the rest without. */
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, scans, 0, scan_size[0], sensors[0]),
+                 PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, &orientation), PSR_STATUS_OK);
+    CHECK(orientation == PSR_ORIENTATION_SENSORS);
+    CHECK_STATUS(psr_reconstructor_add_positions(r, scans + 3 * scan_size[0], 0, N - scan_size[0]),
+                 PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(m == NULL);
+    CHECK(contains(psr_reconstructor_last_error(r), "no sensor"));
+    CHECK_STATUS(psr_reconstructor_clear_points(r), PSR_STATUS_OK);
+
+    /* One batch per scan: outward. */
+    for (k = 0; k < 6; k++) {
+        CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, scans + 3 * start, 0, scan_size[k], sensors[k]),
+                     PSR_STATUS_OK);
+        start += scan_size[k];
+    }
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    if (m != NULL) CHECK(fabs(signed_volume6(m) / sphere6 - 1.0) < 0.1);
+    psr_mesh_free(m);
+    m = NULL;
+
+    /* One sensor per point, interleaved records: outward as well. */
+    CHECK_STATUS(psr_reconstructor_clear_points(r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, records, 24, records + 3, 24, N), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    if (m != NULL) CHECK(fabs(signed_volume6(m) / sphere6 - 1.0) < 0.1);
+    psr_mesh_free(m);
+    m = NULL;
+
+    /* Seen from inside: the sensors, not propagation, decide the sign. */
+    CHECK_STATUS(psr_reconstructor_clear_points(r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, scans, 0, N, centre), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    if (m != NULL) CHECK(fabs(signed_volume6(m) / sphere6 + 1.0) < 0.1);
+    psr_mesh_free(m);
+    psr_reconstructor_free(r);
+    free(positions);
+    free(normals);
+    free(scans);
+    free(records);
+}
+
 struct progress_state {
     int calls, stop_at, named;
 };
@@ -455,6 +593,7 @@ int main(void) {
     test_bad_batches();
     test_mesh();
     test_positions_without_normals();
+    test_sensors();
     test_cancel();
     test_panic();
     test_threads();
