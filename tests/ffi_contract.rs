@@ -915,6 +915,7 @@ fn stage_strings_name_each_stage_and_take_any_int() {
         (psr_stage::Isovalue, "isovalue"),
         (psr_stage::Extract, "extract"),
         (psr_stage::Mesh, "mesh"),
+        (psr_stage::Normals, "normals"),
     ];
     for (stage, text) in expected {
         assert_eq!(name(stage as i32), text, "{stage:?}");
@@ -922,7 +923,7 @@ fn stage_strings_name_each_stage_and_take_any_int() {
     for stage in psr::Stage::ALL {
         assert_eq!(name(stage as i32), stage.name());
     }
-    for unknown in [-1, 9, i32::MAX, i32::MIN] {
+    for unknown in [-1, 10, i32::MAX, i32::MIN] {
         assert_eq!(name(unknown), "unknown");
     }
 }
