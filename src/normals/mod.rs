@@ -46,9 +46,12 @@ const SPAN_FIT: f32 = 0.1;
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum Orientation {
-    /// Consistent signs by propagation (Hoppe et al. 1992): along the minimum spanning forest of
-    /// the kNN graph with edge weights 1 − |n_i·n_j| plus how far the edge leaves the two
-    /// tangent planes, each child flipped to agree with its parent. Each connected part of the cloud is oriented on its own: outward when it
+    /// Consistent signs by propagation (Hoppe et al. 1992): along a spanning forest of the kNN
+    /// graph with edge weights 1 − |n_i·n_j| plus how far the edge leaves the two tangent
+    /// planes, each child flipped to agree with its parent, grown only until its trees have a
+    /// neighbourhood's worth of points; those regions are then joined by the summed votes of all
+    /// the edges between them, so that no single edge decides the sign of a large patch. Each
+    /// connected part of the cloud is oriented on its own: outward when it
     /// encloses volume (its net flux Σ a_i n_i·(p_i − centroid) is clearly positive for outward
     /// normals), else so that its point of largest x has a normal with non-negative x. The
     /// default. Open3D `orient_normals_consistent_tangent_plane`, PCL has none.

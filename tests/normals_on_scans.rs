@@ -1,0 +1,381 @@
+//! Issue 15's criterion on real data: on the shared scans with their normals stripped, normals
+//! estimated from the positions alone (default options: k = 20, propagation) give a
+//! reconstruction that is closed and manifold, has no inside-out regions, and lies as close to
+//! the input points as the reconstruction from the files' normals (within 1.2×).
+//!
+//! Per scan, both reconstructions run with default parameters at one depth (chosen so the
+//! finest cell is about the sampling spacing or coarser, and the file runs in about a minute on
+//! two cores), and the test prints:
+//!
+//! * agreement: the fraction of points whose estimated normal has a positive dot product with
+//!   the file's normal;
+//! * flipped area: the area fraction, among the mesh triangles whose centroid lies within two
+//!   finest cells of an input point, of those whose normal points against that nearest point's
+//!   normal in the file. An inside-out patch of the mesh shows up here whatever its size; the
+//!   mesh from the files' normals has a small such fraction too (noise, thin places the depth
+//!   cannot resolve), so the estimated normals' mesh is compared with it;
+//! * the mean distance from the input points to each mesh.
+//!
+//! What the files' normals are (see the data README): the bunny's and the Buddha's were
+//! estimated per scan and turned towards the scanner, so they are outward wherever a scanner saw
+//! the surface; the kitten's and the oni's come with CGAL; the lion's come with the source.
+//!
+//! Findings, measured with this test (depths as below; "points" are percentage points):
+//!
+//! * Happy Buddha: the estimated normals agreed with the file on 98.71 % of the points when one
+//!   spanning tree decided every sign. Most of the 1.3 % was one 5,000-point patch on the
+//!   statue's left side and a few patches of a few hundred points, each bounded by creases and
+//!   reached by the tree through a place where points of different scans with opposite normals
+//!   lie 0.05–0.2 mm apart (spacing 0.15 mm): the patch came out inside out and the mesh got an
+//!   inside-out bulge (flipped area 1.26 % against 0.50 % with the file's normals, +0.76
+//!   points). Since the orientation joins large regions by the votes of all the edges between
+//!   them (`src/normals/orient.rs`), 99.32 % agree and the flipped area is 0.58 % (+0.09
+//!   points). The rest lies in the narrow grooves of the drapery, where a neighbourhood spans
+//!   both walls: there the fitted plane is off by tens of degrees (median |n·n_file| 0.4–0.8
+//!   in the larger clusters, against 0.996 overall) and the file's own normals oppose their
+//!   neighbours' mean for up to half of the points, so neither sign is meaningful; plus isolated
+//!   stray points around the base. These do not make inside-out regions.
+//! * Lion: an open scene. Over all points 92.7 % agree, but the disagreement is in separate
+//!   clusters of foliage and a fence seen from one side: open fragments whose side the cloud
+//!   does not determine (the file turns them towards the camera; propagation gives each
+//!   component its own convention). On the largest connected part (the statue, its pedestal
+//!   and the wall: 298,708 of 341,989 points) 99.78 % agree, so the flipped area is measured
+//!   there: 0.40 % against 0.24 % with the file's normals (+0.16 points).
+//! * Oni: 1,435 points; 88.5 % agree. The inside of the open mouth (124 points) comes out
+//!   flipped: its two walls are about one neighbourhood apart (0.09 against a 20-neighbour
+//!   radius of 0.07), the known limit of propagation (two sheets closer than the
+//!   neighbourhood), and the mesh fills the mouth instead of hollowing it: flipped area 2.57 %
+//!   against 0.33 % (+2.24 points), mean distance 1.86× the file normals' mesh's. Other
+//!   neighbour counts do not fix it (agreement at k = 8: 96.0 %, 10: 90.0 %, 12: 90.2 %,
+//!   15: 88.3 %, 30: 89.9 %). The criterion is asserted for the oni in an ignored test,
+//!   `oni_estimated_normals_keep_the_mouth_open`, that fails until that is solved; the default
+//!   test checks that the mesh is a closed manifold and prints the figures.
+//! * Bunny and kitten: no flipped regions (+0.001 and −0.0002 points); distance ratios 0.99
+//!   and 1.13.
+
+use psr::{estimate_normals, reconstruct, Mesh, NormalEstimation, Params, PointSet};
+use psr_test_support::{data_or_skip, MeshDistance, MeshTopology};
+use std::collections::HashMap;
+use std::time::Instant;
+
+/// The file's points and normals, and the normals estimated from its positions.
+struct Scan {
+    positions: Vec<[f32; 3]>,
+    given: Vec<[f32; 3]>,
+    estimated: Vec<[f32; 3]>,
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f64 {
+    (a[0] as f64) * (b[0] as f64) + (a[1] as f64) * (b[1] as f64) + (a[2] as f64) * (b[2] as f64)
+}
+
+/// Reads `name` (or skips) and estimates normals with the default options.
+fn load(name: &str, test: &str) -> Option<Scan> {
+    let path = data_or_skip(name, test)?;
+    let cloud = psr::ply::read_point_cloud(&path).unwrap();
+    let started = Instant::now();
+    let estimated = estimate_normals(&cloud.positions, &NormalEstimation::default()).unwrap();
+    let agree = estimated
+        .iter()
+        .zip(&cloud.normals)
+        .filter(|(a, b)| dot(**a, **b) > 0.0)
+        .count();
+    eprintln!(
+        "{name}: {} points, normals estimated in {:.2} s, agreement with the file {:.4} % ({} disagree)",
+        cloud.len(),
+        started.elapsed().as_secs_f64(),
+        100.0 * agree as f64 / cloud.len() as f64,
+        cloud.len() - agree
+    );
+    Some(Scan {
+        positions: cloud.positions,
+        given: cloud.normals,
+        estimated,
+    })
+}
+
+/// The finest cell's width at `depth`: the bounding box's longest side × the default scale
+/// (1.1), over 2^depth.
+fn finest_cell(positions: &[[f32; 3]], params: &Params) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a] as f64);
+            hi[a] = hi[a].max(p[a] as f64);
+        }
+    }
+    let side = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+    side * params.scale as f64 / (1u64 << params.depth) as f64
+}
+
+/// The input points' nearest-point index: a BVH over the points as degenerate triangles (the
+/// test-support BVH handles them exactly).
+fn point_index(positions: &[[f32; 3]]) -> MeshDistance {
+    let triangles: Vec<[u32; 3]> = (0..positions.len() as u32).map(|i| [i, i, i]).collect();
+    MeshDistance::new(positions, &triangles)
+}
+
+/// Flipped area (see the module documentation): among the triangles whose centroid lies within
+/// `near` of an input point counted by `counts`, the area fraction of those whose normal
+/// points against that point's normal in `reference`.
+fn flipped_area(
+    mesh: &Mesh,
+    points: &MeshDistance,
+    reference: &[[f32; 3]],
+    counts: &dyn Fn(usize) -> bool,
+    near: f64,
+) -> f64 {
+    let (mut flipped, mut total) = (0.0, 0.0);
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize].map(|x| x as f64));
+        let (u, v) = (
+            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+        );
+        let cross = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let area = 0.5 * (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+        let centroid = [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) / 3.0);
+        let nearest = points.closest(centroid);
+        if nearest.distance > near || !counts(nearest.triangle) {
+            continue;
+        }
+        let n = reference[nearest.triangle];
+        let agreement = cross[0] * n[0] as f64 + cross[1] * n[1] as f64 + cross[2] * n[2] as f64;
+        total += area;
+        if agreement < 0.0 {
+            flipped += area;
+        }
+    }
+    flipped / total
+}
+
+/// Mean distance from the input points to the mesh.
+fn mean_distance(mesh: &Mesh, positions: &[[f32; 3]]) -> f64 {
+    let d = MeshDistance::new(&mesh.positions, &mesh.triangles).distances(positions);
+    d.iter().sum::<f64>() / d.len() as f64
+}
+
+/// Labels every point with its connected part, points closer than `radius` being connected
+/// (a hash grid of cells `radius` wide, union–find); returns the labels and the largest part's.
+fn parts(positions: &[[f32; 3]], radius: f64) -> (Vec<u32>, u32) {
+    let cell = |p: [f32; 3]| p.map(|x| (x as f64 / radius).floor() as i64);
+    let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+    for (i, &p) in positions.iter().enumerate() {
+        grid.entry(cell(p)).or_default().push(i as u32);
+    }
+    let mut parent: Vec<u32> = (0..positions.len() as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    for (i, &p) in positions.iter().enumerate() {
+        let c = cell(p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(others) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                        continue;
+                    };
+                    for &j in others {
+                        if (j as usize) <= i {
+                            continue;
+                        }
+                        let q = positions[j as usize];
+                        let d2: f64 = (0..3).map(|a| (p[a] as f64 - q[a] as f64).powi(2)).sum();
+                        if d2 <= radius * radius {
+                            let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j));
+                            parent[a.max(b) as usize] = a.min(b);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let labels: Vec<u32> = (0..positions.len() as u32)
+        .map(|i| find(&mut parent, i))
+        .collect();
+    let mut size = vec![0u32; positions.len()];
+    for &l in &labels {
+        size[l as usize] += 1;
+    }
+    let largest = (0..positions.len()).max_by_key(|&l| size[l]).unwrap() as u32;
+    (labels, largest)
+}
+
+/// What the test measured on one scan.
+struct Figures {
+    flipped_given: f64,
+    flipped_estimated: f64,
+    distance_given: f64,
+    distance_estimated: f64,
+}
+
+/// Reconstructs `scan` from both sets of normals at `depth`, checks both meshes are closed
+/// 2-manifolds, prints and returns the figures. With `largest_part_only`, the flipped area
+/// counts only triangles whose nearest input point lies in the cloud's largest connected part
+/// (points within two finest cells connected).
+fn measure(name: &str, scan: &Scan, depth: u32, largest_part_only: bool) -> Figures {
+    let params = Params::default().with_depth(depth);
+    let h = finest_cell(&scan.positions, &params);
+    let points = point_index(&scan.positions);
+    let labels = largest_part_only.then(|| parts(&scan.positions, 2.0 * h));
+    let counts = |i: usize| match &labels {
+        Some((labels, largest)) => labels[i] == *largest,
+        None => true,
+    };
+    if let Some((labels, largest)) = &labels {
+        let inside: Vec<usize> = (0..labels.len())
+            .filter(|&i| labels[i] == *largest)
+            .collect();
+        let agree = inside
+            .iter()
+            .filter(|&&i| dot(scan.estimated[i], scan.given[i]) > 0.0)
+            .count();
+        eprintln!(
+            "{name}: largest connected part {} of {} points, agreement there {:.4} %",
+            inside.len(),
+            labels.len(),
+            100.0 * agree as f64 / inside.len() as f64
+        );
+    }
+    let mut figures = Vec::new();
+    for (label, normals) in [("file", &scan.given), ("estimated", &scan.estimated)] {
+        let started = Instant::now();
+        let mesh = reconstruct(
+            &PointSet::from_slices(&scan.positions, normals).unwrap(),
+            &params,
+        )
+        .unwrap();
+        let seconds = started.elapsed().as_secs_f64();
+        let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
+        assert!(
+            topo.is_closed_manifold() && topo.is_consistently_oriented(),
+            "{name}, {label} normals: not a closed oriented manifold: {topo}"
+        );
+        let flipped = flipped_area(&mesh, &points, &scan.given, &counts, 2.0 * h);
+        let distance = mean_distance(&mesh, &scan.positions);
+        eprintln!(
+            "{name}, {label} normals, depth {depth}: {} triangles in {seconds:.2} s, {} components, \
+             flipped area {:.4} %, mean distance to the points {distance:.4e} ({:.4} cells)",
+            mesh.triangles.len(),
+            topo.components,
+            100.0 * flipped,
+            distance / h
+        );
+        figures.push((flipped, distance));
+    }
+    let figures = Figures {
+        flipped_given: figures[0].0,
+        flipped_estimated: figures[1].0,
+        distance_given: figures[0].1,
+        distance_estimated: figures[1].1,
+    };
+    eprintln!(
+        "{name}: flipped area estimated − file {:+.4} points; distance ratio estimated / file {:.4}",
+        100.0 * (figures.flipped_estimated - figures.flipped_given),
+        figures.distance_estimated / figures.distance_given
+    );
+    figures
+}
+
+/// How much more flipped area than the file's normals' mesh the estimated normals' mesh may
+/// have, as a fraction of the near area: 0.3 percentage points. Between what the two meshes
+/// differ by where neither side's sign is meaningful (measured: Buddha +0.09 points, lion
+/// +0.16) and what an inside-out patch costs (the Buddha's 5,000-point patch +0.76, the oni's
+/// mouth +2.24).
+const FLIPPED_MARGIN: f64 = 0.003;
+
+/// The issue's bound on the distance from the points to the mesh.
+const DISTANCE_RATIO: f64 = 1.2;
+
+fn assert_criterion(name: &str, f: &Figures) {
+    assert!(
+        f.flipped_estimated <= f.flipped_given + FLIPPED_MARGIN,
+        "{name}: flipped area {:.4} % with estimated normals against {:.4} % with the file's",
+        100.0 * f.flipped_estimated,
+        100.0 * f.flipped_given
+    );
+    assert!(
+        f.distance_estimated <= DISTANCE_RATIO * f.distance_given,
+        "{name}: mean distance {:.4e} with estimated normals against {:.4e} with the file's",
+        f.distance_estimated,
+        f.distance_given
+    );
+}
+
+/// Proves: the bunny's scans (362k points) give a closed manifold from estimated normals with no
+/// more flipped area than from the scanner-oriented normals, as close to the points.
+#[test]
+fn bunny_from_estimated_normals() {
+    let name = "bunny_scans.ply";
+    let Some(scan) = load(name, "bunny_from_estimated_normals") else {
+        return;
+    };
+    assert_criterion(name, &measure(name, &scan, 8, false));
+}
+
+/// Proves: the same for the Happy Buddha's scans (1.1M points); see the module documentation
+/// for the disagreement that remains and why it does not flip the mesh.
+#[test]
+fn happy_buddha_from_estimated_normals() {
+    let name = "happy_buddha_scans.ply";
+    let Some(scan) = load(name, "happy_buddha_from_estimated_normals") else {
+        return;
+    };
+    assert_criterion(name, &measure(name, &scan, 8, false));
+}
+
+/// Proves: the same for CGAL's kitten (5k points, depth 7: its spacing is about a cell).
+#[test]
+fn kitten_from_estimated_normals() {
+    let name = "kitten_cgal.ply";
+    let Some(scan) = load(name, "kitten_from_estimated_normals") else {
+        return;
+    };
+    assert_criterion(name, &measure(name, &scan, 7, false));
+}
+
+/// Proves: the lion scene (342k points, open, with foliage) gives a closed manifold from
+/// estimated normals, with no more flipped area on its largest connected part than from the
+/// normals it ships with, as close to the points. See the module documentation for why only the
+/// largest part's sign is checked.
+#[test]
+fn lion_from_estimated_normals() {
+    let name = "lion_takanawa_rgb.ply";
+    let Some(scan) = load(name, "lion_from_estimated_normals") else {
+        return;
+    };
+    assert_criterion(name, &measure(name, &scan, 8, true));
+}
+
+/// Proves: CGAL's oni (1.4k points, depth 6) gives a closed manifold from estimated normals.
+/// Its flipped area and distance are printed, not asserted: they fail the criterion (see
+/// `oni_estimated_normals_keep_the_mouth_open`).
+#[test]
+fn oni_from_estimated_normals() {
+    let name = "oni_cgal.ply";
+    let Some(scan) = load(name, "oni_from_estimated_normals") else {
+        return;
+    };
+    measure(name, &scan, 6, false);
+}
+
+/// The issue's criterion on the oni, which fails today: the inside of the mouth comes out
+/// flipped and the mesh fills it (see the module documentation). Run with `--ignored`.
+#[test]
+#[ignore = "known failure: the oni's mouth is thinner than a neighbourhood (issue 15)"]
+fn oni_estimated_normals_keep_the_mouth_open() {
+    let name = "oni_cgal.ply";
+    let Some(scan) = load(name, "oni_estimated_normals_keep_the_mouth_open") else {
+        return;
+    };
+    assert_criterion(name, &measure(name, &scan, 6, false));
+}
