@@ -37,6 +37,16 @@ pub struct Stats {
     pub solves: Vec<DepthSolve>,
     /// Wall seconds spent in each stage, in pipeline order.
     pub stage_seconds: Vec<(Stage, f64)>,
+    /// The kernel depth D̂ at which the sampling density was estimated (§4.5): the unit of
+    /// [`Mesh::densities`] is samples per depth-D̂ node, and a depth-like value
+    /// (PoissonRecon's) is D̂ + log₄ of the density.
+    pub kernel_depth: u32,
+    /// The sampling density at the input samples themselves, as 1001 quantiles: entry k is the
+    /// density (in the unit of [`Mesh::densities`]) below which k / 1000 of the samples lie,
+    /// entry 0 the lowest and entry 1000 the highest. The scale a density is judged by when
+    /// trimming. Empty for a mesh not made by a
+    /// reconstruction.
+    pub sample_density_quantiles: Vec<f32>,
 }
 
 impl Stats {
