@@ -41,9 +41,10 @@ mod points;
 mod solve;
 mod splat;
 mod system;
+mod trim;
 
 pub use error::{Error, Result};
-pub use mesh::{DepthSolve, Mesh, Stats};
+pub use mesh::{DepthSolve, Mesh, Stats, TrimReport};
 pub use normals::{
     estimate_normals, estimate_normals_with_progress, orient_normals, orient_normals_with_progress,
     NormalEstimation, Orientation,
@@ -51,6 +52,7 @@ pub use normals::{
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
 pub use points::PointSet;
+pub use trim::{trim, Threshold, Trimming};
 
 /// Reconstructs a watertight mesh from oriented points.
 pub fn reconstruct(points: &PointSet, params: &Params) -> Result<Mesh> {
