@@ -932,10 +932,9 @@ mod tests {
         let closed = vec![[0, 1, 2], [0, 3, 4], [0, 2, 3], [0, 4, 1]];
         let fan = Fan::of(0, &[0, 1, 2, 3], &closed).expect("a fan");
         assert!(fan.closed);
-        let order: Vec<u32> = fan.corners.iter().map(|c| c.1).collect();
         // Each corner's next neighbour is the following corner's previous one.
-        for i in 0..4 {
-            assert_eq!(fan.corners[(i + 1) % 4].2, order[i]);
+        for (i, corner) in fan.corners.iter().enumerate() {
+            assert_eq!(fan.corners[(i + 1) % 4].2, corner.1);
         }
         // Without one triangle it is open and starts after the gap.
         let open = Fan::of(0, &[0, 1, 2], &closed).expect("an open fan");

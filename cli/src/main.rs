@@ -175,7 +175,12 @@ struct Args {
 
     /// Cut where the sampling density (the output's `value`: samples per kernel-depth node)
     /// falls below W (>= 0). PoissonRecon: none (SurfaceTrimmer's value is depth-like).
-    #[arg(long, value_name = "W", group = "trimming", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "W",
+        group = "trimming",
+        allow_negative_numbers = true
+    )]
     trim_density: Option<f32>,
 
     /// Cut away the least densely sampled fraction Q (0..=1) of the surface's area (more where a

@@ -203,23 +203,20 @@ unsafe fn read_options(
         }
     };
     // SAFETY: as above.
-    if let Some(threads) =
-        unsafe { field::<u32>(base, size, offset_of!(psr_trim_options, threads)) }
-    {
+    let threads: Option<u32> = unsafe { field(base, size, offset_of!(psr_trim_options, threads)) };
+    if let Some(threads) = threads {
         trimming.threads = usize::try_from(threads).unwrap_or(usize::MAX);
     }
     // SAFETY: as above.
-    if let Some(area) = unsafe { field(base, size, offset_of!(psr_trim_options, min_piece_area)) } {
+    let area: Option<f32> =
+        unsafe { field(base, size, offset_of!(psr_trim_options, min_piece_area)) };
+    if let Some(area) = area {
         trimming.min_piece_area = area;
     }
+    let triangles = offset_of!(psr_trim_options, min_piece_triangles);
     // SAFETY: as above.
-    if let Some(count) = unsafe {
-        field(
-            base,
-            size,
-            offset_of!(psr_trim_options, min_piece_triangles),
-        )
-    } {
+    let count: Option<u32> = unsafe { field(base, size, triangles) };
+    if let Some(count) = count {
         trimming.min_piece_triangles = count;
     }
     Ok(trimming)
@@ -348,10 +345,12 @@ mod tests {
     /// Proves each refusal names psr_mesh_trim, what is wrong and what to do.
     #[test]
     fn failures_say_what_is_wrong() {
-        let mut mesh = Mesh::default();
-        mesh.positions = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        mesh.triangles = vec![[0, 1, 2]];
-        mesh.densities = vec![1.0, 2.0, 3.0];
+        let mut mesh = Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            triangles: vec![[0, 1, 2]],
+            densities: vec![1.0, 2.0, 3.0],
+            ..Mesh::default()
+        };
         mesh.stats.sample_density_quantiles = vec![1.0; 1001];
         let m = psr_mesh { mesh };
         let mut opts = defaults();
