@@ -21,8 +21,10 @@
  * OWNERSHIP
  *   - Two opaque handles: psr_reconstructor (parameters + points, reusable) and psr_mesh (one
  *     result). Each psr_reconstructor_new has one psr_reconstructor_free; each mesh written by
- *     psr_reconstructor_solve has one psr_mesh_free. Both free functions accept NULL.
- *   - A mesh is independent of the reconstructor that made it: either may be freed first.
+ *     psr_reconstructor_solve or psr_mesh_trim has one psr_mesh_free. Both free functions
+ *     accept NULL.
+ *   - A mesh is independent of the reconstructor (or the mesh, for psr_mesh_trim) that made
+ *     it: either may be freed first.
  *   - psr_reconstructor_add_points, psr_reconstructor_add_positions and its _seen_from and
  *     _with_sensors variants copy their input (positions, normals, sensors): free your arrays
  *     as soon as they return.
@@ -68,6 +70,10 @@
  *   - The ABI grows by adding functions, never by changing a signature or a struct: parameters
  *     are set one by one (no config struct by value), and future per-point attributes (weights,
  *     colours) will come as new functions such as psr_reconstructor_add_points_ex.
+ *   - The one options struct, psr_trim_options, is passed by pointer and begins with its own
+ *     size (struct_size, set by psr_trim_options_init(&opts, sizeof opts)). Fields are only
+ *     added at its end: the library reads the fields your struct has and takes the defaults for
+ *     the rest, and refuses a newer struct only if it sets a field the library does not know.
  */
 
 #ifndef PSR_H
@@ -81,6 +87,11 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+
+/**
+ * How many steps [`quantiles`] divides the samples' density distribution into.
+ */
+#define QUANTILE_STEPS 1000
 
 /**
  * Major version of the header you compiled against (the crate version's first number).
@@ -97,6 +108,14 @@
  * Patch version of the header you compiled against.
  */
 #define PSR_VERSION_PATCH 0
+
+/**
+ * Crossings closer than this fraction of an edge to an end are moved onto the end, or where
+ * that would pinch a vertex, to this distance from it. A fifth keeps every piece of a cut
+ * triangle within a bounded shape ratio of its source (see `tests/trim.rs`) while moving the
+ * contour by at most a fifth of an edge.
+ */
+#define SNAP 0.2
 
 /**
  * What a fallible psr function reports. 0 is success; the numbers are stable and never reused:
@@ -287,8 +306,37 @@ typedef enum {
 } psr_orientation;
 
 /**
- * A reconstructed triangle mesh. Created by psr_reconstructor_solve, destroyed by
- * psr_mesh_free; independent of the reconstructor that made it. Opaque to C.
+ * What psr_trim_options.threshold_value means (psr_trim_options.threshold).
+ */
+typedef enum {
+    /**
+     * Half the density below which 0.1 % of the input samples lie: the surface is cut a little
+     * beyond the edges of the sparsest sampled regions, and at most about 0.1 % of the samples
+     * lose the surface around them. threshold_value is ignored. The default.
+     */
+    PSR_TRIM_THRESHOLD_AUTOMATIC = 0,
+    /**
+     * threshold_value is a density (the unit of psr_mesh_densities: samples per kernel-depth
+     * node), finite and >= 0; 0 keeps everything.
+     */
+    PSR_TRIM_THRESHOLD_DENSITY = 1,
+    /**
+     * threshold_value is a fraction q in [0, 1] of the mesh's area: the cut is at the lowest
+     * density below which at least that much of the area lies (more goes where a whole region
+     * shares one density, such as a lid far from every sample, at 0).
+     */
+    PSR_TRIM_THRESHOLD_QUANTILE = 2,
+    /**
+     * threshold_value is PoissonRecon's depth-like value d in [0, 32] (its --density output
+     * and SurfaceTrimmer --trim): the density 4^(d - kernel depth).
+     */
+    PSR_TRIM_THRESHOLD_DEPTH = 3,
+} psr_trim_threshold;
+
+/**
+ * A reconstructed triangle mesh. Created by psr_reconstructor_solve (or psr_mesh_trim, from
+ * another mesh), destroyed by psr_mesh_free; independent of the reconstructor or mesh that
+ * made it. Opaque to C.
  */
 typedef struct psr_mesh psr_mesh;
 
@@ -311,6 +359,45 @@ typedef struct psr_reconstructor psr_reconstructor;
  * functions. It must not unwind (no C++ exception or longjmp out of it).
  */
 typedef bool (*psr_progress_fn)(void *user, psr_stage stage, float fraction);
+
+/**
+ * Options of psr_mesh_trim. Fill it with psr_trim_options_init(&opts, sizeof opts), which
+ * writes the defaults and struct_size, then change the fields you need. Fields are only ever
+ * added at the end: a program built with this header keeps working with later libraries, and
+ * a later program with this library as long as it leaves the fields this header lacks at
+ * their defaults (zero).
+ */
+typedef struct {
+    /**
+     * The size of this struct as your header defines it (sizeof(psr_trim_options)); set by
+     * psr_trim_options_init. It tells the library which fields you have.
+     */
+    size_t struct_size;
+    /**
+     * A psr_trim_threshold: how threshold_value is read. Default PSR_TRIM_THRESHOLD_AUTOMATIC.
+     */
+    int32_t threshold;
+    /**
+     * Worker threads for the trim; 0 = one per core. Default 0. The result does not depend on
+     * it.
+     */
+    uint32_t threads;
+    /**
+     * The threshold, in the unit psr_trim_threshold gives it; ignored for
+     * PSR_TRIM_THRESHOLD_AUTOMATIC. Default 0.
+     */
+    double threshold_value;
+    /**
+     * Pieces left by the cut with less than this fraction of the cut surface's area are
+     * dropped; range [0, 1]. Default 0 (every piece kept: pieces left near samples are small
+     * sampled parts). PoissonRecon's SurfaceTrimmer --aRatio (default 0.001 there).
+     */
+    float min_piece_area;
+    /**
+     * Pieces of fewer triangles than this are dropped too. Default 0.
+     */
+    uint32_t min_piece_triangles;
+} psr_trim_options;
 
 
 
@@ -752,7 +839,7 @@ psr_status psr_reconstructor_debug_panic_next_solve(psr_reconstructor *r);
  * Number of vertices of m; 0 if m is NULL.
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
  */
 size_t psr_mesh_vertex_count(const psr_mesh *m);
 
@@ -760,7 +847,7 @@ size_t psr_mesh_vertex_count(const psr_mesh *m);
  * Number of triangles of m; 0 if m is NULL.
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
  */
 size_t psr_mesh_triangle_count(const psr_mesh *m);
 
@@ -770,7 +857,7 @@ size_t psr_mesh_triangle_count(const psr_mesh *m);
  * vertices.
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
  */
 const float *psr_mesh_positions(const psr_mesh *m);
 
@@ -780,18 +867,18 @@ const float *psr_mesh_positions(const psr_mesh *m);
  * NULL if m is NULL or has no triangles.
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
  */
 const uint32_t *psr_mesh_triangles(const psr_mesh *m);
 
 /**
  * The sampling density estimate at each vertex (one float per vertex), owned by m: valid until
- * psr_mesh_free(m). Low values mark surface invented far from any sample; drop triangles whose
- * vertices fall below a threshold to trim it (like PoissonRecon's SurfaceTrimmer). NULL if m is
+ * psr_mesh_free(m). Low values mark surface invented far from any sample; psr_mesh_trim cuts
+ * the surface back along a threshold of it (like PoissonRecon's SurfaceTrimmer). NULL if m is
  * NULL or has no vertices.
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
  */
 const float *psr_mesh_densities(const psr_mesh *m);
 
@@ -800,7 +887,7 @@ const float *psr_mesh_densities(const psr_mesh *m);
  * paper section 4.4). NaN if m is NULL.
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
  */
 double psr_mesh_isovalue(const psr_mesh *m);
 
@@ -848,7 +935,8 @@ psr_status psr_mesh_copy_densities(const psr_mesh *m, float *dst, size_t capacit
  * m may be NULL (nothing happens).
  *
  * # Safety
- * `m` is NULL or a live mesh from psr_reconstructor_solve, not used again afterwards.
+ * `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim), not used
+ * again afterwards.
  */
 void psr_mesh_free(psr_mesh *m);
 
@@ -995,6 +1083,66 @@ psr_status psr_reconstructor_get_normal_orientation(const psr_reconstructor *r, 
  * `r` is NULL or a live handle from psr_reconstructor_new.
  */
 psr_status psr_reconstructor_set_viewpoint(psr_reconstructor *r, double x, double y, double z);
+
+/**
+ * Fills *opts (struct_size bytes, sizeof(psr_trim_options) as the caller's header defines it)
+ * with the default options: every field it knows set to its default, any later field zeroed,
+ * and opts->struct_size = struct_size. Pass sizeof of your struct, so that a newer library
+ * never writes beyond it.
+ *
+ * opts must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_ARGUMENT (struct_size below sizeof(size_t) or above 4096; nothing is
+ * written) or PSR_STATUS_INTERNAL_ERROR. Thread-safe.
+ *
+ * # Safety
+ * `opts` is NULL or valid for writing `struct_size` bytes.
+ */
+psr_status psr_trim_options_init(psr_trim_options *opts, size_t struct_size);
+
+/**
+ * Cuts m back to where its sampling density is at least a threshold (psr_trim_options) and
+ * writes the result to *out as a new mesh (free it with psr_mesh_free); m itself is left as
+ * it is, so the untrimmed surface stays available. The cut follows the density's contour
+ * across triangles; the result is a mesh with boundary: every edge in one or two triangles,
+ * every vertex a single fan, oriented like m, with one density per vertex (interpolated on
+ * the cut). Cutting everything away gives a mesh with no vertices, not an error.
+ * psr_mesh_trim_density and psr_mesh_trim_depth give the threshold it was cut at. The Rust
+ * API's psr::trim; PoissonRecon's SurfaceTrimmer.
+ *
+ * m and out must not be NULL; options may be NULL for the defaults (the automatic threshold,
+ * every piece kept). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_ARGUMENT (options->struct_size not set by psr_trim_options_init, or a
+ * field this library does not know set to non-zero), PSR_STATUS_INVALID_PARAMETER (an unknown
+ * threshold kind, or a value out of the range its field documents),
+ * PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
+ * message (there is no reconstructor to keep it on). On failure *out is left untouched.
+ *
+ * Runs on the calling thread with its own worker threads (options->threads). m is only read:
+ * several threads may trim (or read) the same mesh at once.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `options` is NULL or points to a psr_trim_options of
+ * `options->struct_size` readable bytes; `out` is NULL or valid for writing one pointer.
+ */
+psr_status psr_mesh_trim(const psr_mesh *m, const psr_trim_options *options, psr_mesh **out);
+
+/**
+ * The density m was cut at by psr_mesh_trim (whatever psr_trim_threshold asked for, resolved to
+ * a density); NaN if m is NULL or was not made by psr_mesh_trim.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh.
+ */
+double psr_mesh_trim_density(const psr_mesh *m);
+
+/**
+ * The same threshold as PoissonRecon's depth-like value, kernel depth + log4(density)
+ * (-infinity for a density of 0); NaN if m is NULL or was not made by psr_mesh_trim.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh.
+ */
+double psr_mesh_trim_depth(const psr_mesh *m);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -92,12 +92,34 @@ impl DensityField {
 }
 
 /// Per-sample results of the density stage (from W(s), the density at each sample, which is
-/// not kept).
+/// kept only as its distribution).
 pub struct SampleDensity {
     /// A_s, the surface area each sample stands for (unit-cube units).
     pub area: Vec<f64>,
     /// Depth(s), fractional, in [0, D].
     pub depth: Vec<f64>,
+    /// The distribution of W(s) over the samples: entry k is the density below which k / 1000
+    /// of the samples lie (see [`quantiles`]). Kept in the mesh's figures as the scale the
+    /// densities at its vertices are compared with when trimming.
+    pub quantiles: Vec<f32>,
+}
+
+/// How many steps [`quantiles`] divides the samples' density distribution into.
+pub const QUANTILE_STEPS: usize = 1000;
+
+/// The `QUANTILE_STEPS + 1` quantiles of `values` (entry k: the value of rank
+/// ⌊k·(n − 1) / QUANTILE_STEPS⌋ in ascending order, so entry 0 is the minimum and the last
+/// the maximum); empty when `values` is. Sorting gives the same order at any thread count.
+pub fn quantiles(values: &[f64]) -> Vec<f32> {
+    if values.is_empty() {
+        return Vec::new();
+    }
+    let mut sorted = values.to_vec();
+    sorted.par_sort_unstable_by(f64::total_cmp);
+    let n = sorted.len();
+    (0..=QUANTILE_STEPS)
+        .map(|k| sorted[k * (n - 1) / QUANTILE_STEPS] as f32)
+        .collect()
 }
 
 /// Evaluates W at every sample and derives its area and depth.
@@ -132,7 +154,11 @@ pub fn estimate(
             }
         })
         .collect();
-    SampleDensity { area, depth }
+    SampleDensity {
+        area,
+        depth,
+        quantiles: quantiles(&density),
+    }
 }
 
 /// One sample's contribution at one depth.
@@ -190,6 +216,19 @@ fn depth_split(depth: f64) -> [(u32, f64); 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Proves the samples' density distribution is kept as 1001 quantiles, from the minimum to
+    /// the maximum, each the value of its rank.
+    #[test]
+    fn quantiles_run_from_the_minimum_to_the_maximum_by_rank() {
+        let values: Vec<f64> = (0..2001).rev().map(|i| i as f64 * 0.5).collect();
+        let q = quantiles(&values);
+        assert_eq!(q.len(), QUANTILE_STEPS + 1);
+        assert_eq!((q[0], q[1], q[500], q[1000]), (0.0, 1.0, 500.0, 1000.0));
+        assert!(q.windows(2).all(|w| w[0] <= w[1]));
+        assert!(quantiles(&[]).is_empty());
+        assert_eq!(quantiles(&[3.0]), vec![3.0f32; QUANTILE_STEPS + 1]);
+    }
 
     #[test]
     fn trilinear_weights_sum_to_one_and_reproduce_the_position() {

@@ -69,6 +69,10 @@ pub enum Error {
         /// the documented range
         expected: &'static str,
     },
+    /// A mesh given to [`crate::trim`] is inconsistent: a triangle names a vertex that does not
+    /// exist, or a density is not finite. Meshes from [`crate::reconstruct`] never are; check
+    /// how the mesh was built or changed.
+    InvalidMesh(String),
     /// The caller's progress callback asked to stop.
     Cancelled,
     /// The operating system refused to start the reconstruction's worker threads (a limit on
@@ -125,6 +129,10 @@ impl fmt::Display for Error {
             Error::InvalidParameter { name, value, expected } => {
                 write!(f, "parameter {name} = {value} is out of range: expected {expected}")
             }
+            Error::InvalidMesh(msg) => write!(
+                f,
+                "the mesh is inconsistent: {msg}: give a mesh whose triangles, positions and densities agree, as reconstruct returns it"
+            ),
             Error::Cancelled => write!(f, "reconstruction cancelled by the progress callback"),
             Error::ThreadsUnavailable { threads, reason } => write!(
                 f,

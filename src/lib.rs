@@ -13,8 +13,9 @@
 //! The reconstruction is one straight pipeline; each stage is a module:
 //! points → density → octree → splat → system → solve → isovalue → extract → mesh
 //! (`src/pipeline.rs` runs them; `docs/architecture.md` says where everything lives). The
-//! public surface is [`reconstruct`], [`reconstruct_with_progress`] and their types, the C API
-//! in [`ffi`] and the PLY reader and writer in [`ply`].
+//! public surface is [`reconstruct`], [`reconstruct_with_progress`] and their types, [`trim`]
+//! (the mesh cut back to where its samples are, by their density), the normal estimation for
+//! clouds without normals, the C API in [`ffi`] and the PLY reader and writer in [`ply`].
 
 // Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment saying
 // why it holds, also inside `unsafe fn` bodies; unsafe code lives in `ffi/` (the C API),
@@ -41,9 +42,10 @@ mod points;
 mod solve;
 mod splat;
 mod system;
+mod trim;
 
 pub use error::{Error, Result};
-pub use mesh::{DepthSolve, Mesh, Stats};
+pub use mesh::{DepthSolve, Mesh, Stats, TrimReport};
 pub use normals::{
     estimate_normals, estimate_normals_with_progress, orient_normals, orient_normals_with_progress,
     NormalEstimation, Orientation,
@@ -51,6 +53,7 @@ pub use normals::{
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
 pub use points::PointSet;
+pub use trim::{trim, Threshold, Trimming};
 
 /// Reconstructs a watertight mesh from oriented points.
 pub fn reconstruct(points: &PointSet, params: &Params) -> Result<Mesh> {

@@ -37,6 +37,48 @@ pub struct Stats {
     pub solves: Vec<DepthSolve>,
     /// Wall seconds spent in each stage, in pipeline order.
     pub stage_seconds: Vec<(Stage, f64)>,
+    /// The kernel depth D̂ at which the sampling density was estimated (§4.5): the unit of
+    /// [`Mesh::densities`] is samples per depth-D̂ node, and trimming's depth-like threshold
+    /// ([`crate::Threshold::Depth`]) is D̂ + log₄ of the density.
+    pub kernel_depth: u32,
+    /// The sampling density at the input samples themselves, as 1001 quantiles: entry k is the
+    /// density (in the unit of [`Mesh::densities`]) below which k / 1000 of the samples lie,
+    /// entry 0 the lowest and entry 1000 the highest. The scale trimming's automatic threshold
+    /// is taken from ([`crate::Threshold::Automatic`]). Empty for a mesh not made by a
+    /// reconstruction.
+    pub sample_density_quantiles: Vec<f32>,
+    /// How the mesh was cut back to its samples by [`crate::trim`]; `None` for a mesh as the
+    /// reconstruction made it.
+    pub trim: Option<TrimReport>,
+}
+
+/// What [`crate::trim`] did: the threshold it cut at, in both of its units, and what it kept.
+#[derive(Debug, Clone, Default, PartialEq)]
+#[non_exhaustive]
+pub struct TrimReport {
+    /// The density threshold the surface was cut at (unit of [`Mesh::densities`]): whatever
+    /// [`crate::Threshold`] was asked for, resolved to a density.
+    pub density: f64,
+    /// The same threshold as PoissonRecon's depth-like value, D̂ + log₄(density) (−∞ for a
+    /// threshold of 0).
+    pub depth: f64,
+    /// Crossings of the contour with an edge that were moved onto the edge's end, being
+    /// closer to it than a fifth of the edge (to avoid slivers).
+    pub snapped_crossings: usize,
+    /// Crossings as close to an end that could not be moved there (it would have pinched the
+    /// surface at that vertex, as at a saddle of the density): kept a fifth of the edge away.
+    pub clamped_crossings: usize,
+    /// Connected pieces left by the cut, and how many of them the size rule dropped.
+    pub pieces: usize,
+    /// Pieces dropped for being smaller than [`crate::Trimming::min_piece_area`] or
+    /// [`crate::Trimming::min_piece_triangles`].
+    pub pieces_dropped: usize,
+    /// Surface area before the cut and after it (pieces dropped), in input units squared.
+    pub area_before: f64,
+    /// See [`TrimReport::area_before`].
+    pub area_after: f64,
+    /// Wall seconds the trim took.
+    pub seconds: f64,
 }
 
 impl Stats {

@@ -155,6 +155,8 @@ pub(crate) fn run(
             params.samples_per_node as f64,
         )
     });
+    clock.stats.kernel_depth = kernel_depth;
+    clock.stats.sample_density_quantiles = std::mem::take(&mut sample_density.quantiles);
     clock.done(Stage::Density)?;
 
     // 3. Octree: around the cells of each sample at its one or two depths.

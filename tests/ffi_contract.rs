@@ -1869,3 +1869,346 @@ fn sensors_orient_estimated_normals_towards_them() {
         psr_reconstructor_free(r);
     }
 }
+// ------------------------------------------------------------------------------------------------
+// Trimming: psr_trim_options (sized, extensible), psr_mesh_trim, the threshold it cut at
+// ------------------------------------------------------------------------------------------------
+
+/// The upper half of a 20k-point sphere, reconstructed at depth 6 in Rust (the C handle wraps
+/// it with debug_mesh_new), and the Rust mesh itself to compare with.
+fn hemisphere_mesh() -> (psr::Mesh, *mut psr_mesh) {
+    let (p, n) = sphere(20_000, [0.0; 3], 1.0);
+    let (mut positions, mut normals) = (Vec::new(), Vec::new());
+    for i in 0..p.len() / 3 {
+        if p[3 * i + 2] > 0.0 {
+            positions.push([p[3 * i], p[3 * i + 1], p[3 * i + 2]]);
+            normals.push([n[3 * i], n[3 * i + 1], n[3 * i + 2]]);
+        }
+    }
+    let points = psr::PointSet::from_slices(&positions, &normals).unwrap();
+    let mesh = psr::reconstruct(&points, &psr::Params::default().with_depth(6)).unwrap();
+    let handle = debug_mesh_new(mesh.clone());
+    (mesh, handle)
+}
+
+fn trim_options() -> psr_trim_options {
+    let mut opts = std::mem::MaybeUninit::<psr_trim_options>::uninit();
+    let size = std::mem::size_of::<psr_trim_options>();
+    assert_eq!(
+        unsafe { psr_trim_options_init(opts.as_mut_ptr(), size) },
+        psr_status::Ok
+    );
+    unsafe { opts.assume_init() }
+}
+
+/// Trims `m` with the options at `opts` (any struct whose first field is its size) and returns
+/// the status and the new mesh (NULL on failure; `out` starts as a sentinel that must stay).
+fn trim_with<T>(m: *const psr_mesh, opts: *const T) -> (psr_status, *mut psr_mesh) {
+    let sentinel = sentinel_ptr::<psr_mesh>();
+    let mut out = sentinel;
+    let status = unsafe { psr_mesh_trim(m, opts.cast(), &mut out) };
+    if status == psr_status::Ok {
+        assert!(!out.is_null() && out != sentinel);
+        (status, out)
+    } else {
+        assert_eq!(out, sentinel, "*out must be left untouched on failure");
+        (status, ptr::null_mut())
+    }
+}
+
+/// Proves: psr_trim_options_init writes the Rust API's defaults and the size given, NULL and
+/// impossible sizes are refused without writing, and every NULL the trim functions get is
+/// handled (a status for psr_mesh_trim, NaN for the two getters).
+#[test]
+fn trim_options_init_gives_the_defaults_and_null_is_refused() {
+    let opts = trim_options();
+    let d = psr::Trimming::default();
+    assert_eq!(opts.struct_size, std::mem::size_of::<psr_trim_options>());
+    assert_eq!(opts.threshold, psr_trim_threshold::Automatic as i32);
+    assert_eq!(opts.threshold_value, 0.0);
+    assert_eq!(opts.min_piece_area, d.min_piece_area);
+    assert_eq!(opts.min_piece_triangles, d.min_piece_triangles);
+    assert_eq!(opts.threads as usize, d.threads);
+    unsafe {
+        assert_eq!(
+            psr_trim_options_init(ptr::null_mut(), 32),
+            psr_status::NullArgument
+        );
+        let mut bytes = [0xABu8; 64];
+        for bad in [0usize, 7, 4097, usize::MAX] {
+            assert_eq!(
+                psr_trim_options_init(bytes.as_mut_ptr().cast(), bad),
+                psr_status::InvalidArgument,
+                "struct_size {bad}"
+            );
+        }
+        assert!(bytes.iter().all(|&b| b == 0xAB), "a refused init wrote");
+
+        let tetra = tetrahedron();
+        let mut out = sentinel_ptr::<psr_mesh>();
+        assert_eq!(
+            psr_mesh_trim(ptr::null(), &opts, &mut out),
+            psr_status::NullArgument
+        );
+        assert_eq!(out, sentinel_ptr());
+        assert_eq!(
+            psr_mesh_trim(tetra, &opts, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert!(psr_mesh_trim_density(ptr::null()).is_nan());
+        assert!(psr_mesh_trim_depth(ptr::null()).is_nan());
+        assert!(psr_mesh_trim_density(tetra).is_nan(), "an untrimmed mesh");
+        assert!(psr_mesh_trim_depth(tetra).is_nan());
+        psr_mesh_free(tetra);
+    }
+}
+
+/// Proves: psr_mesh_trim gives the mesh psr::trim gives, with the threshold it cut at, for
+/// NULL options (the defaults) and for each threshold kind; the trimmed mesh outlives its
+/// source; the source is left as it was.
+#[test]
+fn trimming_through_c_equals_the_rust_api() {
+    let (mesh, m) = hemisphere_mesh();
+    let before = mesh_arrays(m);
+    let kinds = [
+        (
+            psr_trim_threshold::Automatic,
+            0.0,
+            psr::Threshold::Automatic,
+        ),
+        (
+            psr_trim_threshold::Density,
+            2.0,
+            psr::Threshold::Density(2.0),
+        ),
+        (
+            psr_trim_threshold::Quantile,
+            0.7,
+            psr::Threshold::Quantile(0.7),
+        ),
+        (psr_trim_threshold::Depth, 5.5, psr::Threshold::Depth(5.5)),
+    ];
+    let (status, from_null) = trim_with::<psr_trim_options>(m, ptr::null());
+    assert_eq!(status, psr_status::Ok);
+    let rust = psr::trim(&mesh, &psr::Trimming::default()).unwrap();
+    assert_eq!(mesh_arrays(from_null).1, rust.triangles.as_flattened());
+    unsafe { psr_mesh_free(from_null) };
+    for (kind, value, threshold) in kinds {
+        let mut opts = trim_options();
+        opts.threshold = kind as i32;
+        opts.threshold_value = value;
+        let (status, trimmed) = trim_with(m, &opts);
+        assert_eq!(status, psr_status::Ok, "{kind:?}");
+        let rust = psr::trim(&mesh, &psr::Trimming::default().with_threshold(threshold)).unwrap();
+        let (positions, triangles, densities, _) = mesh_arrays(trimmed);
+        assert_eq!(positions, rust.positions.as_flattened(), "{kind:?}");
+        assert_eq!(triangles, rust.triangles.as_flattened(), "{kind:?}");
+        assert_eq!(densities, rust.densities, "{kind:?}");
+        let report = rust.stats.trim.as_ref().unwrap();
+        unsafe {
+            assert_eq!(psr_mesh_trim_density(trimmed), report.density, "{kind:?}");
+            assert_eq!(
+                psr_mesh_trim_depth(trimmed).to_bits(),
+                report.depth.to_bits()
+            );
+            assert!(psr_mesh_triangle_count(trimmed) < psr_mesh_triangle_count(m) || value == 0.0);
+            if kind == psr_trim_threshold::Depth {
+                assert!((psr_mesh_trim_depth(trimmed) - 5.5).abs() < 1e-6);
+            }
+            // The trimmed mesh is independent of its source.
+            psr_mesh_free(trimmed);
+        }
+    }
+    // The source is unchanged, and a trimmed mesh outlives it.
+    assert!(mesh_arrays(m) == before);
+    let (_, trimmed) = trim_with::<psr_trim_options>(m, ptr::null());
+    unsafe { psr_mesh_free(m) };
+    assert!(unsafe { psr_mesh_vertex_count(trimmed) } > 0);
+    assert!(unsafe { psr_mesh_trim_density(trimmed) } > 0.0);
+    unsafe { psr_mesh_free(trimmed) };
+}
+
+/// The first fields of psr_trim_options, as an older header would have had them (no piece
+/// rule): a struct smaller than this library's.
+#[repr(C)]
+struct OlderTrimOptions {
+    struct_size: usize,
+    threshold: i32,
+    threads: u32,
+    threshold_value: f64,
+}
+
+/// Proves: a struct from an older header, smaller than this library's, still works: init writes
+/// only its bytes, the fields it has are read and the missing ones take their defaults (the
+/// same mesh as the full struct with those defaults).
+#[test]
+fn an_older_smaller_options_struct_still_works() {
+    let (_, m) = hemisphere_mesh();
+    // The older struct, followed by bytes init must not touch.
+    #[repr(C)]
+    struct Guarded {
+        older: OlderTrimOptions,
+        after: [u8; 16],
+    }
+    let mut guarded = Guarded {
+        older: OlderTrimOptions {
+            struct_size: 0,
+            threshold: -1,
+            threads: 99,
+            threshold_value: f64::NAN,
+        },
+        after: [0xAB; 16],
+    };
+    let size = std::mem::size_of::<OlderTrimOptions>();
+    assert_eq!(size, 24);
+    let status = unsafe {
+        psr_trim_options_init(
+            ptr::from_mut(&mut guarded.older).cast::<psr_trim_options>(),
+            size,
+        )
+    };
+    assert_eq!(status, psr_status::Ok);
+    assert!(
+        guarded.after.iter().all(|&b| b == 0xAB),
+        "init wrote past the struct"
+    );
+    assert_eq!(guarded.older.struct_size, size);
+    assert_eq!(guarded.older.threshold, 0);
+    assert_eq!(guarded.older.threads, 0);
+    assert_eq!(guarded.older.threshold_value, 0.0);
+    guarded.older.threshold = psr_trim_threshold::Depth as i32;
+    guarded.older.threshold_value = 5.5;
+    let (status, old) = trim_with(m, &guarded.older);
+    assert_eq!(status, psr_status::Ok);
+    let mut full = trim_options();
+    full.threshold = psr_trim_threshold::Depth as i32;
+    full.threshold_value = 5.5;
+    let (_, new) = trim_with(m, &full);
+    assert!(mesh_arrays(old) == mesh_arrays(new));
+    // Only the size field: every option at its default.
+    let only_size: usize = std::mem::size_of::<usize>();
+    let (status, defaults) = trim_with(m, &only_size);
+    assert_eq!(status, psr_status::Ok);
+    let (_, null) = trim_with::<psr_trim_options>(m, ptr::null());
+    assert!(mesh_arrays(defaults) == mesh_arrays(null));
+    unsafe {
+        for mesh in [old, new, defaults, null, m] {
+            psr_mesh_free(mesh);
+        }
+    }
+}
+
+/// Proves: a struct from a newer header, larger than this library's, is accepted while the
+/// fields this library does not know are zero (init zeroes them), and refused with
+/// INVALID_ARGUMENT once one is set.
+#[test]
+fn a_newer_larger_options_struct_works_while_its_unknown_fields_are_zero() {
+    let (_, m) = hemisphere_mesh();
+    #[repr(C)]
+    struct NewerTrimOptions {
+        known: psr_trim_options,
+        later: [u64; 2],
+    }
+    let mut newer = std::mem::MaybeUninit::<NewerTrimOptions>::uninit();
+    let size = std::mem::size_of::<NewerTrimOptions>();
+    assert_eq!(
+        unsafe { psr_trim_options_init(newer.as_mut_ptr().cast(), size) },
+        psr_status::Ok
+    );
+    let mut newer = unsafe { newer.assume_init() };
+    assert_eq!(newer.known.struct_size, size);
+    assert_eq!(newer.later, [0, 0]);
+    let (status, trimmed) = trim_with(m, &newer);
+    assert_eq!(status, psr_status::Ok);
+    newer.later[1] = 1;
+    assert_eq!(trim_with(m, &newer).0, psr_status::InvalidArgument);
+    unsafe {
+        psr_mesh_free(trimmed);
+        psr_mesh_free(m);
+    }
+}
+
+/// Proves: sizes no header has, unknown threshold kinds and values out of range are refused
+/// (INVALID_ARGUMENT for the struct, INVALID_PARAMETER for a value), leaving *out alone.
+#[test]
+fn bad_trim_options_are_refused() {
+    let (_, m) = hemisphere_mesh();
+    let refused = |change: &dyn Fn(&mut psr_trim_options), want: psr_status| {
+        let mut opts = trim_options();
+        change(&mut opts);
+        assert_eq!(trim_with(m, &opts).0, want, "{opts:?}");
+    };
+    refused(&|o| o.struct_size = 0, psr_status::InvalidArgument);
+    refused(&|o| o.struct_size = 4, psr_status::InvalidArgument);
+    refused(&|o| o.struct_size = 1 << 20, psr_status::InvalidArgument);
+    refused(&|o| o.threshold = 4, psr_status::InvalidParameter);
+    refused(&|o| o.threshold = -1, psr_status::InvalidParameter);
+    let with = |kind: psr_trim_threshold, value: f64| {
+        move |o: &mut psr_trim_options| {
+            o.threshold = kind as i32;
+            o.threshold_value = value;
+        }
+    };
+    refused(
+        &with(psr_trim_threshold::Density, -1.0),
+        psr_status::InvalidParameter,
+    );
+    refused(
+        &with(psr_trim_threshold::Density, f64::NAN),
+        psr_status::InvalidParameter,
+    );
+    refused(
+        &with(psr_trim_threshold::Density, 1e300),
+        psr_status::InvalidParameter,
+    );
+    refused(
+        &with(psr_trim_threshold::Quantile, 1.5),
+        psr_status::InvalidParameter,
+    );
+    refused(
+        &with(psr_trim_threshold::Depth, 40.0),
+        psr_status::InvalidParameter,
+    );
+    refused(&|o| o.min_piece_area = 2.0, psr_status::InvalidParameter);
+    refused(
+        &|o| o.min_piece_area = f32::NAN,
+        psr_status::InvalidParameter,
+    );
+    refused(&|o| o.threads = 5000, psr_status::InvalidParameter);
+    // The automatic threshold ignores the value.
+    let mut opts = trim_options();
+    opts.threshold_value = f64::NAN;
+    let (status, trimmed) = trim_with(m, &opts);
+    assert_eq!(status, psr_status::Ok);
+    unsafe {
+        psr_mesh_free(trimmed);
+        psr_mesh_free(m);
+    }
+}
+
+/// Proves: several threads may trim the same mesh at once, each getting the same result.
+#[test]
+fn threads_may_trim_one_mesh_at_once() {
+    struct Shared(*mut psr_mesh);
+    // SAFETY: a psr_mesh is never changed after creation; its const functions may be called
+    // from several threads at once (the header's THREADING section).
+    unsafe impl Sync for Shared {}
+    let (_, m) = hemisphere_mesh();
+    let shared = Shared(m);
+    let results: Vec<MeshArrays> = std::thread::scope(|s| {
+        let runs: Vec<_> = (0..3)
+            .map(|_| {
+                s.spawn(|| {
+                    let shared = &shared;
+                    let (status, trimmed) = trim_with::<psr_trim_options>(shared.0, ptr::null());
+                    assert_eq!(status, psr_status::Ok);
+                    let arrays = mesh_arrays(trimmed);
+                    unsafe { psr_mesh_free(trimmed) };
+                    arrays
+                })
+            })
+            .collect();
+        runs.into_iter().map(|r| r.join().unwrap()).collect()
+    });
+    assert!(results.windows(2).all(|w| w[0] == w[1]));
+    unsafe { psr_mesh_free(m) };
+}

@@ -695,3 +695,112 @@ fn shared_scans_read_with_their_normals_and_colours() {
         assert_eq!(points.colors.as_ref().map(Vec::len), Some(341_989));
     }
 }
+
+// --- Scans with missing regions, boundaries, shapes of triangles --------------------------------
+
+#[test]
+fn captures_keep_the_side_facing_the_camera_and_the_plane() {
+    let (p, n) = sample_sphere(20_000, 1.0, [0.0; 3], 3);
+    let (seen, seen_normals) = capture_from(&p, &n, [0.0, 0.0, 10.0]);
+    // A camera 10 radii away sees the cap above z = 1/10: (1 − 0.1) / 2 of the sphere.
+    let share = seen.len() as f64 / p.len() as f64;
+    assert!((share - 0.45).abs() < 0.02, "{share}");
+    assert!(seen.iter().zip(&seen_normals).all(|(q, m)| {
+        let to_camera = [-q[0], -q[1], 10.0 - q[2]];
+        (0..3).map(|i| to_camera[i] * m[i]).sum::<f32>() > 0.0
+    }));
+    let (upper, _) = keep_above_plane(&p, &n, [0.0, 0.0, 1.0], 0.0);
+    assert!(upper.iter().all(|q| q[2] >= 0.0));
+    assert!((upper.len() as f64 / p.len() as f64 - 0.5).abs() < 0.02);
+}
+
+#[test]
+fn boundary_loops_of_an_open_square_and_a_closed_cube() {
+    // A 2 × 2 grid of squares, 8 triangles: one loop of the 8 outer vertices, counter-clockwise.
+    let id = |i: u32, j: u32| j * 3 + i;
+    let mut positions = Vec::new();
+    for j in 0..3 {
+        for i in 0..3 {
+            positions.push([i as f32, j as f32, 0.0]);
+        }
+    }
+    let mut triangles = Vec::new();
+    for j in 0..2 {
+        for i in 0..2 {
+            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+    }
+    let loops = boundary_loops(&triangles).expect("one simple loop");
+    assert_eq!(loops, vec![vec![0, 1, 2, 5, 8, 7, 6, 3]]);
+    assert!(close(loop_length(&positions, &loops[0]), 8.0, 1e-12));
+    // A closed mesh has none; a bowtie (two triangles sharing one vertex) is not simple.
+    assert_eq!(boundary_loops(&unit_cube().1), Some(vec![]));
+    assert_eq!(boundary_loops(&[[0, 1, 2], [0, 3, 4]]), None);
+}
+
+#[test]
+fn excess_length_is_one_for_a_circle_and_more_for_a_sawtooth() {
+    let n = 400;
+    let ring = |bump: f64| -> Vec<[f32; 3]> {
+        (0..n)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / n as f64;
+                let r = 1.0 + if k % 2 == 0 { bump } else { -bump };
+                [(r * a.cos()) as f32, (r * a.sin()) as f32, 0.0]
+            })
+            .collect()
+    };
+    let lp: Vec<u32> = (0..n as u32).collect();
+    let edge = std::f64::consts::TAU / n as f64;
+    let smooth = loop_excess_length(&ring(0.0), &lp, 2.0 * edge);
+    assert!((smooth - 1.0).abs() < 1e-3, "{smooth}");
+    // Teeth half an edge high: each edge becomes about √(1 + 1) times longer.
+    let teeth = loop_excess_length(&ring(0.5 * edge), &lp, 2.0 * edge);
+    assert!(teeth > 1.3, "{teeth}");
+}
+
+#[test]
+fn triangle_quality_is_one_for_equilateral_and_small_for_slivers() {
+    let h = 3f32.sqrt() / 2.0;
+    assert!(close(
+        triangle_quality([0.0; 3], [1.0, 0.0, 0.0], [0.5, h, 0.0]),
+        1.0,
+        1e-6
+    ));
+    assert!(triangle_quality([0.0; 3], [1.0, 0.0, 0.0], [0.5, 0.01, 0.0]) < 0.03);
+    assert_eq!(
+        triangle_quality([0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]),
+        0.0
+    );
+}
+
+#[test]
+fn nearest_point_and_mesh_to_points_distances() {
+    let points = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]];
+    let d = nearest_point_distances(
+        &[[0.1f32, 0.0, 0.0], [0.0, 1.5, 0.0], [3.0, 0.0, 0.0]],
+        &points,
+    );
+    assert!(
+        close(d[0], 0.1, 1e-6) && close(d[1], 0.5, 1e-6) && close(d[2], 2.0, 1e-6),
+        "{d:?}"
+    );
+    // A unit square 1 above a point at its corner's foot: distances from √1 to √3.
+    let (square, tris) = (
+        vec![
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ],
+        vec![[0, 1, 2], [0, 2, 3]],
+    );
+    let stats = mesh_to_points_distance(&square, &tris, &[[0.0, 0.0, 0.0]], 20_000, 1);
+    assert!(
+        stats.max <= 3f64.sqrt() + 1e-6 && stats.median > 1.0,
+        "{stats}"
+    );
+    // Mean of √(1 + x² + y²) over the unit square: 1.2808.
+    assert!(close(stats.mean, 1.2808, 0.01), "{stats}");
+}

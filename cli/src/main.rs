@@ -6,8 +6,12 @@
 //!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
 //!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
-//!     [--no-density] [--quiet] [--verbose]
+//!     [--no-density] [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
+//!     [--min-piece-area F] [--min-piece-triangles N] [--quiet] [--verbose]
 //! ```
+//!
+//! The output is the untrimmed, watertight mesh unless a `--trim*` option asks for it to be cut
+//! back to where the points are (`psr::trim`).
 //!
 //! Both file names must end in `.ply` (any case): psr reads PLY point clouds and writes binary
 //! PLY meshes, and refuses to write PLY under another name. `psr --help` gives each option's
@@ -23,10 +27,10 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::builder::{OsStringValueParser, TypedValueParser};
-use clap::Parser;
+use clap::{ArgGroup, Parser};
 use psr::{
     ply, Boundary, Mesh, NormalEstimation, Orientation, Params, PointSet, Splatting, Stage,
-    VertexPlacement,
+    Threshold, Trimming, VertexPlacement,
 };
 
 /// Poisson surface reconstruction: turns a point cloud (PLY with x y z, and nx ny nz when it has
@@ -42,7 +46,9 @@ use psr::{
     max_term_width = 100,
     after_help = "PoissonRecon 18.75 options not named above have no counterpart here, notably \
                   --degree (psr's B-splines have degree 2; PoissonRecon's default is 1) and \
-                  --ascii (psr writes binary PLY only)."
+                  --ascii (psr writes binary PLY only). The --trim options stand for \
+                  PoissonRecon's separate SurfaceTrimmer program run on its --density output.",
+    group = ArgGroup::new("trimming").multiple(false)
 )]
 struct Args {
     /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z (and nx ny nz, or
@@ -156,6 +162,46 @@ struct Args {
     #[arg(long)]
     no_density: bool,
 
+    /// Cut the surface back to where the points are, at the automatic threshold: half the
+    /// sampling density below which 0.1 % of the points lie (the surface closing holes and
+    /// wrapping open scenes goes; the points keep theirs). Without a --trim option the output
+    /// is the untrimmed, watertight mesh. PoissonRecon: SurfaceTrimmer --trim (which needs a
+    /// value; see --trim-depth).
+    #[arg(long, group = "trimming")]
+    trim: bool,
+
+    /// Cut where PoissonRecon's depth-like density value falls below D (0..=32): the octree
+    /// depth at which a node around the point would hold one sample; higher cuts more (7 is a
+    /// usual start at depths 8-10). PoissonRecon: SurfaceTrimmer --trim D.
+    #[arg(long, value_name = "D", group = "trimming")]
+    trim_depth: Option<f32>,
+
+    /// Cut where the sampling density (the output's `value`: samples per kernel-depth node)
+    /// falls below W (>= 0). PoissonRecon: none (SurfaceTrimmer's value is depth-like).
+    #[arg(
+        long,
+        value_name = "W",
+        group = "trimming",
+        allow_negative_numbers = true
+    )]
+    trim_density: Option<f32>,
+
+    /// Cut away the least densely sampled fraction Q (0..=1) of the surface's area (more where a
+    /// whole region shares one density, as a closing lid at 0 does). PoissonRecon: none.
+    #[arg(long, value_name = "Q", group = "trimming")]
+    trim_quantile: Option<f32>,
+
+    /// With trimming, drop the pieces left by the cut whose area is under this fraction (0..=1)
+    /// of the cut surface's [default: 0, keep every piece]. PoissonRecon: SurfaceTrimmer
+    /// --aRatio (default 0.001 there).
+    #[arg(long, value_name = "F", requires = "trimming")]
+    min_piece_area: Option<f32>,
+
+    /// With trimming, drop the pieces left by the cut with fewer than N triangles [default: 0].
+    /// PoissonRecon: none.
+    #[arg(long, value_name = "N", requires = "trimming")]
+    min_piece_triangles: Option<u32>,
+
     /// Print nothing but errors. PoissonRecon: none (it is quiet unless --verbose).
     #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
@@ -228,6 +274,45 @@ impl Args {
                 VerticesArg::Fitted => VertexPlacement::Fitted,
                 VerticesArg::OnIsosurface => VertexPlacement::OnIsosurface,
             })
+    }
+
+    /// The trimming the options ask for, or `None` (the untrimmed mesh) when none does.
+    fn trimming(&self) -> Option<Trimming> {
+        let threshold = if self.trim {
+            Threshold::Automatic
+        } else if let Some(d) = self.trim_depth {
+            Threshold::Depth(d)
+        } else if let Some(w) = self.trim_density {
+            Threshold::Density(w)
+        } else if let Some(q) = self.trim_quantile {
+            Threshold::Quantile(q)
+        } else {
+            return None;
+        };
+        let defaults = Trimming::default();
+        Some(
+            defaults
+                .clone()
+                .with_threshold(threshold)
+                .with_min_piece_area(self.min_piece_area.unwrap_or(defaults.min_piece_area))
+                .with_min_piece_triangles(
+                    self.min_piece_triangles
+                        .unwrap_or(defaults.min_piece_triangles),
+                )
+                .with_threads(self.threads),
+        )
+    }
+
+    /// The option that set the [`Trimming`] field `name`.
+    fn trim_option_of(&self, name: &str) -> &'static str {
+        match name {
+            "min_piece_area" => "--min-piece-area",
+            "threads" => "--threads",
+            _ if self.trim_depth.is_some() => "--trim-depth",
+            _ if self.trim_density.is_some() => "--trim-density",
+            _ if self.trim_quantile.is_some() => "--trim-quantile",
+            _ => "--trim",
+        }
     }
 }
 
@@ -381,6 +466,15 @@ fn run(args: &Args) -> Result<(), Failure> {
         }
         _ => Failure::Usage(e.to_string()),
     })?;
+    let trimming = args.trimming();
+    if let Some(trimming) = &trimming {
+        trimming.validate().map_err(|e| match &e {
+            psr::Error::InvalidParameter { name, .. } => {
+                Failure::Usage(format!("{e} (option {})", args.trim_option_of(name)))
+            }
+            _ => Failure::Usage(e.to_string()),
+        })?;
+    }
     check_output_dir(&args.output)?;
 
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
@@ -447,6 +541,10 @@ fn run(args: &Args) -> Result<(), Failure> {
     progress.clear();
     let mut mesh = result.map_err(|e| Failure::Run(format!("reconstruction failed: {e}")))?;
     let reconstruct_seconds = start.elapsed().as_secs_f64();
+    if let Some(trimming) = &trimming {
+        mesh = psr::trim(&mesh, trimming)
+            .map_err(|e| Failure::Run(format!("trimming failed: {e}")))?;
+    }
 
     if args.no_density {
         mesh.densities = Vec::new();
@@ -523,9 +621,16 @@ fn summary(mesh: &Mesh, reconstruct_seconds: f64, read_seconds: f64, write_secon
         .iter()
         .map(|(stage, seconds)| format!("{} {seconds:.2}s", stage.name()))
         .collect();
+    let trimmed = match &stats.trim {
+        Some(t) => format!(
+            " (trimmed at density {:.4}, depth-like {:.2}, in {:.2}s)",
+            t.density, t.depth, t.seconds
+        ),
+        None => String::new(),
+    };
     format!(
-        "psr: {} points, {} nodes, {} vertices, {} triangles; {}{}total {reconstruct_seconds:.2}s \
-         (read {read_seconds:.2}s, write {write_seconds:.2}s)",
+        "psr: {} points, {} nodes, {} vertices, {} triangles{trimmed}; {}{}total \
+         {reconstruct_seconds:.2}s (read {read_seconds:.2}s, write {write_seconds:.2}s)",
         stats.points,
         stats.total_nodes(),
         mesh.positions.len(),
@@ -559,6 +664,20 @@ fn print_details(mesh: &Mesh) {
         }
     }
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
+    if let Some(t) = &stats.trim {
+        out.push_str(&format!(
+            "\npsr: trimmed at density {} (depth-like {:.3}): {} crossings snapped onto \
+             vertices, {} kept apart; {} pieces, {} dropped; area {:.6} -> {:.6}",
+            t.density,
+            t.depth,
+            t.snapped_crossings,
+            t.clamped_crossings,
+            t.pieces,
+            t.pieces_dropped,
+            t.area_before,
+            t.area_after
+        ));
+    }
     eprintln!("{out}");
 }
 

@@ -181,6 +181,12 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--viewpoint", "none"),
         ("--confidence", "--confidence"),
         ("--no-density", "--density"),
+        ("--trim", "SurfaceTrimmer --trim"),
+        ("--trim-depth", "SurfaceTrimmer --trim"),
+        ("--trim-density", "none"),
+        ("--trim-quantile", "none"),
+        ("--min-piece-area", "SurfaceTrimmer --aRatio"),
+        ("--min-piece-triangles", "none"),
         ("--quiet", "none"),
         ("--verbose", "--verbose"),
     ];
@@ -402,5 +408,128 @@ fn sensors_in_the_file_orient_the_normals() {
         (reversed / given + 1.0).abs() < 0.05,
         "volume {reversed} with every sensor behind its point: should be minus {given}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The upper half (z > 0) of the kitten, with its normals, as a binary PLY: a scan with a
+/// missing side, whose reconstruction closes the bottom with invented surface.
+fn half_kitten(dir: &Path) -> PathBuf {
+    let cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
+    let kept: Vec<usize> = (0..cloud.positions.len())
+        .filter(|&i| cloud.positions[i][2] > 0.0)
+        .collect();
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\n\
+         property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+         property float nz\nend_header\n",
+        kept.len()
+    )
+    .into_bytes();
+    for &i in &kept {
+        for c in cloud.positions[i].iter().chain(&cloud.normals[i]) {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let path = dir.join("half_kitten.ply");
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+/// How many times each directed edge of a mesh is used.
+fn directed_edges(triangles: &[[u32; 3]]) -> std::collections::HashMap<(u32, u32), u32> {
+    let mut edges = std::collections::HashMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            *edges.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+        }
+    }
+    edges
+}
+
+/// Proves: without a --trim option the output is the closed, untrimmed mesh; --trim alone cuts
+/// it back (fewer triangles, a boundary, every directed edge still used once at most, the
+/// summary saying where it cut); the other thresholds and the piece rules run too.
+#[test]
+fn trimming_is_off_by_default_and_one_flag_cuts_the_surface_back() {
+    let dir = scratch("trim");
+    let input = half_kitten(&dir);
+    let untrimmed = dir.join("untrimmed.ply");
+    let out = psr_on(&input, &untrimmed, &["--depth", "6"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("trimmed"), "{}", stderr(&out));
+    let (_, whole) = psr::ply::read_mesh(&untrimmed).unwrap();
+    let edges = directed_edges(&whole);
+    assert!(
+        edges
+            .iter()
+            .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1)),
+        "the default output is closed"
+    );
+    let trimmed = dir.join("trimmed.ply");
+    let out = psr_on(&input, &trimmed, &["--depth", "6", "--trim"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("trimmed at density"),
+        "{}",
+        stderr(&out)
+    );
+    let (_, cut) = psr::ply::read_mesh(&trimmed).unwrap();
+    assert!(
+        cut.len() < whole.len() * 3 / 4,
+        "{} of {}",
+        cut.len(),
+        whole.len()
+    );
+    let edges = directed_edges(&cut);
+    assert!(
+        edges.values().all(|&n| n == 1),
+        "an edge used twice the same way"
+    );
+    assert!(
+        edges.keys().any(|&(a, b)| !edges.contains_key(&(b, a))),
+        "the trimmed mesh has a boundary"
+    );
+    for extra in [
+        &["--trim-depth", "4.5"][..],
+        &["--trim-density", "1"][..],
+        &["--trim-quantile", "0.5", "--min-piece-area", "0.01"][..],
+        &["--trim", "--min-piece-triangles", "10", "--verbose"][..],
+    ] {
+        let mut args = vec!["--depth", "5"];
+        args.extend_from_slice(extra);
+        let out = psr_on(&input, &trimmed, &args);
+        assert!(out.status.success(), "{extra:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("trimmed at density"),
+            "{extra:?}: {}",
+            stderr(&out)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: trimming options that cannot be honoured are usage errors naming the option, before
+/// any reconstruction: two thresholds at once, a piece rule without a threshold, values out of
+/// range.
+#[test]
+fn trimming_options_that_cannot_be_honoured_are_usage_errors() {
+    let dir = scratch("trim-options");
+    let out_path = dir.join("mesh.ply");
+    for (extra, wanted) in [
+        (&["--trim", "--trim-depth", "7"][..], "--trim-depth"),
+        (&["--min-piece-area", "0.1"][..], "--trim"),
+        (&["--min-piece-triangles", "5"][..], "--trim"),
+        (&["--trim-quantile", "1.5"][..], "--trim-quantile"),
+        (&["--trim-density", "-1"][..], "--trim-density"),
+        (&["--trim-depth", "40"][..], "--trim-depth"),
+        (&["--trim", "--min-piece-area", "2"][..], "--min-piece-area"),
+    ] {
+        let mut args = vec!["--depth", "4"];
+        args.extend_from_slice(extra);
+        let out = psr_on(&kitten(), &out_path, &args);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {}", stderr(&out));
+        assert!(stderr(&out).contains(wanted), "{extra:?}: {}", stderr(&out));
+        assert!(!out_path.exists(), "{extra:?}: written anyway");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

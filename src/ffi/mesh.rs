@@ -12,8 +12,9 @@ use super::status::{psr_status, Failure, Outcome};
 use crate::Mesh;
 use std::ptr;
 
-/// A reconstructed triangle mesh. Created by psr_reconstructor_solve, destroyed by
-/// psr_mesh_free; independent of the reconstructor that made it. Opaque to C.
+/// A reconstructed triangle mesh. Created by psr_reconstructor_solve (or psr_mesh_trim, from
+/// another mesh), destroyed by psr_mesh_free; independent of the reconstructor or mesh that
+/// made it. Opaque to C.
 pub struct psr_mesh {
     pub(super) mesh: Mesh,
 }
@@ -29,7 +30,7 @@ pub fn debug_mesh_new(mesh: Mesh) -> *mut psr_mesh {
 /// Number of vertices of m; 0 if m is NULL.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_vertex_count(m: *const psr_mesh) -> usize {
     guard_value("psr_mesh_vertex_count", 0, || {
@@ -42,7 +43,7 @@ pub unsafe extern "C" fn psr_mesh_vertex_count(m: *const psr_mesh) -> usize {
 /// Number of triangles of m; 0 if m is NULL.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_triangle_count(m: *const psr_mesh) -> usize {
     guard_value("psr_mesh_triangle_count", 0, || {
@@ -57,7 +58,7 @@ pub unsafe extern "C" fn psr_mesh_triangle_count(m: *const psr_mesh) -> usize {
 /// vertices.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_positions(m: *const psr_mesh) -> *const f32 {
     guard_value("psr_mesh_positions", ptr::null(), || {
@@ -75,7 +76,7 @@ pub unsafe extern "C" fn psr_mesh_positions(m: *const psr_mesh) -> *const f32 {
 /// NULL if m is NULL or has no triangles.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_triangles(m: *const psr_mesh) -> *const u32 {
     guard_value("psr_mesh_triangles", ptr::null(), || {
@@ -89,12 +90,12 @@ pub unsafe extern "C" fn psr_mesh_triangles(m: *const psr_mesh) -> *const u32 {
 }
 
 /// The sampling density estimate at each vertex (one float per vertex), owned by m: valid until
-/// psr_mesh_free(m). Low values mark surface invented far from any sample; drop triangles whose
-/// vertices fall below a threshold to trim it (like PoissonRecon's SurfaceTrimmer). NULL if m is
+/// psr_mesh_free(m). Low values mark surface invented far from any sample; psr_mesh_trim cuts
+/// the surface back along a threshold of it (like PoissonRecon's SurfaceTrimmer). NULL if m is
 /// NULL or has no vertices.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_densities(m: *const psr_mesh) -> *const f32 {
     guard_value("psr_mesh_densities", ptr::null(), || {
@@ -111,7 +112,7 @@ pub unsafe extern "C" fn psr_mesh_densities(m: *const psr_mesh) -> *const f32 {
 /// paper section 4.4). NaN if m is NULL.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim).
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_isovalue(m: *const psr_mesh) -> f64 {
     guard_value("psr_mesh_isovalue", f64::NAN, || {
@@ -172,7 +173,7 @@ unsafe fn copy_out<T: Copy>(
 /// function and the argument at fault, as a message on a reconstructor would.
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve; `dst` is NULL or valid for writes
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim); `dst` is NULL or valid for writes
 /// of `capacity` elements.
 unsafe fn try_copy_out<T: Copy>(
     what: &CopyOut<T>,
@@ -274,12 +275,13 @@ pub unsafe extern "C" fn psr_mesh_copy_densities(
 /// m may be NULL (nothing happens).
 ///
 /// # Safety
-/// `m` is NULL or a live mesh from psr_reconstructor_solve, not used again afterwards.
+/// `m` is NULL or a live mesh (from psr_reconstructor_solve or psr_mesh_trim), not used
+/// again afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_free(m: *mut psr_mesh) {
     guard_value("psr_mesh_free", (), || {
         if !m.is_null() {
-            // SAFETY: `m` came from Box::into_raw in psr_reconstructor_solve (or
+            // SAFETY: `m` came from Box::into_raw in psr_reconstructor_solve, psr_mesh_trim (or
             // debug_mesh_new) and is not used again (this function's contract).
             drop(unsafe { Box::from_raw(m) });
         }

@@ -39,6 +39,9 @@
 //! - `normals.rs`: psr_reconstructor_add_positions (points without normals, estimated at solve),
 //!   _seen_from and _with_sensors (with their sensors' positions), the estimation's settings;
 //!   `psr_orientation`.
+//! - `trim.rs`: psr_mesh_trim and its options, `psr_trim_options` (the first options struct:
+//!   it begins with its own size so it can grow) and `psr_trim_threshold`;
+//!   psr_mesh_trim_density and _depth.
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -65,6 +68,8 @@ mod solve;
 mod mesh;
 // Points without normals and the estimation of their normals.
 mod normals;
+// Trimming a mesh by its sampling density.
+mod trim;
 
 pub use self::mesh::{
     psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_triangles,
@@ -102,6 +107,10 @@ pub use self::solve::psr_reconstructor_debug_panic_next_solve;
 pub use self::solve::{psr_reconstructor_set_progress_callback, psr_reconstructor_solve};
 pub use self::stage::{psr_progress_fn, psr_stage, psr_stage_string};
 pub use self::status::{psr_status, psr_status_string};
+pub use self::trim::{
+    psr_mesh_trim, psr_mesh_trim_density, psr_mesh_trim_depth, psr_trim_options,
+    psr_trim_options_init, psr_trim_threshold,
+};
 pub use self::version::{
     psr_version, psr_version_major, psr_version_minor, psr_version_patch, PSR_VERSION_MAJOR,
     PSR_VERSION_MINOR, PSR_VERSION_PATCH,

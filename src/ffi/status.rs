@@ -105,6 +105,8 @@ impl Failure {
             Error::TooFewPoints { .. } => psr_status::InvalidArgument,
             Error::NoPlaneDefined { .. } => psr_status::InvalidArgument,
             Error::InvalidParameter { .. } => psr_status::InvalidParameter,
+            // A psr_mesh is always consistent (psr made it), so C never meets this.
+            Error::InvalidMesh(_) => psr_status::InvalidArgument,
             Error::Cancelled => psr_status::Cancelled,
             Error::ThreadsUnavailable { .. } => psr_status::ThreadsUnavailable,
             Error::Internal(_) => psr_status::InternalError,

@@ -481,3 +481,25 @@ pub fn one_sided_mesh_distance<P: AsPoint + Sync>(
 ) -> DistanceStats {
     DistanceStats::of(MeshDistance::new(positions, triangles).distances(points))
 }
+
+/// Distances from each of `queries` to the nearest of `points` (exact, in parallel, in query
+/// order): a [`MeshDistance`] over the points as one-point triangles.
+pub fn nearest_point_distances<P: AsPoint + Sync>(queries: &[P], points: &[[f32; 3]]) -> Vec<f64> {
+    let singletons: Vec<[u32; 3]> = (0..points.len() as u32).map(|i| [i, i, i]).collect();
+    MeshDistance::new(points, &singletons).distances(queries)
+}
+
+/// Distances from the surface of a mesh to a point set: `n_samples` points area-uniform on the
+/// mesh ([`sample_mesh`], from `seed`), each measured to its nearest point of `points`,
+/// summarised. High where the mesh has surface far from every point, such as the lid a
+/// reconstruction puts over a scan's missing side.
+pub fn mesh_to_points_distance(
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    points: &[[f32; 3]],
+    n_samples: usize,
+    seed: u64,
+) -> DistanceStats {
+    let samples = sample_mesh(positions, triangles, n_samples, seed);
+    DistanceStats::of(nearest_point_distances(&samples, points))
+}

@@ -15,6 +15,11 @@
 //! * Distances to a triangle mesh: [`MeshDistance`] (a bounding-volume hierarchy with exact
 //!   point–triangle distances), [`sample_mesh`], [`chamfer_to_surface`],
 //!   [`one_sided_mesh_distance`].
+//! * Scans with missing regions ([`capture_from`]: the side one camera sees;
+//!   [`keep_above_plane`]: e.g. a hemisphere) and the distance from a mesh back to its points
+//!   ([`mesh_to_points_distance`], [`nearest_point_distances`]), for trimming.
+//! * Boundaries of open meshes: [`boundary_loops`], [`loop_length`], their smoothness
+//!   ([`loop_excess_length`]), and [`triangle_quality`] for slivers.
 //! * Small reference meshes ([`octahedron`], [`icosphere`], [`torus_mesh`]).
 //! * The process's running threads by name ([`running_threads_named`], Linux).
 //! * The shared data directory ([`data_dir`]) and the rule for tests that read it
@@ -30,6 +35,8 @@
 //! write `use psr_test_support::{sample_sphere, MeshTopology};`. The utilities are themselves
 //! tested by `tests/test_utilities.rs` in the psr package.
 
+mod boundary;
+mod capture;
 mod data;
 mod distance;
 mod point;
@@ -38,6 +45,8 @@ mod shapes;
 mod threads;
 mod topology;
 
+pub use boundary::*;
+pub use capture::*;
 pub use data::*;
 pub use distance::*;
 pub use point::*;

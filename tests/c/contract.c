@@ -3,8 +3,10 @@
  * NULL for every pointer argument, free(NULL), solve before any points, a bad point in the
  * middle of a second batch, strides and overflow, points without normals and with sensors, short copy-out buffers, out-parameters left
  * alone on failure, the names of statuses and stages, cancellation from the callback, a forced
- * internal panic (when the library was built with the test hook), and two handles on two
- * threads matching sequential runs.
+ * internal panic (when the library was built with the test hook), two handles on two threads
+ * matching sequential runs, and trimming: psr_trim_options from this header, from an older
+ * (smaller) and a newer (larger) one, bad sizes and values, and the trimmed mesh outliving its
+ * source.
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -586,6 +588,155 @@ static void test_threads(void) {
     }
 }
 
+/* The first fields of psr_trim_options, as an older header would have had them (no piece
+ * rule): a smaller struct the library must still read. */
+typedef struct {
+    size_t struct_size;
+    int32_t threshold;
+    uint32_t threads;
+    double threshold_value;
+} older_trim_options;
+
+/* A newer header's struct: this one's fields and one more. */
+typedef struct {
+    psr_trim_options known;
+    uint64_t later;
+} newer_trim_options;
+
+/* Copies of a mesh's triangles, to compare two meshes. */
+static uint32_t *triangles_of(const psr_mesh *m, size_t *count) {
+    uint32_t *t;
+    *count = psr_mesh_triangle_count(m);
+    t = malloc(3 * *count * sizeof(uint32_t) + 1);
+    if (*count > 0) psr_mesh_copy_triangles(m, t, 3 * *count);
+    return t;
+}
+
+static int same_triangles(const psr_mesh *a, const psr_mesh *b) {
+    size_t na, nb;
+    uint32_t *ta = triangles_of(a, &na), *tb = triangles_of(b, &nb);
+    int same = na == nb && memcmp(ta, tb, 3 * na * sizeof(uint32_t)) == 0;
+    free(ta);
+    free(tb);
+    return same;
+}
+
+static void test_trim(void) {
+    enum { N = 6000 };
+    float *p = malloc(3 * N * sizeof(float)), *nr = malloc(3 * N * sizeof(float));
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL, *t = NULL, *t_old = NULL, *t_new = NULL;
+    psr_mesh *const sentinel = (psr_mesh *)&r;
+    psr_mesh *out = sentinel;
+    psr_trim_options opts;
+    struct {
+        older_trim_options older;
+        unsigned char after[16];
+    } guarded;
+    newer_trim_options newer;
+    size_t k, half = 0;
+    int untouched = 1;
+
+    section("trim: options from this, an older and a newer header; bad values; lifetimes");
+    sphere(N, p, nr);
+    /* Keep the upper half (y > 0: the lattice's first points): a scan with a missing side. */
+    for (k = 0; k < N; k++)
+        if (p[3 * k + 1] > 0.0f) half = k + 1;
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 6), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, nr, 0, half), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    psr_reconstructor_free(r);
+    free(p);
+    free(nr);
+    if (m == NULL) return;
+
+    /* NULL and sizes no header has. */
+    CHECK_STATUS(psr_trim_options_init(NULL, sizeof opts), PSR_STATUS_NULL_ARGUMENT);
+    memset(&opts, 0xAB, sizeof opts);
+    CHECK_STATUS(psr_trim_options_init(&opts, 3), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(opts.struct_size != 3); /* nothing written */
+    CHECK_STATUS(psr_trim_options_init(&opts, sizeof opts), PSR_STATUS_OK);
+    CHECK(opts.struct_size == sizeof opts && opts.threshold == PSR_TRIM_THRESHOLD_AUTOMATIC);
+    CHECK(opts.threads == 0 && opts.threshold_value == 0.0 && opts.min_piece_area == 0.0f);
+    CHECK(opts.min_piece_triangles == 0);
+    CHECK_STATUS(psr_mesh_trim(NULL, &opts, &out), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_trim(m, &opts, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(out == sentinel);
+    CHECK(isnan(psr_mesh_trim_density(NULL)) && isnan(psr_mesh_trim_depth(NULL)));
+    CHECK(isnan(psr_mesh_trim_density(m))); /* not trimmed */
+
+    /* The automatic threshold cuts the lid away. */
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &t), PSR_STATUS_OK);
+    if (t != NULL) {
+        CHECK(psr_mesh_triangle_count(t) > 0);
+        CHECK(psr_mesh_triangle_count(t) < psr_mesh_triangle_count(m));
+        CHECK(psr_mesh_densities(t) != NULL);
+        CHECK(psr_mesh_trim_density(t) > 0.0);
+        CHECK(isfinite(psr_mesh_trim_depth(t)));
+    }
+    out = sentinel;
+    CHECK_STATUS(psr_mesh_trim(m, NULL, &out), PSR_STATUS_OK); /* NULL: the defaults */
+    if (out != sentinel && t != NULL) CHECK(same_triangles(out, t));
+    if (out != sentinel) psr_mesh_free(out);
+
+    /* Bad values: INVALID_PARAMETER, *out untouched. */
+    out = sentinel;
+    opts.threshold = 9;
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_INVALID_PARAMETER);
+    opts.threshold = PSR_TRIM_THRESHOLD_QUANTILE;
+    opts.threshold_value = 1.5;
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_INVALID_PARAMETER);
+    opts.threshold = PSR_TRIM_THRESHOLD_DENSITY;
+    opts.threshold_value = -1.0;
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_INVALID_PARAMETER);
+    opts.threshold_value = 1.0;
+    opts.min_piece_area = 2.0f;
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_INVALID_PARAMETER);
+    opts.min_piece_area = 0.0f;
+    opts.struct_size = 1u << 20;
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(out == sentinel);
+
+    /* An older, smaller struct: init writes only its bytes; the missing fields are defaults. */
+    memset(guarded.after, 0xAB, sizeof guarded.after);
+    CHECK_STATUS(psr_trim_options_init((psr_trim_options *)&guarded.older, sizeof guarded.older),
+                 PSR_STATUS_OK);
+    for (k = 0; k < sizeof guarded.after; k++) untouched &= guarded.after[k] == 0xAB;
+    CHECK(untouched);
+    CHECK(guarded.older.struct_size == sizeof(older_trim_options));
+    guarded.older.threshold = PSR_TRIM_THRESHOLD_DEPTH;
+    guarded.older.threshold_value = 5.5;
+    CHECK_STATUS(psr_mesh_trim(m, (const psr_trim_options *)&guarded.older, &t_old),
+                 PSR_STATUS_OK);
+    CHECK_STATUS(psr_trim_options_init(&opts, sizeof opts), PSR_STATUS_OK);
+    opts.threshold = PSR_TRIM_THRESHOLD_DEPTH;
+    opts.threshold_value = 5.5;
+    CHECK_STATUS(psr_mesh_trim(m, &opts, &t_new), PSR_STATUS_OK);
+    if (t_old != NULL && t_new != NULL) {
+        CHECK(same_triangles(t_old, t_new));
+        CHECK(fabs(psr_mesh_trim_depth(t_old) - 5.5) < 1e-6);
+    }
+
+    /* A newer, larger struct: fine while its unknown field is zero, refused once it is set. */
+    CHECK_STATUS(psr_trim_options_init(&newer.known, sizeof newer), PSR_STATUS_OK);
+    CHECK(newer.later == 0 && newer.known.struct_size == sizeof newer);
+    out = sentinel;
+    CHECK_STATUS(psr_mesh_trim(m, &newer.known, &out), PSR_STATUS_OK);
+    if (out != sentinel) psr_mesh_free(out);
+    newer.later = 1;
+    out = sentinel;
+    CHECK_STATUS(psr_mesh_trim(m, &newer.known, &out), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(out == sentinel);
+
+    /* A trimmed mesh outlives its source. */
+    psr_mesh_free(m);
+    if (t != NULL) CHECK(psr_mesh_vertex_count(t) > 0 && psr_mesh_positions(t) != NULL);
+    psr_mesh_free(t);
+    psr_mesh_free(t_old);
+    psr_mesh_free(t_new);
+}
+
 int main(void) {
     printf("psr %s C contract test\n", psr_version());
     test_null_arguments();
@@ -597,6 +748,7 @@ int main(void) {
     test_cancel();
     test_panic();
     test_threads();
+    test_trim();
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }
