@@ -254,9 +254,13 @@ impl Trimming {
 /// ```
 pub fn trim(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
     trimming.validate()?;
-    check_mesh(mesh)?;
     let workers = Workers::start(trimming.threads)?;
-    workers.pool().install(|| cut(mesh, trimming))
+    // Everything parallel runs in this call's own pool, the mesh's checks too: a rayon call
+    // outside it would start rayon's global pool, whose threads outlive the call.
+    workers.pool().install(|| {
+        check_mesh(mesh)?;
+        cut(mesh, trimming)
+    })
 }
 
 /// The checks [`trim`] makes of its mesh.
