@@ -1,9 +1,10 @@
 //! A reconstruction leaves no thread behind even when it unwinds: a panic inside it (here from
 //! the progress callback) still ends its worker pool and joins every worker before the panic
-//! reaches the caller, as a normal return does. In a test binary of its own, since other tests'
-//! reconstructions would run workers meanwhile.
+//! reaches the caller, as a normal return does. A trim leaves none either (not even rayon's
+//! global pool). In a test binary of its own, since other tests' reconstructions would run
+//! workers meanwhile.
 
-use psr::{reconstruct_with_progress, Params, PointSet, Stage};
+use psr::{reconstruct_with_progress, Params, PointSet, Stage, Threshold, Trimming};
 #[cfg(target_os = "linux")]
 use psr_test_support::running_threads_named;
 
@@ -38,8 +39,22 @@ fn a_panic_inside_a_reconstruction_still_joins_its_workers() {
             "workers alive after a panic in {stage:?}: {left:?}"
         );
     }
-    assert!(
+    let mesh =
         reconstruct_with_progress(&cloud, &Params::default().with_depth(5), &mut |_, _| true)
-            .is_ok()
-    );
+            .expect("a reconstruction");
+
+    // A trim, successful or refused, leaves the process with the threads it had.
+    let before = running_threads_named("");
+    for threshold in [Threshold::Automatic, Threshold::Density(f32::NAN)] {
+        let _ = psr::trim(&mesh, &Trimming::default().with_threshold(threshold));
+        let mut bad = mesh.clone();
+        bad.triangles.push([0, 1, u32::MAX]);
+        let _ = psr::trim(&bad, &Trimming::default().with_threshold(threshold));
+        let after = running_threads_named("");
+        assert_eq!(
+            before.len(),
+            after.len(),
+            "threads before a trim: {before:?}, after: {after:?}"
+        );
+    }
 }
