@@ -163,6 +163,16 @@ typedef enum {
      * set fewer threads (psr_reconstructor_set_threads) or free resources and try again.
      */
     PSR_STATUS_THREADS_UNAVAILABLE = 12,
+    /**
+     * A colour component or channel value given with a point is NaN or infinite (the message
+     * names the colours or the channel and gives the point's index in the batch).
+     */
+    PSR_STATUS_NON_FINITE_ATTRIBUTE = 13,
+    /**
+     * A confidence weight is negative, NaN or infinite (the message gives its index in the
+     * batch), or, at solve, every weight is 0.
+     */
+    PSR_STATUS_INVALID_WEIGHT = 14,
 } psr_status;
 
 /**

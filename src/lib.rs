@@ -14,7 +14,9 @@
 //! points → density → octree → splat → system → solve → isovalue → extract → mesh
 //! (`src/pipeline.rs` runs them; `docs/architecture.md` says where everything lives). The
 //! public surface is [`reconstruct`], [`reconstruct_with_progress`] and their types, the C API
-//! in [`ffi`] and the PLY reader and writer in [`ply`].
+//! in [`ffi`] and the PLY reader and writer in [`ply`]. Points may carry colours and named
+//! channels onto the mesh ([`PointSet::with_colors`], [`PointSet::with_channel`],
+//! [`Mesh::colors`]).
 
 // Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment saying
 // why it holds, also inside `unsafe fn` bodies; unsafe code lives in `ffi/` (the C API),
@@ -22,6 +24,7 @@
 #![deny(unsafe_op_in_unsafe_fn, clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
+mod attributes;
 mod bspline;
 mod density;
 mod error;
@@ -42,6 +45,7 @@ mod solve;
 mod splat;
 mod system;
 
+pub use attributes::{Channel, Colors};
 pub use error::{Error, Result};
 pub use mesh::{DepthSolve, Mesh, Stats};
 pub use normals::{

@@ -891,7 +891,9 @@ fn status_strings_take_any_int() {
     );
     assert_eq!(name(11), "PSR_STATUS_INTERNAL_ERROR");
     assert_eq!(name(12), "PSR_STATUS_THREADS_UNAVAILABLE");
-    assert_eq!(name(13), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(13), "PSR_STATUS_NON_FINITE_ATTRIBUTE");
+    assert_eq!(name(14), "PSR_STATUS_INVALID_WEIGHT");
+    assert_eq!(name(15), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(-1), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
 }
@@ -945,6 +947,8 @@ fn status_numbers_are_stable() {
         (psr_status::HandlePoisoned, 10),
         (psr_status::InternalError, 11),
         (psr_status::ThreadsUnavailable, 12),
+        (psr_status::NonFiniteAttribute, 13),
+        (psr_status::InvalidWeight, 14),
     ];
     for (status, number) in expected {
         assert_eq!(status as i32, number, "{status:?}");
