@@ -80,7 +80,8 @@ impl Colors {
         }
     }
 
-    /// The components of every colour one after the other (r g b [a] r g b [a] …).
+    /// The components of every colour one after the other (r, g, b, and a when RGBA; then
+    /// the next colour's).
     pub fn as_flattened(&self) -> &[f32] {
         match self {
             Colors::Rgb(c) => c.as_flattened(),
@@ -589,7 +590,7 @@ pub(crate) fn vertex_normals(
     triangles: &[[u32; 3]],
 ) -> Vec<[f32; 3]> {
     let mut out: Vec<DVec3> = normals.to_vec();
-    if out.iter().any(|n| *n == DVec3::ZERO) {
+    if out.contains(&DVec3::ZERO) {
         let missing: Vec<bool> = out.iter().map(|n| *n == DVec3::ZERO).collect();
         for t in triangles {
             let [a, b, c] = t.map(|i| i as usize);

@@ -101,7 +101,7 @@ pub enum Error {
     /// where the set has none or the other way round, RGB against RGBA, other channel names or
     /// another order of them): every point of a set has the same attributes.
     AttributesDiffer {
-        /// the set's attributes, e.g. "colors (RGB), channels [intensity]"
+        /// the set's attributes, e.g. `colors (RGB), channels [intensity]`
         set: String,
         /// the batch's attributes, in the same words
         batch: String,
