@@ -25,13 +25,15 @@
  *     accept NULL.
  *   - A mesh is independent of the reconstructor (or the mesh, for psr_mesh_trim) that made
  *     it: either may be freed first.
- *   - psr_reconstructor_add_points, psr_reconstructor_add_positions and its _seen_from and
- *     _with_sensors variants copy their input (positions, normals, sensors): free your arrays
- *     as soon as they return.
- *   - Pointers returned by psr_mesh_positions / _triangles / _densities are borrowed from the
- *     mesh and stay valid until psr_mesh_free. The psr_mesh_copy_* functions copy into your
- *     buffer instead, given its capacity. psr never hands you memory to free(); strings it
- *     returns are either static or owned by a handle.
+ *   - psr_reconstructor_add_points, psr_reconstructor_add_point_arrays,
+ *     psr_reconstructor_add_positions and its _seen_from and _with_sensors variants copy their
+ *     input (positions, normals, weights, colours, channels and their names, sensors): free
+ *     your arrays as soon as they return.
+ *   - Pointers returned by psr_mesh_positions / _triangles / _densities / _normals / _colors /
+ *     _channel / _channel_name are borrowed from the mesh and stay valid until psr_mesh_free.
+ *     The psr_mesh_copy_* functions copy into your buffer instead, given its capacity. psr
+ *     never hands you memory to free(); strings it returns are either static or owned by a
+ *     handle.
  *
  * ERRORS
  *   - Every function that can fail returns a psr_status: PSR_STATUS_OK (0) or an error. The
@@ -68,12 +70,15 @@
  *   - The shared library's SONAME follows cargo-c: libpsr.so.0.MINOR while the major version is
  *     0 (any 0.x minor release may change the ABI), libpsr.so.MAJOR from 1.0 on.
  *   - The ABI grows by adding functions, never by changing a signature or a struct: parameters
- *     are set one by one (no config struct by value), and future per-point attributes (weights,
- *     colours) will come as new functions such as psr_reconstructor_add_points_ex.
- *   - The one options struct, psr_trim_options, is passed by pointer and begins with its own
- *     size (struct_size, set by psr_trim_options_init(&opts, sizeof opts)). Fields are only
- *     added at its end: the library reads the fields your struct has and takes the defaults for
- *     the rest, and refuses a newer struct only if it sets a field the library does not know.
+ *     are set one by one (no config struct by value). The structs you fill in,
+ *     psr_point_arrays (per-point weights, colours, channels) and psr_trim_options, are passed
+ *     by pointer, begin with their own size and only ever grow at their end.
+ *     psr_point_arrays: a caller compiled against an older header passes its smaller size and
+ *     works (the fields it lacks count as absent); on a library older than its header a caller
+ *     works as long as it leaves the fields that library does not know zero.
+ *     psr_trim_options (struct_size set by psr_trim_options_init(&opts, sizeof opts)): the
+ *     library reads the fields your struct has and takes the defaults for the rest, and
+ *     refuses a newer struct only if it sets a field the library does not know.
  */
 
 #ifndef PSR_H
@@ -182,6 +187,16 @@ typedef enum {
      * set fewer threads (psr_reconstructor_set_threads) or free resources and try again.
      */
     PSR_STATUS_THREADS_UNAVAILABLE = 12,
+    /**
+     * A colour component or channel value given with a point is NaN or infinite (the message
+     * names the colours or the channel and gives the point's index in the batch).
+     */
+    PSR_STATUS_NON_FINITE_ATTRIBUTE = 13,
+    /**
+     * A confidence weight is negative, NaN or infinite (the message gives its index in the
+     * batch), or, at solve, every weight is 0.
+     */
+    PSR_STATUS_INVALID_WEIGHT = 14,
 } psr_status;
 
 /**
@@ -398,6 +413,88 @@ typedef struct {
      */
     uint32_t min_piece_triangles;
 } psr_trim_options;
+
+/**
+ * Points for psr_reconstructor_add_point_arrays: positions and normals, and optionally a
+ * confidence weight, a colour and named float channels per point. Every array is read with a
+ * byte stride (0 = tightly packed; otherwise at least one element, so interleaved vertex
+ * structs work; no alignment is required).
+ *
+ * Always initialise it with psr_point_arrays_init(&a, sizeof a), which zeroes it (every
+ * optional array absent) and sets struct_size; then set the fields you use. New fields will
+ * only ever be added at the end, and a zero field always means "absent", so code compiled
+ * against this header keeps working with later versions of the library.
+ */
+typedef struct {
+    /**
+     * The size of the struct as the caller's header declares it (psr_point_arrays_init sets
+     * it).
+     */
+    size_t struct_size;
+    /**
+     * Number of points.
+     */
+    size_t count;
+    /**
+     * Point i's position is the 3 floats at (const char *)positions + i * position_stride_bytes.
+     * Required (unless count is 0).
+     */
+    const float *positions;
+    /**
+     * 0 (12 bytes) or at least 12.
+     */
+    size_t position_stride_bytes;
+    /**
+     * Point i's normal, 3 floats (need not be unit length). Required (unless count is 0):
+     * points without normals go through psr_reconstructor_add_positions.
+     */
+    const float *normals;
+    /**
+     * 0 (12 bytes) or at least 12.
+     */
+    size_t normal_stride_bytes;
+    /**
+     * Point i's confidence weight, 1 float, finite and >= 0 (PoissonRecon --confidence):
+     * how much the point counts, in the surface and in the colours. NULL: every point 1.
+     */
+    const float *confidence;
+    /**
+     * 0 (4 bytes) or at least 4.
+     */
+    size_t confidence_stride_bytes;
+    /**
+     * Point i's colour, color_components floats (red, green, blue[, alpha]), finite, in any
+     * scale (0 to 1, or 0 to 255: the mesh's colours are weighted means of them). NULL: no
+     * colours.
+     */
+    const float *colors;
+    /**
+     * 0 (color_components floats) or at least that.
+     */
+    size_t color_stride_bytes;
+    /**
+     * 3 (RGB) or 4 (RGBA) when colors is set; 0 when it is NULL.
+     */
+    size_t color_components;
+    /**
+     * Point i's channel values: channel_count floats, finite, in the order of channel_names.
+     * Used when channel_count is not 0.
+     */
+    const float *channels;
+    /**
+     * 0 (channel_count floats) or at least that.
+     */
+    size_t channel_stride_bytes;
+    /**
+     * Number of channels per point (0: none).
+     */
+    size_t channel_count;
+    /**
+     * channel_count NUL-terminated UTF-8 names, distinct, non-empty and without whitespace
+     * (each becomes a PLY property name). The names are copied.
+     */
+    const char *const *channel_names;
+} psr_point_arrays;
 
 
 
@@ -745,13 +842,14 @@ psr_status psr_reconstructor_get_vertex_placement(const psr_reconstructor *r, in
  * infinite, or any normal is NaN, infinite or zero, nothing from this batch is appended, points
  * from earlier batches stay, and the message names the first bad index within this batch.
  *
- * Extensions (per-point confidence weights, colours) will come as new functions, e.g.
- * psr_reconstructor_add_points_ex taking a struct that begins with its own size, never by
- * changing this signature.
+ * Per-point confidence weights, colours and channels come through
+ * psr_reconstructor_add_point_arrays, whose struct begins with its own size; this signature
+ * never changes.
  *
  * r must not be NULL; positions and normals may be NULL only when count is 0 (then nothing
  * happens). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a
- * stride below 12, or count * stride overflowing), PSR_STATUS_NON_FINITE_POSITION,
+ * stride below 12, count * stride overflowing, or points before in r carry colours or
+ * channels, which these would lack), PSR_STATUS_NON_FINITE_POSITION,
  * PSR_STATUS_NON_FINITE_NORMAL, PSR_STATUS_ZERO_NORMAL, PSR_STATUS_HANDLE_POISONED or
  * PSR_STATUS_INTERNAL_ERROR.
  *
@@ -810,7 +908,9 @@ psr_status psr_reconstructor_set_progress_callback(psr_reconstructor *r, psr_pro
  * PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
  * PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, the
  * points added without normals cannot be given normals: fewer of them than the neighbour
- * count + 1, or all on a line, or PSR_ORIENTATION_SENSORS while some of them have no sensor),
+ * count + 1, or all on a line, or PSR_ORIENTATION_SENSORS while some of them have no sensor,
+ * or they meet points with colours or channels), PSR_STATUS_INVALID_WEIGHT (every confidence
+ * weight is 0),
  * PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is
  * now poisoned). On failure *out is left untouched. Points added without normals get them (estimated and oriented, see
  * psr_reconstructor_add_positions) before the reconstruction starts.
@@ -1143,6 +1243,175 @@ double psr_mesh_trim_density(const psr_mesh *m);
  * `m` is NULL or a live mesh.
  */
 double psr_mesh_trim_depth(const psr_mesh *m);
+
+/**
+ * Prepares *a for psr_reconstructor_add_point_arrays: sets every field to zero (no arrays, no
+ * points) and struct_size to `struct_size`, which must be the size of the struct as your code
+ * sees it: pass sizeof *a. (The library cannot know how large the struct you compiled with
+ * is; a library newer than your header must not write beyond it.)
+ *
+ * a must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_ARGUMENT (struct_size is smaller than the first four fields; nothing is
+ * written) or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `a` is NULL or valid for writes of `struct_size` bytes.
+ */
+psr_status psr_point_arrays_init(psr_point_arrays *a, size_t struct_size);
+
+/**
+ * Appends the points *a describes to r: positions and normals, and when given, a confidence
+ * weight, a colour and named channels per point (see psr_point_arrays). The mesh's vertices
+ * then get colours and channels (psr_mesh_colors, psr_mesh_channel): at each vertex, the
+ * weighted mean of the values of the points around it whose normals face the same way as the
+ * surface there, so one face of a thin wall never colours the other.
+ *
+ * Initialise *a with psr_point_arrays_init(&a, sizeof a) first; a struct from an older header
+ * (smaller struct_size) works, its missing fields counting as absent. Everything is copied:
+ * free your arrays as soon as this returns. Calls append, so a cloud can come in batches, but
+ * every batch must carry the same attributes (colours or none, the same number of components,
+ * the same channel names in the same order; weights may differ: absent ones are 1). The batch
+ * is checked whole first; if anything is wrong nothing from it is appended, points from
+ * earlier batches stay, and the message names the first bad index within this batch. Points
+ * with colours or channels cannot be mixed with points added without normals
+ * (psr_reconstructor_add_positions), which carry none.
+ *
+ * r and a must not be NULL; with count 0 nothing is read but struct_size. Returns
+ * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT (r, a, positions, normals, or an array whose count
+ * or components say it is there), PSR_STATUS_INVALID_ARGUMENT (struct_size too small, or
+ * larger with fields this library does not know set; a stride below one element; count *
+ * stride overflowing; color_components not 3 or 4; a channel name that is not UTF-8, empty,
+ * has whitespace or repeats; attributes that differ from the earlier batches'),
+ * PSR_STATUS_NON_FINITE_POSITION, PSR_STATUS_NON_FINITE_NORMAL, PSR_STATUS_ZERO_NORMAL,
+ * PSR_STATUS_INVALID_WEIGHT (a weight negative, NaN or infinite),
+ * PSR_STATUS_NON_FINITE_ATTRIBUTE (a colour or channel value NaN or infinite),
+ * PSR_STATUS_HANDLE_POISONED or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `a` is NULL or points to struct_size readable bytes that
+ * begin with struct_size, and every array in it is NULL or readable over its strided span;
+ * `channel_names` holds channel_count NUL-terminated strings.
+ */
+psr_status psr_reconstructor_add_point_arrays(psr_reconstructor *r, const psr_point_arrays *a);
+
+/**
+ * Sets whether the mesh gets a unit outward normal per vertex (psr_mesh_normals), the
+ * normalised gradient of the indicator function there. Default false. PoissonRecon --normals.
+ *
+ * r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
+ * or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_vertex_normals(psr_reconstructor *r, bool vertex_normals);
+
+/**
+ * Writes whether the mesh gets vertex normals to *out. r and out must not be NULL. Returns the
+ * statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_vertex_normals(const psr_reconstructor *r, bool *out);
+
+/**
+ * The unit outward normals of m's vertices, 3 floats (nx, ny, nz) per vertex, owned by m
+ * (valid until psr_mesh_free(m)). NULL if m is NULL, has no vertices, or was solved without
+ * psr_reconstructor_set_vertex_normals(r, true).
+ *
+ * # Safety
+ * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ */
+const float *psr_mesh_normals(const psr_mesh *m);
+
+/**
+ * Components per vertex colour of m: 3 (RGB), 4 (RGBA), or 0 when m has no colours (its
+ * points had none) or m is NULL.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ */
+size_t psr_mesh_color_components(const psr_mesh *m);
+
+/**
+ * The colours of m's vertices, psr_mesh_color_components(m) floats per vertex, in the scale
+ * of the points' colours, owned by m (valid until psr_mesh_free(m)). NULL if m is NULL, has no
+ * vertices or no colours.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ */
+const float *psr_mesh_colors(const psr_mesh *m);
+
+/**
+ * Number of channels of m (the channels its points had); 0 if m is NULL.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ */
+size_t psr_mesh_channel_count(const psr_mesh *m);
+
+/**
+ * The name of m's channel `index` (0-based, in the order the points gave them) as a
+ * NUL-terminated string owned by m (valid until psr_mesh_free(m), never to be freed). NULL if
+ * m is NULL or index >= psr_mesh_channel_count(m).
+ *
+ * # Safety
+ * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ */
+const char *psr_mesh_channel_name(const psr_mesh *m, size_t index);
+
+/**
+ * The values of m's channel `index` at its vertices, one float per vertex, owned by m (valid
+ * until psr_mesh_free(m)). NULL if m is NULL, has no vertices, or index >=
+ * psr_mesh_channel_count(m).
+ *
+ * # Safety
+ * `m` is NULL or a live mesh from psr_reconstructor_solve.
+ */
+const float *psr_mesh_channel(const psr_mesh *m, size_t index);
+
+/**
+ * Copies m's vertex normals into dst: 3 * psr_mesh_vertex_count(m) floats, or nothing when m
+ * has no normals. capacity_floats is the number of floats dst can hold.
+ *
+ * m must not be NULL; dst may be NULL only when there is nothing to copy. Returns
+ * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+ * PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
+ */
+psr_status psr_mesh_copy_normals(const psr_mesh *m, float *dst, size_t capacity_floats);
+
+/**
+ * Copies m's vertex colours into dst: psr_mesh_color_components(m) *
+ * psr_mesh_vertex_count(m) floats, or nothing when m has no colours. capacity_floats is the
+ * number of floats dst can hold.
+ *
+ * m must not be NULL; dst may be NULL only when there is nothing to copy. Returns the statuses
+ * of psr_mesh_copy_normals.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
+ */
+psr_status psr_mesh_copy_colors(const psr_mesh *m, float *dst, size_t capacity_floats);
+
+/**
+ * Copies the values of m's channel `index` into dst: psr_mesh_vertex_count(m) floats.
+ * capacity_floats is the number of floats dst can hold.
+ *
+ * m must not be NULL; dst may be NULL only when the mesh has no vertices. Returns
+ * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (index >=
+ * psr_mesh_channel_count(m)), PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+ * PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
+ */
+psr_status psr_mesh_copy_channel(const psr_mesh *m, size_t index, float *dst, size_t capacity_floats);
 
 #ifdef __cplusplus
 }  // extern "C"

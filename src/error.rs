@@ -84,6 +84,40 @@ pub enum Error {
         /// the system's reason
         reason: String,
     },
+    /// A per-point attribute value (a colour component or a channel's value) is NaN or
+    /// infinite.
+    NonFiniteAttribute {
+        /// "colors" or the channel's name
+        attribute: String,
+        /// the point's index in its batch
+        index: usize,
+    },
+    /// A per-point attribute has a different number of values than there are points.
+    AttributeLength {
+        /// "colors" or the channel's name
+        attribute: String,
+        /// the points it should give a value to
+        points: usize,
+        /// the values it has
+        values: usize,
+    },
+    /// A batch of points carries other attributes than the points already in the set (colours
+    /// where the set has none or the other way round, RGB against RGBA, other channel names or
+    /// another order of them): every point of a set has the same attributes.
+    AttributesDiffer {
+        /// the set's attributes, e.g. `colors (RGB), channels [intensity]`
+        set: String,
+        /// the batch's attributes, in the same words
+        batch: String,
+    },
+    /// A channel name is empty, holds whitespace or control characters (a PLY property name
+    /// cannot), or is already taken by another channel of the set.
+    InvalidChannelName {
+        /// the name given
+        name: String,
+        /// what is wrong with it
+        reason: &'static str,
+    },
     /// A bug in psr: please report it with the input that triggered it.
     Internal(String),
 }
@@ -138,6 +172,21 @@ impl fmt::Display for Error {
                 f,
                 "the system refused to start {threads} worker threads ({reason}): set fewer threads or free resources and retry"
             ),
+            Error::NonFiniteAttribute { attribute, index } => write!(
+                f,
+                "{attribute} of point {index} has a NaN or infinite value: remove or fix it"
+            ),
+            Error::AttributeLength { attribute, points, values } => write!(
+                f,
+                "{attribute} has {values} values for {points} points: give one per point"
+            ),
+            Error::AttributesDiffer { set, batch } => write!(
+                f,
+                "the points carry {batch} but the point set carries {set}: every batch of a set must carry the same colours and channels, in the same order"
+            ),
+            Error::InvalidChannelName { name, reason } => {
+                write!(f, "channel name {name:?} {reason}: give each channel a distinct name without spaces")
+            }
             Error::Internal(msg) => write!(f, "internal error in psr (a bug, please report it): {msg}"),
         }
     }

@@ -541,19 +541,20 @@ fn face_centre(points: &[Point]) -> Point {
 
 /// Stage 8: the mesh of {χ = γ} (unit-cube coordinates), traced from the finest-depth cells of
 /// the samples at `positions`, its vertices fitted to the surface ([`fit_to_surface`]) unless
-/// `on_isosurface`.
+/// `on_isosurface`; with the normals at the vertices when fitted or `with_normals`.
 pub(crate) fn extract_around_samples(
     chi: &Indicator<'_>,
     isovalue: f64,
     positions: &[DVec3],
     on_isosurface: bool,
+    with_normals: bool,
 ) -> RawMesh {
     let inv_h = (chi.tree.max_depth() as f64).exp2();
     let seeds: Vec<[i64; 3]> = positions
         .iter()
         .map(|&p| cell_of(p, inv_h).map(i64::from))
         .collect();
-    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface);
+    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface || with_normals);
     if !on_isosurface {
         fit_to_surface(&mut mesh);
     }

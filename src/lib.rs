@@ -16,6 +16,8 @@
 //! public surface is [`reconstruct`], [`reconstruct_with_progress`] and their types, [`trim`]
 //! (the mesh cut back to where its samples are, by their density), the normal estimation for
 //! clouds without normals, the C API in [`ffi`] and the PLY reader and writer in [`ply`].
+//! Points may carry colours and named channels onto the mesh ([`PointSet::with_colors`],
+//! [`PointSet::with_channel`], [`Mesh::colors`]).
 
 // Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment saying
 // why it holds, also inside `unsafe fn` bodies; unsafe code lives in `ffi/` (the C API),
@@ -23,6 +25,7 @@
 #![deny(unsafe_op_in_unsafe_fn, clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
+mod attributes;
 mod bspline;
 mod density;
 mod error;
@@ -44,6 +47,7 @@ mod splat;
 mod system;
 mod trim;
 
+pub use attributes::{Channel, Colors};
 pub use error::{Error, Result};
 pub use mesh::{DepthSolve, Mesh, Stats, TrimReport};
 pub use normals::{

@@ -1,6 +1,7 @@
 //! Stage 9 — the mesh: vertices back in input coordinates, with the sampling density at each;
 //! and the types a reconstruction returns.
 
+use crate::attributes::{Channel, Colors, PointAttributes};
 use crate::density::DensityField;
 use crate::extract::RawMesh;
 use crate::points::UnitCubeMap;
@@ -101,6 +102,22 @@ pub struct Mesh {
     pub densities: Vec<f32>,
     /// Figures about the reconstruction that made it.
     pub stats: Stats,
+    /// Unit outward normal at each vertex (∇χ/|∇χ|) when [`crate::Params::vertex_normals`]
+    /// asked for them; empty otherwise.
+    pub normals: Vec<[f32; 3]>,
+    /// A colour per vertex when the points had colours ([`crate::PointSet::with_colors`]).
+    ///
+    /// Each vertex's colour is the weighted mean of the colours of the samples around it,
+    /// splatted like the normals: each sample weighs its mass there (its area, confidence and
+    /// share of its octree depth) times the node function's B-spline at its distance in node
+    /// widths of its depth, times max(0, n_sample · n_vertex), so that a sample never colours
+    /// a surface facing away from it (the other face of a thin wall). Vertices no sample
+    /// reaches (surface invented across holes) take the mean of their neighbours, ring by ring
+    /// from the rim of the hole.
+    pub colors: Option<Colors>,
+    /// The points' named channels ([`crate::PointSet::with_channel`]), a value per vertex each,
+    /// in the points' order, carried like the colours.
+    pub channels: Vec<Channel>,
 }
 
 /// Stage 9: `raw`'s vertices mapped back to input coordinates by `map`, each with the
@@ -127,8 +144,33 @@ pub(crate) fn in_input_coordinates(
         positions,
         triangles: raw.triangles,
         densities,
-        stats: Stats::default(),
+        ..Mesh::default()
     }
+}
+
+/// Gives `mesh` the attributes the points had (`points` says which), from the flattened values
+/// per vertex that [`crate::attributes::at_vertices`] made.
+pub(crate) fn set_attributes(mesh: &mut Mesh, points: &PointAttributes, values: &[f32]) {
+    let width = points.width();
+    let n = mesh.positions.len();
+    let mut column = 0;
+    if let Some(colors) = &points.colors {
+        let components = colors.components();
+        let flat: Vec<f32> = (0..n)
+            .flat_map(|v| values[v * width..v * width + components].iter().copied())
+            .collect();
+        mesh.colors = Some(Colors::from_flattened(components, &flat));
+        column = components;
+    }
+    mesh.channels = points
+        .channels
+        .iter()
+        .enumerate()
+        .map(|(k, channel)| {
+            let values = (0..n).map(|v| values[v * width + column + k]).collect();
+            Channel::new(channel.name.clone(), values)
+        })
+        .collect();
 }
 
 #[cfg(test)]

@@ -111,6 +111,9 @@ pub struct Params {
     /// Where the vertices go. Default [`VertexPlacement::Fitted`];
     /// [`VertexPlacement::OnIsosurface`] keeps them on the level set.
     pub vertex_placement: VertexPlacement,
+    /// Whether the mesh gets a unit outward normal per vertex ([`crate::Mesh::normals`]),
+    /// ∇χ/|∇χ| at the vertex. Default false. PoissonRecon `--normals`.
+    pub vertex_normals: bool,
 }
 
 impl Default for Params {
@@ -128,6 +131,7 @@ impl Default for Params {
             splatting: Splatting::BSpline,
             boundary: Boundary::Neumann,
             vertex_placement: VertexPlacement::Fitted,
+            vertex_normals: false,
         }
     }
 }
@@ -202,6 +206,12 @@ impl Params {
     /// These parameters with [`Params::vertex_placement`] set to `vertex_placement`.
     pub fn with_vertex_placement(mut self, vertex_placement: VertexPlacement) -> Self {
         self.vertex_placement = vertex_placement;
+        self
+    }
+
+    /// These parameters with [`Params::vertex_normals`] set to `vertex_normals`.
+    pub fn with_vertex_normals(mut self, vertex_normals: bool) -> Self {
+        self.vertex_normals = vertex_normals;
         self
     }
 

@@ -3,6 +3,7 @@
 //! them in order, times them and reports progress, and decides when each intermediate result
 //! is dropped (the memory-saving interleavings are named where they happen).
 
+use crate::attributes;
 use crate::density::{self, DensityField};
 use crate::evaluate::Indicator;
 use crate::extract;
@@ -195,8 +196,16 @@ pub(crate) fn run(
             .map(|d| splat_level(&tree.levels[d], &samples, &at_depth[d], params))
             .collect()
     });
-    drop(at_depth);
-    samples.normals = Vec::new();
+    // The attributes' splat (stage 9) reads each sample's depths and normal again; without
+    // attributes they go now.
+    let carries_attributes = !samples.attributes.is_empty();
+    let at_depth = if carries_attributes {
+        at_depth
+    } else {
+        drop(at_depth);
+        samples.normals = Vec::new();
+        Vec::new()
+    };
     clock.done_moving(Stage::Splat, finest_system)?;
 
     // 5. System: the right-hand side of every depth and the samples' screening weights.
@@ -240,13 +249,48 @@ pub(crate) fn run(
 
     // 8. Extract on the tree's leaves, following the surface from the leaves that hold samples.
     let on_isosurface = params.vertex_placement == VertexPlacement::OnIsosurface;
+    // Attributes and vertex normals need ∇χ at the vertices, which fitting computes anyway.
+    let with_normals = carries_attributes || params.vertex_normals;
     let raw = pool.install(|| {
-        extract::extract_around_samples(&chi, isovalue, &samples.positions, on_isosurface)
+        extract::extract_around_samples(
+            &chi,
+            isovalue,
+            &samples.positions,
+            on_isosurface,
+            with_normals,
+        )
     });
     clock.done(Stage::Extract)?;
 
-    // 9. Mesh: back to input coordinates, with the sampling density at each vertex.
+    // 9. Mesh: back to input coordinates, with the sampling density at each vertex, and the
+    // points' attributes and the normals when there are any.
+    let attributes = carries_attributes.then(|| {
+        let field = attributes::SampleField {
+            positions: &samples.positions,
+            normals: &samples.normals,
+            values: &samples.attributes,
+            width: points.attributes().width(),
+            weights: sample_density
+                .area
+                .iter()
+                .zip(&samples.confidence)
+                .map(|(a, c)| a * c)
+                .collect(),
+            at_depth: &at_depth,
+            key_depth: params.depth,
+        };
+        pool.install(|| {
+            attributes::at_vertices(&field, &raw.vertices, &raw.normals, &raw.triangles)
+        })
+    });
+    let normals = params.vertex_normals.then(|| {
+        pool.install(|| attributes::vertex_normals(&raw.vertices, &raw.normals, &raw.triangles))
+    });
     let mut mesh = pool.install(|| mesh::in_input_coordinates(raw, &map, &field));
+    if let Some(values) = attributes {
+        mesh::set_attributes(&mut mesh, points.attributes(), &values);
+    }
+    mesh.normals = normals.unwrap_or_default();
     clock.done(Stage::Mesh)?;
     mesh.stats = clock.stats;
     Ok(mesh)

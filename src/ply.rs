@@ -1,14 +1,17 @@
 //! Reading and writing PLY files (Turk's polygon file format), without outside crates.
 //!
 //! * [`read_point_cloud`] reads oriented points: the `vertex` element's `x y z nx ny nz`
-//!   (any PLY scalar type), plus `red green blue` and `confidence` (or `value`) when present.
+//!   (any PLY scalar type), plus `red green blue [alpha]` (see [`COLOR_PROPERTIES`]) and
+//!   `confidence` (or `value`) when present, and every other scalar vertex property as a named
+//!   float channel (psr carries colours and channels onto the mesh).
 //! * [`read_points`] reads the same, with normals when the file has them and none otherwise
 //!   (for clouds whose normals psr estimates), and each point's sensor position when the file
 //!   has one (see [`SENSOR_PROPERTIES`]).
 //! * [`read_mesh`] reads a triangle mesh: `vertex` `x y z` and the `face` element's
 //!   `vertex_indices` (or `vertex_index`) lists, with polygons split into fans of triangles.
 //! * [`write_mesh`] writes a [`Mesh`] as binary little-endian PLY, with the per-vertex density as
-//!   `float value` (PoissonRecon's name for it).
+//!   `float value` (PoissonRecon's name for it), and the normals, colours and channels when the
+//!   mesh has them ([`write_mesh_with`] chooses the colours' type).
 //! * [`write_point_cloud`] writes oriented points, in any of the three PLY formats.
 //!
 //! The readers accept the three formats (`ascii`, `binary_little_endian`, `binary_big_endian`),
@@ -23,24 +26,130 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
-use crate::Mesh;
+use crate::{Channel, Colors, Mesh};
 
 /// Oriented points read from a PLY file.
+///
+/// New fields may be added (the struct is `#[non_exhaustive]`): build one from
+/// `PlyPoints::default()`.
 #[derive(Debug, Clone, Default, PartialEq)]
+#[non_exhaustive]
 pub struct PlyPoints {
     /// The `x y z` of each vertex.
     pub positions: Vec<[f32; 3]>,
     /// One normal per position, as stored (not normalised).
     pub normals: Vec<[f32; 3]>,
-    /// `red green blue`, when the vertex element has all three. Float colours are taken as
-    /// 0..1 and scaled to 0..255; integer colours are clamped to 0..255.
-    pub colors: Option<Vec<[u8; 3]>>,
+    /// The colours, when the vertex element has red, green and blue under one of the names of
+    /// [`COLOR_PROPERTIES`] (RGBA when it has that convention's alpha too), scaled to 0..1:
+    /// `uchar` (and other integer) values are divided by 255, `ushort` ones by 65535, float
+    /// values are taken as they are.
+    pub colors: Option<Colors>,
+    /// The type the colours are stored as in the file ([`ColorType::U8`] when there are none),
+    /// so that they can be written back alike.
+    pub color_type: ColorType,
     /// The `confidence` property (or else `value`), when the vertex element has one.
     pub confidence: Option<Vec<f32>>,
     /// The position of the sensor that saw each point (for [`crate::Orientation::Sensors`]),
     /// when the vertex element has one of the triples of [`SENSOR_PROPERTIES`].
     pub sensors: Option<Vec<[f32; 3]>>,
+    /// Every other scalar property of the vertex element, in the file's order, as a float
+    /// channel named like the property: all but the positions, the normals, the colours read
+    /// into `colors`, `confidence` and `value`, and the sensor properties (names starting with
+    /// `sensor_`, `vp_` or `beamorigin`). A name the file repeats is read once.
+    pub channels: Vec<Channel>,
 }
+
+/// The vertex properties read as colours, one quadruple (red, green, blue, alpha) per
+/// convention, in the order tried: the first whose red, green and blue are all present wins,
+/// and its alpha is read when present. `red green blue alpha` is the usual one (PoissonRecon,
+/// Open3D, PCL, MeshLab, and what psr writes); `diffuse_*` comes from some exporters of
+/// material colours; `r g b a` from a few scripts.
+pub const COLOR_PROPERTIES: [[&str; 4]; 3] = [
+    ["red", "green", "blue", "alpha"],
+    [
+        "diffuse_red",
+        "diffuse_green",
+        "diffuse_blue",
+        "diffuse_alpha",
+    ],
+    ["r", "g", "b", "a"],
+];
+
+/// The PLY type colours are stored as; colours in psr are floats, 0..1 as [`PlyPoints`] reads
+/// them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ColorType {
+    /// `uchar`, 0..255 (the usual type): written as round(255 × value), clamped.
+    #[default]
+    U8,
+    /// `ushort`, 0..65535 (16-bit colours, e.g. from LAS): written as round(65535 × value),
+    /// clamped.
+    U16,
+    /// `float`, written as it is.
+    F32,
+}
+
+impl ColorType {
+    /// The type of the PLY property `s` as a colour: floats are F32, `ushort` U16, any other
+    /// integer type U8.
+    fn of(s: Scalar) -> ColorType {
+        match s {
+            Scalar::F32 | Scalar::F64 => ColorType::F32,
+            Scalar::U16 => ColorType::U16,
+            _ => ColorType::U8,
+        }
+    }
+
+    /// The stored value of 1.0 (stored values are divided by it).
+    fn full(self) -> f64 {
+        match self {
+            ColorType::U8 => 255.0,
+            ColorType::U16 => 65535.0,
+            ColorType::F32 => 1.0,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            ColorType::U8 => "uchar",
+            ColorType::U16 => "ushort",
+            ColorType::F32 => "float",
+        }
+    }
+
+    /// One 0..1 colour component as stored, little- or big-endian.
+    fn encode(self, v: f32, big: bool, out: &mut Vec<u8>) {
+        match self {
+            ColorType::U8 => out.push((v as f64 * 255.0).round().clamp(0.0, 255.0) as u8),
+            ColorType::U16 => {
+                let x = (v as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16;
+                out.extend_from_slice(&if big {
+                    x.to_be_bytes()
+                } else {
+                    x.to_le_bytes()
+                });
+            }
+            ColorType::F32 => out.extend_from_slice(&if big {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }),
+        }
+    }
+
+    /// One 0..1 colour component as ASCII text of its stored value.
+    fn text(self, v: f32) -> String {
+        match self {
+            ColorType::U8 => ((v as f64 * 255.0).round().clamp(0.0, 255.0) as u8).to_string(),
+            ColorType::U16 => ((v as f64 * 65535.0).round().clamp(0.0, 65535.0) as u16).to_string(),
+            ColorType::F32 => v.to_string(),
+        }
+    }
+}
+
+/// Vertex properties that are sensor positions, whatever their axis (never channels).
+const SENSOR_PREFIXES: [&str; 3] = ["sensor_", "vp_", "beamorigin"];
 
 /// The vertex properties read as each point's sensor position, one triple per convention, in
 /// the order tried (the first complete triple wins). There is no standard; these are the names
@@ -642,9 +751,6 @@ fn check_sizes(header: &Header, last: usize, available: u64) -> Result<(), PlyEr
 // Body
 // ---------------------------------------------------------------------------------------------
 
-/// Number of values one entry can hand over.
-const SLOTS: usize = 13;
-
 /// What to keep from one element: where each scalar property goes (a slot index) and which list
 /// property, if any, to collect.
 struct Plan {
@@ -663,11 +769,16 @@ impl Plan {
     fn keeps_nothing(&self) -> bool {
         self.list.is_none() && self.slots.iter().all(Option::is_none)
     }
+
+    /// Number of values one entry hands over (one past the highest slot).
+    fn width(&self) -> usize {
+        self.slots.iter().flatten().max().map_or(0, |m| m + 1)
+    }
 }
 
 /// Receives one entry: its index, the planned scalar values and the kept list's items; returns
 /// an error message for a bad entry.
-type Sink<'a> = dyn FnMut(usize, &[f64; SLOTS], &[f64]) -> Result<(), String> + 'a;
+type Sink<'a> = dyn FnMut(usize, &[f64], &[f64]) -> Result<(), String> + 'a;
 
 /// The body of a PLY file, read element by element.
 struct Body<R> {
@@ -710,7 +821,7 @@ impl<R: BufRead> Body<R> {
         &mut self,
         el: &Element,
         plan: &Plan,
-        mut sink: impl FnMut(usize, &[f64; SLOTS], &[f64]) -> Result<(), String>,
+        mut sink: impl FnMut(usize, &[f64], &[f64]) -> Result<(), String>,
     ) -> Result<(), PlyErrorKind> {
         match self.format {
             PlyFormat::Ascii => self.read_ascii(el, plan, &mut sink),
@@ -749,7 +860,7 @@ impl<R: BufRead> Body<R> {
         big: bool,
         sink: &mut Sink<'_>,
     ) -> Result<(), PlyErrorKind> {
-        let mut values = [0.0f64; SLOTS];
+        let mut values = vec![0.0f64; plan.width()];
         if let Some(stride) = el.fixed_stride() {
             if stride == 0 {
                 if !plan.keeps_nothing() {
@@ -876,7 +987,7 @@ impl<R: BufRead> Body<R> {
         plan: &Plan,
         sink: &mut Sink<'_>,
     ) -> Result<(), PlyErrorKind> {
-        let mut values = [0.0f64; SLOTS];
+        let mut values = vec![0.0f64; plan.width()];
         let mut list = Vec::new();
         if el.props.is_empty() {
             if !plan.keeps_nothing() {
@@ -909,7 +1020,7 @@ impl<R: BufRead> Body<R> {
         plan: &Plan,
         index: usize,
         line: &[u8],
-        values: &mut [f64; SLOTS],
+        values: &mut [f64],
         list: &mut Vec<f64>,
     ) -> Result<(), PlyErrorKind> {
         let Ok(text) = std::str::from_utf8(line) else {
@@ -1012,10 +1123,11 @@ pub fn read_point_cloud(path: &Path) -> Result<PlyPoints, PlyError> {
     read_vertex_points(reader, len, Normals::Required).map_err(|e| PlyError::new(e).with_path(path))
 }
 
-/// Reads oriented points from PLY data: the `vertex` element's `x y z nx ny nz`, and
-/// `red green blue`, `confidence` (or `value`) and sensor positions ([`SENSOR_PROPERTIES`])
-/// when present. Other properties and elements
-/// are skipped. The normals `normal_x normal_y normal_z` are accepted in place of `nx ny nz`.
+/// Reads oriented points from PLY data: the `vertex` element's `x y z nx ny nz`, and colours
+/// ([`COLOR_PROPERTIES`]), `confidence` (or `value`) and sensor positions
+/// ([`SENSOR_PROPERTIES`]) when present; every other scalar vertex property becomes a channel
+/// ([`PlyPoints::channels`]). List properties and other elements are skipped. The normals
+/// `normal_x normal_y normal_z` are accepted in place of `nx ny nz`.
 pub fn read_point_cloud_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
     read_vertex_points(reader, None, Normals::Required).map_err(PlyError::new)
 }
@@ -1073,32 +1185,40 @@ fn read_vertex_points<R: BufRead>(
             present: vertex.prop_names(),
         });
     }
-    let rgb = find3([
-        ["red", "diffuse_red"],
-        ["green", "diffuse_green"],
-        ["blue", "diffuse_blue"],
-    ]);
+    let rgba = COLOR_PROPERTIES.iter().find_map(|[r, g, b, a]| {
+        let rgb = [vertex.find(&[r])?, vertex.find(&[g])?, vertex.find(&[b])?];
+        Some((rgb, vertex.find(&[a])))
+    });
     let conf = vertex.find(&["confidence", "value"]);
     let sensor = SENSOR_PROPERTIES
         .iter()
         .find_map(|[x, y, z]| Some([vertex.find(&[x])?, vertex.find(&[y])?, vertex.find(&[z])?]));
 
+    // Slots: position 0-2, normal 3-5, colour 6-9, confidence 10, sensor 11-13, channels 14...
     let mut plan = Plan::skip(vertex);
     for (slot, &p) in pos.iter().chain(nrm.iter().flatten()).enumerate() {
         plan.slots[p] = Some(slot);
     }
-    let mut float_colors = false;
-    if let Some(rgb) = rgb {
-        for (k, &p) in rgb.iter().enumerate() {
-            plan.slots[p] = Some(6 + k);
-            float_colors |= matches!(vertex.props[p].ty, PropType::Scalar(s) if s.is_float());
+    let mut color_type = ColorType::U8;
+    let mut color_full = [1.0; 4];
+    if let Some((rgb, alpha)) = rgba {
+        for (k, p) in rgb.into_iter().map(Some).chain([alpha]).enumerate() {
+            if let Some(p) = p {
+                plan.slots[p] = Some(6 + k);
+                if let PropType::Scalar(s) = vertex.props[p].ty {
+                    color_full[k] = ColorType::of(s).full();
+                    if k == 0 {
+                        color_type = ColorType::of(s);
+                    }
+                }
+            }
         }
     }
     if let Some(c) = conf {
-        plan.slots[c] = Some(9);
+        plan.slots[c] = Some(10);
     }
     for (k, &p) in sensor.iter().flatten().enumerate() {
-        plan.slots[p] = Some(10 + k);
+        plan.slots[p] = Some(11 + k);
     }
     for (p, slot) in vertex.props.iter().zip(&plan.slots) {
         if slot.is_some() && !matches!(p.ty, PropType::Scalar(_)) {
@@ -1111,6 +1231,28 @@ fn read_vertex_points<R: BufRead>(
             });
         }
     }
+    // Every other scalar property is a channel (the first of a repeated name).
+    let interpreted = |name: &str| {
+        [
+            "x", "y", "z", "nx", "ny", "nz", "normal_x", "normal_y", "normal_z",
+        ]
+        .contains(&name)
+            || ["confidence", "value"].contains(&name)
+            || SENSOR_PREFIXES
+                .iter()
+                .any(|prefix| name.starts_with(prefix))
+    };
+    let mut channel_names: Vec<String> = Vec::new();
+    for (p, prop) in vertex.props.iter().enumerate() {
+        if plan.slots[p].is_none()
+            && matches!(prop.ty, PropType::Scalar(_))
+            && !interpreted(&prop.name)
+            && !channel_names.contains(&prop.name)
+        {
+            plan.slots[p] = Some(14 + channel_names.len());
+            channel_names.push(prop.name.clone());
+        }
+    }
 
     let size_checked = match file_len {
         Some(len) => {
@@ -1120,37 +1262,56 @@ fn read_vertex_points<R: BufRead>(
         None => false,
     };
     let cap = capacity(vertex.count, size_checked);
+    let components = match rgba {
+        Some((_, Some(_))) => 4,
+        Some((_, None)) => 3,
+        None => 0,
+    };
+    let mut colors: Vec<f32> = Vec::with_capacity(cap * components);
+    let mut channels: Vec<Vec<f32>> = channel_names
+        .iter()
+        .map(|_| Vec::with_capacity(cap))
+        .collect();
     let mut out = PlyPoints {
         positions: Vec::with_capacity(cap),
         normals: Vec::with_capacity(if nrm.is_some() { cap } else { 0 }),
-        colors: rgb.map(|_| Vec::with_capacity(cap)),
+        colors: None,
+        color_type,
         confidence: conf.map(|_| Vec::with_capacity(cap)),
         sensors: sensor.map(|_| Vec::with_capacity(cap)),
+        channels: Vec::new(),
     };
     let mut body = Body::new(r, &header);
     for el in &header.elements[..vi] {
         body.read_element(el, &Plan::skip(el), |_, _, _| Ok(()))?;
     }
-    let color = |v: f64| -> u8 {
-        let v = if float_colors { v * 255.0 } else { v };
-        v.round().clamp(0.0, 255.0) as u8
-    };
     body.read_element(vertex, &plan, |_, v, _| {
         out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
         if nrm.is_some() {
             out.normals.push([v[3] as f32, v[4] as f32, v[5] as f32]);
         }
-        if let Some(c) = &mut out.colors {
-            c.push([color(v[6]), color(v[7]), color(v[8])]);
+        for k in 0..components {
+            colors.push((v[6 + k] / color_full[k]) as f32);
         }
         if let Some(c) = &mut out.confidence {
-            c.push(v[9] as f32);
+            c.push(v[10] as f32);
         }
         if let Some(s) = &mut out.sensors {
-            s.push([v[10] as f32, v[11] as f32, v[12] as f32]);
+            s.push([v[11] as f32, v[12] as f32, v[13] as f32]);
+        }
+        for (k, channel) in channels.iter_mut().enumerate() {
+            channel.push(v[14 + k] as f32);
         }
         Ok(())
     })?;
+    if components > 0 {
+        out.colors = Some(Colors::from_flattened(components, &colors));
+    }
+    out.channels = channel_names
+        .into_iter()
+        .zip(channels)
+        .map(|(name, values)| Channel::new(name, values))
+        .collect();
     Ok(out)
 }
 
@@ -1160,8 +1321,8 @@ pub fn write_point_cloud(path: &Path, points: &PlyPoints, format: PlyFormat) -> 
 }
 
 /// Writes oriented points as PLY in the given format: `float x y z nx ny nz`, then
-/// `uchar red green blue`, `float confidence` and `float sensor_x sensor_y sensor_z` when
-/// present.
+/// `red green blue [alpha]` as `points.color_type`, `float confidence`,
+/// `float sensor_x sensor_y sensor_z` and a `float` property per channel when present.
 pub fn write_point_cloud_to(
     mut w: impl Write,
     points: &PlyPoints,
@@ -1171,13 +1332,16 @@ pub fn write_point_cloud_to(
     let lengths_ok = points.normals.len() == n
         && points.colors.as_ref().is_none_or(|c| c.len() == n)
         && points.confidence.as_ref().is_none_or(|c| c.len() == n)
-        && points.sensors.as_ref().is_none_or(|s| s.len() == n);
+        && points.sensors.as_ref().is_none_or(|s| s.len() == n)
+        && points.channels.iter().all(|c| c.values.len() == n);
     if !lengths_ok {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
-            "PlyPoints: normals, colors, confidence and sensors must have one entry per position",
+            "PlyPoints: normals, colors, confidence, sensors and channels must have one entry per \
+             position",
         ));
     }
+    let mut names: Vec<&str> = vec!["x", "y", "z", "nx", "ny", "nz"];
     let mut header = format!(
         "ply\nformat {} 1.0\ncomment written by psr {}\nelement vertex {n}\n",
         format.header_name(),
@@ -1186,26 +1350,34 @@ pub fn write_point_cloud_to(
     for p in ["x", "y", "z", "nx", "ny", "nz"] {
         header.push_str(&format!("property float {p}\n"));
     }
-    if points.colors.is_some() {
-        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    let components = points.colors.as_ref().map_or(0, Colors::components);
+    for name in &COLOR_PROPERTIES[0][..components] {
+        header.push_str(&format!("property {} {name}\n", points.color_type.name()));
+        names.push(name);
     }
     if points.confidence.is_some() {
         header.push_str("property float confidence\n");
+        names.push("confidence");
     }
     if points.sensors.is_some() {
         for p in SENSOR_PROPERTIES[0] {
             header.push_str(&format!("property float {p}\n"));
+            names.push(p);
         }
     }
+    add_channels(&mut header, &mut names, &points.channels)?;
     header.push_str("end_header\n");
     w.write_all(header.as_bytes())?;
 
+    let colors = points.colors.as_ref().map(Colors::as_flattened);
     let mut chunk = Chunk::new(w);
+    let mut record = Vec::with_capacity(64);
     for i in 0..n {
         let floats = points.positions[i].iter().chain(&points.normals[i]);
-        let rgb = points.colors.as_ref().map(|c| c[i]);
+        let rgb = colors.map(|c| &c[i * components..(i + 1) * components]);
         let conf = points.confidence.as_ref().map(|c| c[i]);
         let sensor = points.sensors.as_ref().map(|s| s[i]);
+        let channels = points.channels.iter().map(|c| c.values[i]);
         match format {
             PlyFormat::Ascii => {
                 let mut line = String::with_capacity(96);
@@ -1215,13 +1387,17 @@ pub fn write_point_cloud_to(
                     }
                     line.push_str(&v.to_string());
                 }
-                if let Some([r, g, b]) = rgb {
-                    line.push_str(&format!(" {r} {g} {b}"));
+                for &c in rgb.into_iter().flatten() {
+                    line.push(' ');
+                    line.push_str(&points.color_type.text(c));
                 }
                 if let Some(c) = conf {
                     line.push_str(&format!(" {c}"));
                 }
                 for v in sensor.iter().flatten() {
+                    line.push_str(&format!(" {v}"));
+                }
+                for v in channels {
                     line.push_str(&format!(" {v}"));
                 }
                 line.push('\n');
@@ -1236,22 +1412,51 @@ pub fn write_point_cloud_to(
                         v.to_le_bytes()
                     }
                 };
+                record.clear();
                 for &v in floats {
-                    chunk.put(&f32_bytes(v))?;
+                    record.extend_from_slice(&f32_bytes(v));
                 }
-                if let Some(rgb) = rgb {
-                    chunk.put(&rgb)?;
+                for &c in rgb.into_iter().flatten() {
+                    points.color_type.encode(c, big, &mut record);
                 }
-                if let Some(c) = conf {
-                    chunk.put(&f32_bytes(c))?;
+                for v in conf.into_iter().chain(sensor.into_iter().flatten()) {
+                    record.extend_from_slice(&f32_bytes(v));
                 }
-                for &v in sensor.iter().flatten() {
-                    chunk.put(&f32_bytes(v))?;
+                for v in channels {
+                    record.extend_from_slice(&f32_bytes(v));
                 }
+                chunk.put(&record)?;
             }
         }
     }
     chunk.finish()
+}
+
+/// Declares a `float` property per channel after the properties `names` already declared,
+/// refusing a name that is taken or that a PLY header cannot hold.
+fn add_channels<'a>(
+    header: &mut String,
+    names: &mut Vec<&'a str>,
+    channels: &'a [Channel],
+) -> io::Result<()> {
+    for channel in channels {
+        let name = channel.name.as_str();
+        if name.is_empty() || name.chars().any(|c| c.is_whitespace() || c.is_control()) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("channel name {name:?} cannot be a PLY property name (empty, or with whitespace)"),
+            ));
+        }
+        if names.contains(&name) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("channel name {name:?} is already a property of the vertices: rename the channel"),
+            ));
+        }
+        names.push(name);
+        header.push_str(&format!("property float {name}\n"));
+    }
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1355,25 +1560,76 @@ fn read_mesh_impl<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<MeshDat
     Ok((positions, triangles))
 }
 
-/// Writes a mesh as binary little-endian PLY (see [`write_mesh_to`]).
-pub fn write_mesh(path: &Path, mesh: &Mesh) -> io::Result<()> {
-    write_file(path, |w| write_mesh_to(w, mesh))
+/// How [`write_mesh_with`] writes a mesh's attributes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct WriteOptions {
+    /// The PLY type of the colours (default [`ColorType::U8`]); write the input's
+    /// ([`PlyPoints::color_type`]) to give them back as they came.
+    pub color_type: ColorType,
 }
 
-/// Writes a mesh as binary little-endian PLY: vertex `float x y z`, plus `float value` (the
-/// per-vertex density) when `mesh.densities` is not empty, and face
-/// `list uchar int vertex_indices`.
-pub fn write_mesh_to(mut w: impl Write, mesh: &Mesh) -> io::Result<()> {
+impl WriteOptions {
+    /// These options with [`WriteOptions::color_type`] set to `color_type`.
+    pub fn with_color_type(mut self, color_type: ColorType) -> Self {
+        self.color_type = color_type;
+        self
+    }
+}
+
+/// Writes a mesh as binary little-endian PLY (see [`write_mesh_to`]).
+pub fn write_mesh(path: &Path, mesh: &Mesh) -> io::Result<()> {
+    write_mesh_with(path, mesh, &WriteOptions::default())
+}
+
+/// Writes a mesh as binary little-endian PLY with `options` (see [`write_mesh_to_with`]).
+pub fn write_mesh_with(path: &Path, mesh: &Mesh, options: &WriteOptions) -> io::Result<()> {
+    write_file(path, |w| write_mesh_to_with(w, mesh, options))
+}
+
+/// [`write_mesh_to_with`] with the default options (colours as `uchar`).
+pub fn write_mesh_to(w: impl Write, mesh: &Mesh) -> io::Result<()> {
+    write_mesh_to_with(w, mesh, &WriteOptions::default())
+}
+
+/// Writes a mesh as binary little-endian PLY: vertex `float x y z`, then whichever the mesh
+/// has of `float nx ny nz` (its normals), `float value` (the per-vertex density),
+/// `red green blue [alpha]` (its colours, as `options.color_type`) and a `float` property per
+/// channel (named like it); and face `list uchar int vertex_indices`. A channel named like
+/// another vertex property is refused.
+pub fn write_mesh_to_with(
+    mut w: impl Write,
+    mesh: &Mesh,
+    options: &WriteOptions,
+) -> io::Result<()> {
     let n = mesh.positions.len();
     let with_density = !mesh.densities.is_empty();
-    if with_density && mesh.densities.len() != n {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!(
-                "mesh has {} densities for {n} vertices",
+    let with_normals = !mesh.normals.is_empty();
+    let per_vertex = [
+        (
+            "densities",
+            if with_density {
                 mesh.densities.len()
-            ),
-        ));
+            } else {
+                n
+            },
+        ),
+        ("normals", if with_normals { mesh.normals.len() } else { n }),
+        ("colors", mesh.colors.as_ref().map_or(n, Colors::len)),
+    ]
+    .into_iter()
+    .chain(
+        mesh.channels
+            .iter()
+            .map(|c| (c.name.as_str(), c.values.len())),
+    );
+    for (what, len) in per_vertex {
+        if len != n {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("mesh has {len} {what} for {n} vertices"),
+            ));
+        }
     }
     if n > i32::MAX as usize {
         return Err(io::Error::new(
@@ -1399,28 +1655,44 @@ pub fn write_mesh_to(mut w: impl Write, mesh: &Mesh) -> io::Result<()> {
          property float x\nproperty float y\nproperty float z\n",
         env!("CARGO_PKG_VERSION")
     );
+    let mut names = vec!["x", "y", "z"];
+    if with_normals {
+        header.push_str("property float nx\nproperty float ny\nproperty float nz\n");
+        names.extend(["nx", "ny", "nz"]);
+    }
     if with_density {
         header.push_str("property float value\n");
+        names.push("value");
     }
+    let components = mesh.colors.as_ref().map_or(0, Colors::components);
+    for name in &COLOR_PROPERTIES[0][..components] {
+        header.push_str(&format!("property {} {name}\n", options.color_type.name()));
+        names.push(name);
+    }
+    add_channels(&mut header, &mut names, &mesh.channels)?;
     header.push_str(&format!(
         "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
         mesh.triangles.len()
     ));
     w.write_all(header.as_bytes())?;
 
+    let colors = mesh.colors.as_ref().map(Colors::as_flattened);
     let mut chunk = Chunk::new(w);
+    let mut record = Vec::with_capacity(64);
     for (i, p) in mesh.positions.iter().enumerate() {
-        let mut record = [0u8; 16];
-        for (k, v) in p.iter().enumerate() {
-            record[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
+        record.clear();
+        let normal = mesh.normals.get(i).into_iter().flatten();
+        let density = mesh.densities.get(i);
+        for v in p.iter().chain(normal).chain(density) {
+            record.extend_from_slice(&v.to_le_bytes());
         }
-        let len = if with_density {
-            record[12..16].copy_from_slice(&mesh.densities[i].to_le_bytes());
-            16
-        } else {
-            12
-        };
-        chunk.put(&record[..len])?;
+        for &c in colors.map_or(&[][..], |c| &c[i * components..(i + 1) * components]) {
+            options.color_type.encode(c, false, &mut record);
+        }
+        for channel in &mesh.channels {
+            record.extend_from_slice(&channel.values[i].to_le_bytes());
+        }
+        chunk.put(&record)?;
     }
     for t in &mesh.triangles {
         let mut record = [3u8; 13];
@@ -1493,13 +1765,29 @@ mod tests {
             [0.6, 0.8, 0.0],
             [-0.33333334, 0.6666667, -0.6666667],
         ];
+        let uchar = |c: [u8; 3]| c.map(|v| (v as f64 / 255.0) as f32);
         PlyPoints {
             positions,
             normals,
-            colors: with_extras.then(|| vec![[255, 0, 7], [1, 2, 3], [128, 64, 32]]),
+            colors: with_extras.then(|| {
+                Colors::Rgb(vec![
+                    uchar([255, 0, 7]),
+                    uchar([1, 2, 3]),
+                    uchar([128, 64, 32]),
+                ])
+            }),
             confidence: with_extras.then(|| vec![0.25, 1.0, 7.5]),
             sensors: with_extras
                 .then(|| vec![[0.0, 0.0, 10.0], [-3.5, 1.0e5, 0.0], [1.0, 2.0, 3.0]]),
+            channels: if with_extras {
+                vec![
+                    Channel::new("intensity", vec![0.5, -2.0, 1.0e-3]),
+                    Channel::new("label", vec![1.0, 2.0, 3.0]),
+                ]
+            } else {
+                Vec::new()
+            },
+            ..PlyPoints::default()
         }
     }
 
@@ -1646,6 +1934,16 @@ mod tests {
         assert_eq!(points.normals, vec![[1.0, -2.0, 3.0]; 2]);
         assert_eq!(points.confidence, Some(vec![0.5, 0.5]));
         assert_eq!(points.colors, None, "red alone is not a colour");
+        let channels: Vec<(&str, &[f32])> = points
+            .channels
+            .iter()
+            .map(|c| (c.name.as_str(), c.values.as_slice()))
+            .collect();
+        assert_eq!(
+            channels,
+            vec![("flags", &[170.0, 170.0][..]), ("red", &[9.0, 9.0][..])],
+            "other scalar properties, lists excluded, are channels"
+        );
         // The face element after the vertices is never needed, so a cut there does not matter;
         // a cut inside the vertices does.
         let cut = binary_file(header, &body[..body.len() - 20]);
@@ -1699,7 +1997,82 @@ mod tests {
         let points = read(&binary_file(header, &body)).unwrap();
         assert_eq!(points.positions, vec![[0.1, 0.2, 0.3]]);
         assert_eq!(points.normals, vec![[0.0, -1.0, 0.0]]);
-        assert_eq!(points.colors, Some(vec![[255, 128, 0]]));
+        assert_eq!(points.colors, Some(Colors::Rgb(vec![[1.0, 0.5, 0.0]])));
+        assert_eq!(points.color_type, ColorType::F32);
+    }
+
+    /// Proves: colours are read under each convention of COLOR_PROPERTIES, with the
+    /// convention's alpha when present, scaled to 0..1 by their type (uchar / 255, ushort /
+    /// 65535, float as is); the properties psr interprets are never channels, the others are;
+    /// and a cloud written with its colour type and channels reads back the same.
+    #[test]
+    fn colours_alpha_and_channels_are_read_and_written_back_alike() {
+        let cases = [
+            (
+                "uchar",
+                ["red", "green", "blue", "alpha"],
+                ["255", "51", "0", "102"],
+                ColorType::U8,
+            ),
+            (
+                "ushort",
+                [
+                    "diffuse_red",
+                    "diffuse_green",
+                    "diffuse_blue",
+                    "diffuse_alpha",
+                ],
+                ["65535", "0", "13107", "65535"],
+                ColorType::U16,
+            ),
+            (
+                "float",
+                ["r", "g", "b", "a"],
+                ["1", "0.2", "0.5", "0.25"],
+                ColorType::F32,
+            ),
+        ];
+        for (ty, names, values, color_type) in cases {
+            for with_alpha in [false, true] {
+                let count = if with_alpha { 4 } else { 3 };
+                let mut header = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
+                    property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+                    property float nz\nproperty float confidence\nproperty float sensor_x\n\
+                    property float vp_y\nproperty float beamoriginz\nproperty short temperature\n"
+                    .to_string();
+                for name in &names[..count] {
+                    header.push_str(&format!("property {ty} {name}\n"));
+                }
+                header.push_str("property double quality\nend_header\n");
+                let line = format!(
+                    "1 2 3 0 0 1 0.5 7 8 9 -40 {} 0.75\n",
+                    values[..count].join(" ")
+                );
+                let points = read((header + &line).as_bytes()).unwrap();
+                let full = match color_type {
+                    ColorType::U8 => 255.0,
+                    ColorType::U16 => 65535.0,
+                    _ => 1.0,
+                };
+                let want: Vec<f32> = values[..count]
+                    .iter()
+                    .map(|v| (v.parse::<f64>().unwrap() / full) as f32)
+                    .collect();
+                let colors = points.colors.as_ref().expect("colours");
+                assert_eq!(colors.as_flattened(), &want[..], "{ty} {names:?}");
+                assert_eq!(colors.components(), count);
+                assert_eq!(points.color_type, color_type);
+                let names: Vec<&str> = points.channels.iter().map(|c| c.name.as_str()).collect();
+                assert_eq!(names, ["temperature", "quality"], "{ty}");
+                assert_eq!(points.channels[0].values, [-40.0]);
+                for format in [PlyFormat::Ascii, PlyFormat::BinaryBigEndian] {
+                    let mut copy = points.clone();
+                    copy.sensors = None;
+                    let back = read(&to_bytes(&copy, format)).unwrap();
+                    assert_eq!(back, copy, "{ty} {format:?}");
+                }
+            }
+        }
     }
 
     #[test]
@@ -1955,6 +2328,58 @@ mod tests {
         let (positions, triangles) = read_mesh(&path).unwrap();
         std::fs::remove_file(&path).unwrap();
         assert_eq!((positions.len(), triangles.len()), (4, 3));
+    }
+
+    /// Proves: a mesh's normals, colours (in the type asked for) and channels are written as
+    /// vertex properties that read back as they were, and the layout without them is the old
+    /// one (x y z value).
+    #[test]
+    fn mesh_normals_colours_and_channels_are_written() {
+        let mut mesh = sample_mesh(true);
+        mesh.normals = vec![
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.6, 0.0, -0.8],
+        ];
+        let uchar = |c: [u8; 4]| c.map(|v| (v as f64 / 255.0) as f32);
+        mesh.colors = Some(Colors::Rgba(vec![
+            uchar([255, 0, 0, 255]),
+            uchar([0, 255, 0, 128]),
+            uchar([0, 0, 255, 0]),
+            uchar([10, 20, 30, 40]),
+        ]));
+        mesh.channels = vec![Channel::new("intensity", vec![0.0, 0.5, 1.0, 1.5])];
+        for color_type in [ColorType::U8, ColorType::U16, ColorType::F32] {
+            let mut bytes = Vec::new();
+            let options = WriteOptions::default().with_color_type(color_type);
+            write_mesh_to_with(&mut bytes, &mesh, &options).unwrap();
+            let back = read_point_cloud_from(&bytes[..]).unwrap();
+            assert_eq!(back.positions, mesh.positions);
+            assert_eq!(back.normals, mesh.normals);
+            assert_eq!(
+                back.confidence.as_deref(),
+                Some(&mesh.densities[..]),
+                "value"
+            );
+            assert_eq!(back.colors, mesh.colors, "{color_type:?}");
+            assert_eq!(back.color_type, color_type);
+            assert_eq!(back.channels, mesh.channels);
+            let (positions, triangles) = read_mesh_from(&bytes[..]).unwrap();
+            assert_eq!(
+                (positions, triangles),
+                (mesh.positions.clone(), mesh.triangles.clone())
+            );
+        }
+        for taken in ["value", "nx", "alpha", "intensity"] {
+            let mut clash = mesh.clone();
+            clash.channels.push(Channel::new(taken, vec![0.0; 4]));
+            let err = write_mesh_to(io::sink(), &clash).unwrap_err();
+            assert!(err.to_string().contains(taken), "{err}");
+        }
+        let mut short = mesh.clone();
+        short.channels[0].values.pop();
+        assert!(write_mesh_to(io::sink(), &short).is_err());
     }
 
     #[test]

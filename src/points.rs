@@ -4,22 +4,38 @@
 //! normal's length never weighs a sample); confidence weights, when given, finite and ≥ 0. The
 //! bounding box of the positions, enlarged by `scale` about its centre, is mapped onto `[0,1]³`
 //! by a uniform scale, and the inverse map takes mesh vertices back to input coordinates.
+//!
+//! A set may also carry attributes, the same for every point: colours and named float channels
+//! (finite values; see [`crate::attributes`] for how they reach the mesh).
 
+use crate::attributes::{Channel, Colors, PointAttributes};
 use crate::error::{Error, Result};
 use crate::grid::{cell_of, morton_nested};
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// Oriented input points: positions, unit normals and optional confidence weights.
+/// Oriented input points: positions, unit normals, optional confidence weights, and optional
+/// attributes carried onto the mesh (colours, named channels).
 ///
 /// Appending validates the whole batch first and appends nothing when any entry is bad, so a
 /// failed batch never leaves half of itself behind.
+///
+/// ```
+/// use psr::{Colors, PointSet};
+/// let points = PointSet::from_slices(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], &[[0.0, 0.0, 1.0]; 2])?
+///     .with_colors(Colors::Rgb(vec![[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))?
+///     .with_channel("intensity", vec![0.25, 0.75])?;
+/// assert_eq!(points.channels()[0].name, "intensity");
+/// # Ok::<(), psr::Error>(())
+/// ```
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PointSet {
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     /// Per-point confidence (PoissonRecon `--confidence`); `None` means all 1.
     weights: Option<Vec<f32>>,
+    /// Colours and channels, one value each per point.
+    attributes: PointAttributes,
 }
 
 impl PointSet {
@@ -42,12 +58,20 @@ impl PointSet {
     }
 
     /// Appends a batch of points with optional per-point confidence weights (finite, ≥ 0).
+    /// A set that carries colours or channels takes new points through [`PointSet::append`]
+    /// only (they must bring theirs).
     pub fn extend_weighted(
         &mut self,
         positions: &[[f32; 3]],
         normals: &[[f32; 3]],
         weights: Option<&[f32]>,
     ) -> Result<()> {
+        if self.attributes.width() > 0 && !positions.is_empty() {
+            return Err(Error::AttributesDiffer {
+                set: self.attributes.describe(),
+                batch: PointAttributes::default().describe(),
+            });
+        }
         if normals.len() != positions.len() {
             return Err(Error::LengthMismatch {
                 what: "normals",
@@ -81,6 +105,55 @@ impl PointSet {
         Ok(())
     }
 
+    /// These points with per-point colours, one per point (RGB or RGBA, finite, in any scale:
+    /// the mesh's colours are weighted means of them). Replaces colours given before.
+    pub fn with_colors(mut self, colors: Colors) -> Result<Self> {
+        PointAttributes::check_colors(&colors, self.len())?;
+        self.attributes.colors = Some(colors);
+        Ok(self)
+    }
+
+    /// These points with one more named channel, one finite value per point. The name must be
+    /// new to the set, non-empty and without whitespace (it becomes a PLY property name).
+    pub fn with_channel(mut self, name: impl Into<String>, values: Vec<f32>) -> Result<Self> {
+        let channel = Channel::new(name, values);
+        self.attributes.check_channel(&channel, self.len())?;
+        self.attributes.channels.push(channel);
+        Ok(self)
+    }
+
+    /// Appends the points of `other` with their weights and attributes. Unless this set is
+    /// empty (then it takes `other`'s attributes), `other` must carry the same attributes
+    /// (colours of the same kind, the same channels in the same order); otherwise nothing is
+    /// appended.
+    pub fn append(&mut self, other: PointSet) -> Result<()> {
+        if self.is_empty() {
+            *self = other;
+            return Ok(());
+        }
+        if !self.attributes.same_layout(&other.attributes) {
+            return Err(Error::AttributesDiffer {
+                set: self.attributes.describe(),
+                batch: other.attributes.describe(),
+            });
+        }
+        let old_len = self.len();
+        self.positions.extend(other.positions);
+        self.normals.extend(other.normals);
+        match (other.weights, &mut self.weights) {
+            (Some(w), Some(existing)) => existing.extend(w),
+            (Some(w), None) => {
+                let mut all = vec![1.0; old_len];
+                all.extend(w);
+                self.weights = Some(all);
+            }
+            (None, Some(existing)) => existing.resize(self.positions.len(), 1.0),
+            (None, None) => {}
+        }
+        self.attributes.append(other.attributes);
+        Ok(())
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.positions.len()
@@ -106,11 +179,27 @@ impl PointSet {
         self.weights.as_deref()
     }
 
-    /// Removes every point.
+    /// The colours, if given.
+    pub fn colors(&self) -> Option<&Colors> {
+        self.attributes.colors.as_ref()
+    }
+
+    /// The named channels, in the order given.
+    pub fn channels(&self) -> &[Channel] {
+        &self.attributes.channels
+    }
+
+    /// The colours and channels.
+    pub(crate) fn attributes(&self) -> &PointAttributes {
+        &self.attributes
+    }
+
+    /// Removes every point, with its weights, colours and channels.
     pub fn clear(&mut self) {
         self.positions.clear();
         self.normals.clear();
         self.weights = None;
+        self.attributes = PointAttributes::default();
     }
 }
 
@@ -199,6 +288,9 @@ pub(crate) struct Samples {
     pub(crate) normals: Vec<[f32; 3]>,
     /// Confidence weights (all 1 unless given).
     pub(crate) confidence: Vec<f64>,
+    /// The points' colours and channels, [`PointAttributes::width`] values per sample (empty
+    /// when the points carry none).
+    pub(crate) attributes: Vec<f32>,
 }
 
 impl Samples {
@@ -236,6 +328,18 @@ impl Samples {
                     .map(|&(_, s)| w[s as usize] as f64)
                     .collect(),
                 None => vec![1.0; points.len()],
+            },
+            attributes: {
+                let attributes = points.attributes();
+                let width = attributes.width();
+                let mut values = vec![0.0; points.len() * width];
+                if width > 0 {
+                    values
+                        .par_chunks_mut(width)
+                        .zip(order.par_iter())
+                        .for_each(|(out, &(_, s))| attributes.write_point(s as usize, out));
+                }
+                values
             },
         };
         if samples.confidence.iter().all(|&c| c == 0.0) {

@@ -68,6 +68,7 @@
 //! the crossed edges sorted keys; the snapping runs sequentially over the crossings sorted by
 //! distance then edge, and the pieces over the triangles in order.
 
+use crate::attributes::{Channel, Colors};
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, TrimReport};
 use crate::Workers;
@@ -275,6 +276,30 @@ fn check_mesh(mesh: &Mesh) -> Result<()> {
             positions: n,
             other: mesh.densities.len(),
         });
+    }
+    // The other per-vertex arrays are carried through the cut: each has a value per vertex
+    // (the normals may also be absent).
+    let lengths = [
+        (
+            "normals",
+            if mesh.normals.is_empty() {
+                n
+            } else {
+                mesh.normals.len()
+            },
+        ),
+        ("colors", mesh.colors.as_ref().map_or(n, |c| c.len())),
+    ]
+    .into_iter()
+    .chain(mesh.channels.iter().map(|c| ("channels", c.values.len())));
+    for (what, other) in lengths {
+        if other != n {
+            return Err(Error::LengthMismatch {
+                what,
+                positions: n,
+                other,
+            });
+        }
     }
     if let Some(i) = mesh.densities.par_iter().position_first(|d| !d.is_finite()) {
         return Err(Error::InvalidMesh(format!(
@@ -759,12 +784,18 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
     let (snapped_crossings, clamped_crossings) = snap(&mut crossings);
 
     // 3. The new vertices of the crossings left inside their edges, clamped away from the
-    // ends, with interpolated positions and densities.
-    let new_vertices: Vec<([f32; 3], f32)> = (0..crossings.keys.len())
+    // ends, with interpolated positions and densities (and, below, every other per-vertex
+    // array); `new_edges` says where each lies: its edge's two ends and the parameter s.
+    let new_edges: Vec<(u32, u32, f64)> = (0..crossings.keys.len())
         .into_par_iter()
         .map(|k| {
             let (p, m) = crossings.ends(k);
-            let s = crossings.s[k].clamp(SNAP, 1.0 - SNAP);
+            (p, m, crossings.s[k].clamp(SNAP, 1.0 - SNAP))
+        })
+        .collect();
+    let new_vertices: Vec<([f32; 3], f32)> = new_edges
+        .par_iter()
+        .map(|&(p, m, s)| {
             let (pp, pm) = (
                 f64x3(mesh.positions[p as usize]),
                 f64x3(mesh.positions[m as usize]),
@@ -907,6 +938,52 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
         .collect::<Vec<f64>>()
         .iter()
         .sum();
+    // Every other per-vertex array, `width` values a vertex, carried the same way.
+    let carry = |values: &[f32], width: usize| -> Vec<f32> {
+        kept.par_iter()
+            .flat_map_iter(|&v| {
+                let v = v as usize;
+                let value: Vec<f32> = if v < n {
+                    values[v * width..(v + 1) * width].to_vec()
+                } else {
+                    let (p, m, s) = new_edges[v - n];
+                    let (p, m) = (p as usize * width, m as usize * width);
+                    (0..width)
+                        .map(|i| {
+                            let (a, b) = (values[p + i] as f64, values[m + i] as f64);
+                            (a + s * (b - a)) as f32
+                        })
+                        .collect()
+                };
+                value
+            })
+            .collect()
+    };
+    let normals: Vec<[f32; 3]> = if mesh.normals.len() == n {
+        carry(mesh.normals.as_flattened(), 3)
+            .chunks_exact(3)
+            .map(|c| {
+                let length = (c[0] as f64).hypot(c[1] as f64).hypot(c[2] as f64);
+                if length > 0.0 {
+                    [c[0], c[1], c[2]].map(|x| (x as f64 / length) as f32)
+                } else {
+                    [c[0], c[1], c[2]]
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let colors = mesh.colors.as_ref().map(|colors| {
+        let width = colors.components();
+        Colors::from_flattened(width, &carry(colors.as_flattened(), width))
+    });
+    let channels: Vec<Channel> = mesh
+        .channels
+        .iter()
+        .map(|c| Channel::new(c.name.clone(), carry(&c.values, 1)))
+        .collect();
+
     let mut stats = mesh.stats.clone();
     stats.trim = Some(TrimReport {
         density: crossings.t,
@@ -924,6 +1001,9 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
         triangles,
         densities,
         stats,
+        normals,
+        colors,
+        channels,
     })
 }
 

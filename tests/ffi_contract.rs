@@ -891,7 +891,9 @@ fn status_strings_take_any_int() {
     );
     assert_eq!(name(11), "PSR_STATUS_INTERNAL_ERROR");
     assert_eq!(name(12), "PSR_STATUS_THREADS_UNAVAILABLE");
-    assert_eq!(name(13), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(13), "PSR_STATUS_NON_FINITE_ATTRIBUTE");
+    assert_eq!(name(14), "PSR_STATUS_INVALID_WEIGHT");
+    assert_eq!(name(15), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(-1), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
 }
@@ -945,6 +947,8 @@ fn status_numbers_are_stable() {
         (psr_status::HandlePoisoned, 10),
         (psr_status::InternalError, 11),
         (psr_status::ThreadsUnavailable, 12),
+        (psr_status::NonFiniteAttribute, 13),
+        (psr_status::InvalidWeight, 14),
     ];
     for (status, number) in expected {
         assert_eq!(status as i32, number, "{status:?}");
@@ -2211,4 +2215,645 @@ fn threads_may_trim_one_mesh_at_once() {
     });
     assert!(results.windows(2).all(|w| w[0] == w[1]));
     unsafe { psr_mesh_free(m) };
+}
+
+// ------------------------------------------------------------------------------------------------
+// Points with confidence, colours and channels (psr_point_arrays); the mesh's normals, colours
+// and channels
+// ------------------------------------------------------------------------------------------------
+
+/// A struct initialised by psr_point_arrays_init with the library's own size.
+fn point_arrays() -> psr_point_arrays {
+    let mut a = std::mem::MaybeUninit::<psr_point_arrays>::uninit();
+    let size = std::mem::size_of::<psr_point_arrays>();
+    assert_eq!(
+        unsafe { psr_point_arrays_init(a.as_mut_ptr(), size) },
+        psr_status::Ok
+    );
+    let a = unsafe { a.assume_init() };
+    assert_eq!(a.struct_size, size);
+    assert!(a.count == 0 && a.positions.is_null() && a.channel_names.is_null());
+    a
+}
+
+/// The first six fields of psr_point_arrays: what a caller compiled against an older, smaller
+/// header would pass (positions and normals only).
+#[repr(C)]
+struct OlderPointArrays {
+    struct_size: usize,
+    count: usize,
+    positions: *const f32,
+    position_stride_bytes: usize,
+    normals: *const f32,
+    normal_stride_bytes: usize,
+}
+
+/// psr_point_arrays followed by one field a newer header might add.
+#[repr(C)]
+struct NewerPointArrays {
+    current: psr_point_arrays,
+    future_field: usize,
+}
+
+fn add_arrays(r: *mut psr_reconstructor, a: &psr_point_arrays) -> psr_status {
+    unsafe { psr_reconstructor_add_point_arrays(r, a) }
+}
+
+/// Proves: psr_point_arrays_init and psr_reconstructor_add_point_arrays refuse NULL and bad
+/// sizes with the documented statuses; a struct from an older (smaller) header works, its
+/// missing fields counting as absent; a struct from a newer header works while its unknown
+/// fields are zero and is refused (not silently ignored) when they are set; count 0 reads
+/// nothing else.
+#[test]
+fn point_arrays_null_and_struct_sizes() {
+    let r = new_handle();
+    let (p, n) = sphere(50, [0.0; 3], 1.0);
+    unsafe {
+        let size = std::mem::size_of::<psr_point_arrays>();
+        assert_eq!(
+            psr_point_arrays_init(ptr::null_mut(), size),
+            psr_status::NullArgument
+        );
+        let mut a = point_arrays();
+        a.struct_size = 77;
+        assert_eq!(
+            psr_point_arrays_init(&mut a, 3 * std::mem::size_of::<usize>()),
+            psr_status::InvalidArgument
+        );
+        assert_eq!(a.struct_size, 77, "nothing written on failure");
+
+        assert_eq!(
+            psr_reconstructor_add_point_arrays(ptr::null_mut(), &point_arrays()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_add_point_arrays(r, ptr::null()),
+            psr_status::NullArgument
+        );
+        assert!(last_error(r).contains("a is NULL"), "{}", last_error(r));
+
+        // An uninitialised (zero) size is refused with the way out.
+        let mut a = point_arrays();
+        a.struct_size = 0;
+        assert_eq!(add_arrays(r, &a), psr_status::InvalidArgument);
+        assert!(
+            last_error(r).contains("psr_point_arrays_init"),
+            "{}",
+            last_error(r)
+        );
+
+        // count 0: nothing else is read (all pointers NULL).
+        assert_eq!(add_arrays(r, &point_arrays()), psr_status::Ok);
+        assert_eq!(point_count(r), 0);
+
+        // A caller of an older header: positions and normals only.
+        let older = OlderPointArrays {
+            struct_size: std::mem::size_of::<OlderPointArrays>(),
+            count: 50,
+            positions: p.as_ptr(),
+            position_stride_bytes: 0,
+            normals: n.as_ptr(),
+            normal_stride_bytes: 12,
+        };
+        let status =
+            psr_reconstructor_add_point_arrays(r, (&older as *const OlderPointArrays).cast());
+        assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+        assert_eq!(point_count(r), 50);
+        // ... and one whose size ends before normals: they count as absent, and are required.
+        let cut = OlderPointArrays {
+            struct_size: 4 * std::mem::size_of::<usize>(),
+            ..older
+        };
+        let status =
+            psr_reconstructor_add_point_arrays(r, (&cut as *const OlderPointArrays).cast());
+        assert_eq!(status, psr_status::NullArgument);
+        assert!(last_error(r).contains("normals"), "{}", last_error(r));
+
+        // A caller of a newer header: fine while the unknown field is zero.
+        let mut newer = NewerPointArrays {
+            current: point_arrays(),
+            future_field: 0,
+        };
+        newer.current.struct_size = std::mem::size_of::<NewerPointArrays>();
+        newer.current.count = 50;
+        newer.current.positions = p.as_ptr();
+        newer.current.normals = n.as_ptr();
+        let newer_ptr = (&newer as *const NewerPointArrays).cast::<psr_point_arrays>();
+        assert_eq!(
+            psr_reconstructor_add_point_arrays(r, newer_ptr),
+            psr_status::Ok
+        );
+        assert_eq!(point_count(r), 100);
+        newer.future_field = 1;
+        let newer_ptr = (&newer as *const NewerPointArrays).cast::<psr_point_arrays>();
+        assert_eq!(
+            psr_reconstructor_add_point_arrays(r, newer_ptr),
+            psr_status::InvalidArgument
+        );
+        assert!(
+            last_error(r).contains("older than the header"),
+            "{}",
+            last_error(r)
+        );
+        assert_eq!(point_count(r), 100);
+        psr_reconstructor_free(r);
+    }
+}
+
+/// Proves: a batch is checked whole, field by field, with the documented status and a message
+/// naming the argument or the first bad index in the batch; nothing of a bad batch is added.
+#[test]
+fn point_arrays_are_checked_whole() {
+    let count = 20;
+    let (p, n) = sphere(count, [0.0; 3], 1.0);
+    let colors: Vec<f32> = (0..3 * count).map(|i| (i % 7) as f32 / 7.0).collect();
+    let values: Vec<f32> = (0..2 * count).map(|i| i as f32).collect();
+    let weights = vec![1.0f32; count];
+    let names = [c"intensity".as_ptr(), c"label".as_ptr()];
+    let full = || {
+        let mut a = point_arrays();
+        a.count = count;
+        a.positions = p.as_ptr();
+        a.normals = n.as_ptr();
+        a.confidence = weights.as_ptr();
+        a.colors = colors.as_ptr();
+        a.color_components = 3;
+        a.channels = values.as_ptr();
+        a.channel_count = 2;
+        a.channel_names = names.as_ptr();
+        a
+    };
+    let r = new_handle();
+    let check = |a: psr_point_arrays, want: psr_status, words: &[&str]| {
+        assert_eq!(add_arrays(r, &a), want, "{}", last_error(r));
+        let message = last_error(r);
+        for w in words {
+            assert!(message.contains(w), "{w:?} not in {message}");
+        }
+        assert_eq!(point_count(r), 0, "nothing from a bad batch is added");
+    };
+    use psr_status::*;
+    check(
+        psr_point_arrays {
+            positions: ptr::null(),
+            ..full()
+        },
+        NullArgument,
+        &["positions"],
+    );
+    check(
+        psr_point_arrays {
+            normals: ptr::null(),
+            ..full()
+        },
+        NullArgument,
+        &["normals", "psr_reconstructor_add_positions"],
+    );
+    check(
+        psr_point_arrays {
+            colors: ptr::null(),
+            ..full()
+        },
+        NullArgument,
+        &["colors", "color_components 3"],
+    );
+    check(
+        psr_point_arrays {
+            color_components: 5,
+            ..full()
+        },
+        InvalidArgument,
+        &["color_components is 5"],
+    );
+    check(
+        psr_point_arrays {
+            color_stride_bytes: 8,
+            ..full()
+        },
+        InvalidArgument,
+        &["color_stride_bytes is 8"],
+    );
+    check(
+        psr_point_arrays {
+            confidence_stride_bytes: 2,
+            ..full()
+        },
+        InvalidArgument,
+        &["confidence_stride_bytes"],
+    );
+    check(
+        psr_point_arrays {
+            channels: ptr::null(),
+            ..full()
+        },
+        NullArgument,
+        &["channels"],
+    );
+    check(
+        psr_point_arrays {
+            channel_names: ptr::null(),
+            ..full()
+        },
+        NullArgument,
+        &["channel_names"],
+    );
+    check(
+        psr_point_arrays {
+            channel_stride_bytes: 4,
+            ..full()
+        },
+        InvalidArgument,
+        &["channel_stride_bytes is 4"],
+    );
+    check(
+        psr_point_arrays {
+            count: usize::MAX / 2,
+            ..full()
+        },
+        InvalidArgument,
+        &["more bytes than memory"],
+    );
+    let null_name = [c"intensity".as_ptr(), ptr::null()];
+    check(
+        psr_point_arrays {
+            channel_names: null_name.as_ptr(),
+            ..full()
+        },
+        NullArgument,
+        &["channel_names[1]"],
+    );
+    let twice = [c"x2".as_ptr(), c"x2".as_ptr()];
+    check(
+        psr_point_arrays {
+            channel_names: twice.as_ptr(),
+            ..full()
+        },
+        InvalidArgument,
+        &["\"x2\"", "twice"],
+    );
+    let spaced = [c"in tensity".as_ptr(), c"label".as_ptr()];
+    check(
+        psr_point_arrays {
+            channel_names: spaced.as_ptr(),
+            ..full()
+        },
+        InvalidArgument,
+        &["whitespace"],
+    );
+    let not_utf8 = [c"\xff".as_ptr(), c"label".as_ptr()];
+    check(
+        psr_point_arrays {
+            channel_names: not_utf8.as_ptr(),
+            ..full()
+        },
+        InvalidArgument,
+        &["UTF-8"],
+    );
+
+    let mut bad = colors.clone();
+    bad[3 * 7 + 1] = f32::NAN;
+    check(
+        psr_point_arrays {
+            colors: bad.as_ptr(),
+            ..full()
+        },
+        NonFiniteAttribute,
+        &["colors", "point 7"],
+    );
+    let mut bad = values.clone();
+    bad[2 * 11 + 1] = f32::INFINITY;
+    check(
+        psr_point_arrays {
+            channels: bad.as_ptr(),
+            ..full()
+        },
+        NonFiniteAttribute,
+        &["label", "point 11"],
+    );
+    let mut bad = weights.clone();
+    bad[4] = -1.0;
+    check(
+        psr_point_arrays {
+            confidence: bad.as_ptr(),
+            ..full()
+        },
+        InvalidWeight,
+        &["weight 4"],
+    );
+    let mut bad = p.clone();
+    bad[3 * 9] = f32::NAN;
+    check(
+        psr_point_arrays {
+            positions: bad.as_ptr(),
+            ..full()
+        },
+        NonFinitePosition,
+        &["point 9"],
+    );
+
+    // A good batch; then batches whose attributes differ are refused, the same kind is not.
+    assert_eq!(add_arrays(r, &full()), Ok, "{}", last_error(r));
+    assert_eq!(point_count(r), count);
+    let refused = [
+        psr_point_arrays {
+            colors: ptr::null(),
+            color_components: 0,
+            ..full()
+        },
+        psr_point_arrays {
+            color_components: 4,
+            ..full()
+        },
+        psr_point_arrays {
+            channel_count: 1,
+            ..full()
+        },
+        psr_point_arrays {
+            channel_names: [c"label".as_ptr(), c"intensity".as_ptr()].as_ptr(),
+            ..full()
+        },
+    ];
+    for a in refused {
+        assert_eq!(add_arrays(r, &a), InvalidArgument, "{}", last_error(r));
+        assert!(last_error(r).contains("carry"), "{}", last_error(r));
+    }
+    // Weights may differ between batches (absent = 1).
+    assert_eq!(
+        add_arrays(
+            r,
+            &psr_point_arrays {
+                confidence: ptr::null(),
+                ..full()
+            }
+        ),
+        Ok
+    );
+    assert_eq!(point_count(r), 2 * count);
+    // Points without attributes cannot join them, whichever comes first.
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, count),
+            InvalidArgument
+        );
+        assert_eq!(psr_reconstructor_add_positions(r, p.as_ptr(), 0, count), Ok);
+        let mut m = ptr::null_mut();
+        assert_eq!(psr_reconstructor_solve(r, &mut m), InvalidArgument);
+        assert!(
+            last_error(r).contains("points without normals"),
+            "{}",
+            last_error(r)
+        );
+        assert!(m.is_null());
+    }
+    assert_eq!(add_arrays(r, &full()), InvalidArgument);
+    assert!(
+        last_error(r).contains("without normals"),
+        "{}",
+        last_error(r)
+    );
+    assert_eq!(point_count(r), 3 * count);
+    unsafe {
+        assert_eq!(psr_reconstructor_clear_points(r), Ok);
+        // Once cleared, a batch without attributes starts afresh.
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, n.as_ptr(), 0, count),
+            Ok
+        );
+        assert_eq!(add_arrays(r, &full()), InvalidArgument);
+        psr_reconstructor_free(r);
+    }
+}
+
+/// Proves: the vertex normals setting defaults to false and round-trips; NULL is refused.
+#[test]
+fn vertex_normals_setting_round_trips() {
+    let r = new_handle();
+    unsafe {
+        let mut on = true;
+        assert_eq!(
+            psr_reconstructor_get_vertex_normals(r, &mut on),
+            psr_status::Ok
+        );
+        assert!(!on);
+        assert_eq!(
+            psr_reconstructor_set_vertex_normals(r, true),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_vertex_normals(r, &mut on),
+            psr_status::Ok
+        );
+        assert!(on);
+        assert_eq!(
+            psr_reconstructor_set_vertex_normals(ptr::null_mut(), true),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_vertex_normals(ptr::null(), &mut on),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_vertex_normals(r, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        psr_reconstructor_free(r);
+    }
+}
+
+/// The tetrahedron with normals, RGBA colours and two channels.
+fn tetrahedron_with_attributes() -> *mut psr_mesh {
+    let mut mesh = psr::Mesh::default();
+    mesh.positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    mesh.triangles = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    mesh.densities = vec![1.0; 4];
+    mesh.normals = vec![
+        [-1.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    mesh.colors = Some(psr::Colors::Rgba(vec![[0.1, 0.2, 0.3, 1.0]; 4]));
+    mesh.channels = vec![
+        psr::Channel::new("intensity", vec![1.0, 2.0, 3.0, 4.0]),
+        psr::Channel::new("label", vec![5.0, 6.0, 7.0, 8.0]),
+    ];
+    debug_mesh_new(mesh)
+}
+
+/// Proves: the mesh's normals, colours and channels are read through borrowed views and
+/// copies, with NULL, short buffers and indices out of range refused as documented, and a mesh
+/// without them gives NULL views, 0 counts and empty copies.
+#[test]
+fn mesh_normals_colours_and_channels_views_and_copies() {
+    use psr_status::*;
+    let m = tetrahedron_with_attributes();
+    let null_m: *const psr_mesh = ptr::null();
+    unsafe {
+        let normals = std::slice::from_raw_parts(psr_mesh_normals(m), 12);
+        assert_eq!(&normals[..3], &[-1.0, 0.0, 0.0]);
+        assert_eq!(psr_mesh_color_components(m), 4);
+        let colors = std::slice::from_raw_parts(psr_mesh_colors(m), 16);
+        assert_eq!(&colors[..4], &[0.1, 0.2, 0.3, 1.0]);
+        assert_eq!(psr_mesh_channel_count(m), 2);
+        assert_eq!(
+            CStr::from_ptr(psr_mesh_channel_name(m, 0)).to_str(),
+            std::result::Result::Ok("intensity")
+        );
+        assert_eq!(
+            CStr::from_ptr(psr_mesh_channel_name(m, 1)).to_str(),
+            std::result::Result::Ok("label")
+        );
+        assert!(psr_mesh_channel_name(m, 2).is_null());
+        assert_eq!(
+            std::slice::from_raw_parts(psr_mesh_channel(m, 1), 4),
+            &[5.0, 6.0, 7.0, 8.0]
+        );
+        assert!(psr_mesh_channel(m, 2).is_null());
+
+        let mut buf = [9.0f32; 16];
+        assert_eq!(psr_mesh_copy_normals(m, buf.as_mut_ptr(), 12), Ok);
+        assert_eq!(&buf[..12], normals);
+        assert_eq!(psr_mesh_copy_colors(m, buf.as_mut_ptr(), 16), Ok);
+        assert_eq!(&buf[..], colors);
+        assert_eq!(psr_mesh_copy_channel(m, 0, buf.as_mut_ptr(), 4), Ok);
+        assert_eq!(&buf[..4], &[1.0, 2.0, 3.0, 4.0]);
+        let mut short = [9.0f32; 16];
+        assert_eq!(
+            psr_mesh_copy_normals(m, short.as_mut_ptr(), 11),
+            BufferTooSmall
+        );
+        assert_eq!(
+            psr_mesh_copy_colors(m, short.as_mut_ptr(), 15),
+            BufferTooSmall
+        );
+        assert_eq!(
+            psr_mesh_copy_channel(m, 1, short.as_mut_ptr(), 3),
+            BufferTooSmall
+        );
+        assert_eq!(short, [9.0; 16], "nothing written");
+        assert_eq!(
+            psr_mesh_copy_channel(m, 2, short.as_mut_ptr(), 16),
+            InvalidArgument
+        );
+        assert_eq!(psr_mesh_copy_normals(m, ptr::null_mut(), 12), NullArgument);
+        assert_eq!(psr_mesh_copy_colors(m, ptr::null_mut(), 16), NullArgument);
+        assert_eq!(
+            psr_mesh_copy_channel(m, 0, ptr::null_mut(), 4),
+            NullArgument
+        );
+
+        // NULL mesh.
+        assert!(psr_mesh_normals(null_m).is_null() && psr_mesh_colors(null_m).is_null());
+        assert_eq!(psr_mesh_color_components(null_m), 0);
+        assert_eq!(psr_mesh_channel_count(null_m), 0);
+        assert!(
+            psr_mesh_channel_name(null_m, 0).is_null() && psr_mesh_channel(null_m, 0).is_null()
+        );
+        assert_eq!(
+            psr_mesh_copy_normals(null_m, buf.as_mut_ptr(), 16),
+            NullArgument
+        );
+        assert_eq!(
+            psr_mesh_copy_colors(null_m, buf.as_mut_ptr(), 16),
+            NullArgument
+        );
+        assert_eq!(
+            psr_mesh_copy_channel(null_m, 0, buf.as_mut_ptr(), 16),
+            NullArgument
+        );
+        psr_mesh_free(m);
+
+        // A mesh without them.
+        let plain = tetrahedron();
+        assert!(psr_mesh_normals(plain).is_null() && psr_mesh_colors(plain).is_null());
+        assert_eq!(psr_mesh_color_components(plain), 0);
+        assert_eq!(psr_mesh_channel_count(plain), 0);
+        assert_eq!(psr_mesh_copy_normals(plain, ptr::null_mut(), 0), Ok);
+        assert_eq!(psr_mesh_copy_colors(plain, ptr::null_mut(), 0), Ok);
+        assert_eq!(
+            psr_mesh_copy_channel(plain, 0, buf.as_mut_ptr(), 16),
+            InvalidArgument
+        );
+        psr_mesh_free(plain);
+    }
+}
+
+/// Proves: colours and a channel given through psr_point_arrays (interleaved with the
+/// positions, with weights) reach the mesh: on a sphere coloured by height, every vertex's
+/// colour is close to the colour of the sphere at its height, the channel likewise, and the
+/// requested normals are unit and outward.
+#[test]
+fn colours_and_channels_reach_the_mesh_through_c() {
+    let count = 4000;
+    let (p, n) = sphere(count, [0.0; 3], 1.0);
+    // Interleaved records: x y z r g b height.
+    let mut records = Vec::with_capacity(7 * count);
+    for i in 0..count {
+        let z = p[3 * i + 2];
+        records.extend_from_slice(&p[3 * i..3 * i + 3]);
+        records.extend_from_slice(&[(z + 1.0) / 2.0, 0.5, (1.0 - z) / 2.0, z]);
+    }
+    let names = [c"height".as_ptr()];
+    let mut a = point_arrays();
+    a.count = count;
+    a.positions = records.as_ptr();
+    a.position_stride_bytes = 28;
+    a.normals = n.as_ptr();
+    a.colors = records[3..].as_ptr();
+    a.color_stride_bytes = 28;
+    a.color_components = 3;
+    a.channels = records[6..].as_ptr();
+    a.channel_stride_bytes = 28;
+    a.channel_count = 1;
+    a.channel_names = names.as_ptr();
+    let weights = vec![2.0f32; count];
+    a.confidence = weights.as_ptr();
+    let r = new_handle();
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 5), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_set_vertex_normals(r, true),
+            psr_status::Ok
+        );
+        assert_eq!(add_arrays(r, &a), psr_status::Ok, "{}", last_error(r));
+        let Some(m) = solve_or_skip(r, "colours_and_channels_reach_the_mesh_through_c") else {
+            return;
+        };
+        let nv = psr_mesh_vertex_count(m);
+        assert_eq!(psr_mesh_color_components(m), 3);
+        assert_eq!(psr_mesh_channel_count(m), 1);
+        assert_eq!(
+            CStr::from_ptr(psr_mesh_channel_name(m, 0)).to_str(),
+            Ok("height")
+        );
+        let positions = std::slice::from_raw_parts(psr_mesh_positions(m), 3 * nv);
+        let colors = std::slice::from_raw_parts(psr_mesh_colors(m), 3 * nv);
+        let height = std::slice::from_raw_parts(psr_mesh_channel(m, 0), nv);
+        let normals = std::slice::from_raw_parts(psr_mesh_normals(m), 3 * nv);
+        let mut worst = 0.0f32;
+        for v in 0..nv {
+            let q = &positions[3 * v..3 * v + 3];
+            let length = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+            let z = q[2] / length;
+            worst = worst
+                .max((colors[3 * v] - (z + 1.0) / 2.0).abs())
+                .max((colors[3 * v + 1] - 0.5).abs())
+                .max((colors[3 * v + 2] - (1.0 - z) / 2.0).abs())
+                .max((height[v] - z).abs() / 2.0);
+            let nn = &normals[3 * v..3 * v + 3];
+            let unit = (nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]).sqrt();
+            assert!((unit - 1.0).abs() < 1e-4, "vertex {v}: |n| = {unit}");
+            let outward = (nn[0] * q[0] + nn[1] * q[1] + nn[2] * q[2]) / length;
+            assert!(outward > 0.9, "vertex {v}: n . q/|q| = {outward}");
+        }
+        // A depth-5 kernel is about 0.1 wide here, over which the colour changes by ~0.05.
+        assert!(worst < 0.03, "largest colour error {worst}");
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+    }
 }

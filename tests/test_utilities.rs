@@ -692,7 +692,12 @@ fn shared_scans_read_with_their_normals_and_colours() {
     }
     if let Some(path) = data_or_skip("lion_takanawa_rgb.ply", test) {
         let points = psr::ply::read_point_cloud(&path).unwrap();
-        assert_eq!(points.colors.as_ref().map(Vec::len), Some(341_989));
+        assert_eq!(points.colors.as_ref().map(|c| c.len()), Some(341_989));
+        assert_eq!(points.color_type, psr::ply::ColorType::U8);
+        assert!(
+            points.channels.is_empty(),
+            "x y z nx ny nz red green blue only"
+        );
     }
 }
 

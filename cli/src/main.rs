@@ -6,12 +6,15 @@
 //!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
 //!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
-//!     [--no-density] [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
+//!     [--no-density] [--no-attributes] [--vertex-normals]
+//!     [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
 //!     [--min-piece-area F] [--min-piece-triangles N] [--quiet] [--verbose]
 //! ```
 //!
-//! The output is the untrimmed, watertight mesh unless a `--trim*` option asks for it to be cut
-//! back to where the points are (`psr::trim`).
+//! The input's colours and every other vertex property (but the ones psr interprets) are
+//! carried onto the mesh's vertices, as PoissonRecon does, unless `--no-attributes`. The output
+//! is the untrimmed, watertight mesh unless a `--trim*` option asks for it to be cut back to
+//! where the points are (`psr::trim`).
 //!
 //! Both file names must end in `.ply` (any case): psr reads PLY point clouds and writes binary
 //! PLY meshes, and refuses to write PLY under another name. `psr --help` gives each option's
@@ -57,8 +60,10 @@ struct Args {
     #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_input))]
     input: PathBuf,
 
-    /// Output mesh: binary little-endian PLY (vertex x y z and, unless --no-density, value; face
-    /// vertex_indices); the name must end in .ply. PoissonRecon: --out.
+    /// Output mesh: binary little-endian PLY (vertex x y z; nx ny nz with --vertex-normals;
+    /// value unless --no-density; the input's colours, in its type, and its other vertex
+    /// properties as floats unless --no-attributes; face vertex_indices); the name must end in
+    /// .ply. PoissonRecon: --out.
     #[arg(long = "out", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_output))]
     output: PathBuf,
 
@@ -128,7 +133,8 @@ struct Args {
     /// Where the normals come from: auto (the file's when it has nx ny nz, else estimated),
     /// estimate (estimated from the positions even when the file has normals), or reorient (the
     /// file's directions, their signs chosen again consistently, for normals whose sign is
-    /// unreliable). PoissonRecon: none (it needs oriented points).
+    /// unreliable). PoissonRecon: none (it needs oriented points; its --normals writes vertex
+    /// normals, see --vertex-normals).
     #[arg(long, value_enum, default_value_t = NormalsArg::Auto)]
     normals: NormalsArg,
 
@@ -202,6 +208,21 @@ struct Args {
     #[arg(long, value_name = "N", requires = "trimming")]
     min_piece_triangles: Option<u32>,
 
+    /// Do not carry the input's colours (red green blue [alpha], or diffuse_red..., or r g b
+    /// [a]) and its other vertex properties onto the mesh; by default every scalar vertex
+    /// property but x y z, the normals, confidence/value and the sensor positions is carried,
+    /// averaged over the samples around each vertex that face the same way. PoissonRecon:
+    /// --colors (for its non-PLY input; PLY colours and other vertex data are carried there
+    /// automatically) and --data (its pull factor for extrapolating them into holes from
+    /// coarser depths; psr fills holes from their rims along the surface instead).
+    #[arg(long)]
+    no_attributes: bool,
+
+    /// Write a unit outward normal per vertex (nx ny nz, the gradient of the indicator
+    /// function). PoissonRecon: --normals.
+    #[arg(long)]
+    vertex_normals: bool,
+
     /// Print nothing but errors. PoissonRecon: none (it is quiet unless --verbose).
     #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
@@ -274,6 +295,7 @@ impl Args {
                 VerticesArg::Fitted => VertexPlacement::Fitted,
                 VerticesArg::OnIsosurface => VertexPlacement::OnIsosurface,
             })
+            .with_vertex_normals(self.vertex_normals)
     }
 
     /// The trimming the options ask for, or `None` (the untrimmed mesh) when none does.
@@ -502,22 +524,35 @@ fn run(args: &Args) -> Result<(), Failure> {
     } else {
         None
     };
+    let in_input = |e: psr::Error| Failure::Run(format!("{}: {e}", args.input.display()));
     let mut points = PointSet::new();
     points
         .extend_weighted(&cloud.positions, &cloud.normals, weights)
-        .map_err(|e| Failure::Run(format!("{}: {e}", args.input.display())))?;
+        .map_err(in_input)?;
+    let color_type = cloud.color_type;
+    if !args.no_attributes {
+        if let Some(colors) = cloud.colors.take() {
+            points = points.with_colors(colors).map_err(in_input)?;
+        }
+        for channel in std::mem::take(&mut cloud.channels) {
+            points = points
+                .with_channel(channel.name, channel.values)
+                .map_err(in_input)?;
+        }
+    }
     drop(cloud);
     let read_seconds = start.elapsed().as_secs_f64();
     if args.verbose {
         eprintln!(
-            "psr: read {} points from {} ({normals_from}) in {read_seconds:.2}s{}",
+            "psr: read {} points from {} ({normals_from}) in {read_seconds:.2}s{}{}",
             points.len(),
             args.input.display(),
             if points.weights().is_some() {
                 " (with confidence)"
             } else {
                 ""
-            }
+            },
+            carried(&points)
         );
         eprintln!("psr: {params:?}");
     }
@@ -550,7 +585,8 @@ fn run(args: &Args) -> Result<(), Failure> {
         mesh.densities = Vec::new();
     }
     let start = Instant::now();
-    ply::write_mesh(&args.output, &mesh).map_err(|e| Failure::Run(e.to_string()))?;
+    let options = ply::WriteOptions::default().with_color_type(color_type);
+    ply::write_mesh_with(&args.output, &mesh, &options).map_err(|e| Failure::Run(e.to_string()))?;
     let write_seconds = start.elapsed().as_secs_f64();
 
     if args.verbose {
@@ -573,6 +609,24 @@ fn run(args: &Args) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// The attributes the points carry onto the mesh, for --verbose: "" or ", carrying colors
+/// (RGB) and channels [a, b]".
+fn carried(points: &PointSet) -> String {
+    let mut parts = Vec::new();
+    if let Some(colors) = points.colors() {
+        parts.push(format!("colors ({} components)", colors.components()));
+    }
+    if !points.channels().is_empty() {
+        let names: Vec<&str> = points.channels().iter().map(|c| c.name.as_str()).collect();
+        parts.push(format!("channels [{}]", names.join(", ")));
+    }
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!(", carrying {}", parts.join(" and "))
+    }
 }
 
 /// The process's peak resident set so far (Linux: VmHWM in /proc/self/status), in KiB.

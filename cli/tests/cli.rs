@@ -187,6 +187,8 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--trim-quantile", "none"),
         ("--min-piece-area", "SurfaceTrimmer --aRatio"),
         ("--min-piece-triangles", "none"),
+        ("--no-attributes", "--colors"),
+        ("--vertex-normals", "--normals"),
         ("--quiet", "none"),
         ("--verbose", "--verbose"),
     ];
@@ -531,5 +533,125 @@ fn trimming_options_that_cannot_be_honoured_are_usage_errors() {
         assert!(stderr(&out).contains(wanted), "{extra:?}: {}", stderr(&out));
         assert!(!out_path.exists(), "{extra:?}: written anyway");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The kitten with a colour per point (by height, as ushort) and two extra properties, one of
+/// them an integer; returns the path and the colours as 0..1.
+fn coloured_kitten(dir: &Path) -> (PathBuf, Vec<[f32; 3]>) {
+    let cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
+    let (lo, hi) = cloud
+        .positions
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+            (lo.min(p[2]), hi.max(p[2]))
+        });
+    let colors: Vec<[f32; 3]> = cloud
+        .positions
+        .iter()
+        .map(|p| {
+            let t = ((p[2] - lo) / (hi - lo) * 65535.0).round() / 65535.0;
+            [t, 0.5, 1.0 - t]
+        })
+        .collect();
+    let mut points = psr::ply::PlyPoints::default();
+    points.positions = cloud.positions.clone();
+    points.normals = cloud.normals.clone();
+    points.colors = Some(psr::Colors::Rgb(colors.clone()));
+    points.color_type = psr::ply::ColorType::U16;
+    points.channels = vec![
+        psr::Channel::new("intensity", vec![0.75; cloud.len()]),
+        psr::Channel::new("label", vec![3.0; cloud.len()]),
+    ];
+    let path = dir.join("kitten_rgb.ply");
+    psr::ply::write_point_cloud(&path, &points, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    (path, colors)
+}
+
+/// The header of a PLY file.
+fn ply_header(path: &Path) -> String {
+    let bytes = std::fs::read(path).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap();
+    String::from_utf8(bytes[..end].to_vec()).unwrap()
+}
+
+/// Proves: by default the input's colours come back in its type (here ushort) and its other
+/// vertex properties as floats, with the values carried (constants stay constant, colours
+/// follow the height); --no-attributes drops them; --vertex-normals writes unit nx ny nz.
+#[test]
+fn colours_and_other_properties_are_carried_onto_the_mesh() {
+    let dir = scratch("attributes");
+    let (input, _) = coloured_kitten(&dir);
+    let carried = dir.join("carried.ply");
+    let out = psr_on(
+        &input,
+        &carried,
+        &["--depth", "5", "--vertex-normals", "--verbose"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("carrying colors (3 components) and channels [intensity, label]"),
+        "{}",
+        stderr(&out)
+    );
+    let header = ply_header(&carried);
+    for line in [
+        "property float nx",
+        "property float value",
+        "property ushort red",
+        "property ushort blue",
+        "property float intensity",
+        "property float label",
+    ] {
+        assert!(header.contains(line), "{line} missing from\n{header}");
+    }
+    // The mesh's vertices read back as a point cloud (they have nx ny nz).
+    let mesh = psr::ply::read_point_cloud(&carried).unwrap();
+    assert_eq!(mesh.color_type, psr::ply::ColorType::U16);
+    let names: Vec<&str> = mesh.channels.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["intensity", "label"]);
+    assert!(mesh.channels[0]
+        .values
+        .iter()
+        .all(|&v| (v - 0.75).abs() < 1e-6));
+    assert!(mesh.channels[1]
+        .values
+        .iter()
+        .all(|&v| (v - 3.0).abs() < 1e-5));
+    let Some(psr::Colors::Rgb(colors)) = &mesh.colors else {
+        panic!("RGB colours expected")
+    };
+    for c in colors {
+        assert!(
+            (c[1] - 0.5).abs() < 1e-4 && (c[0] + c[2] - 1.0).abs() < 1e-3,
+            "{c:?}"
+        );
+    }
+    let (lo, hi) = colors
+        .iter()
+        .fold((1.0f32, 0.0f32), |(lo, hi), c| (lo.min(c[0]), hi.max(c[0])));
+    assert!(
+        lo < 0.2 && hi > 0.8,
+        "the height's colour ramp comes through: {lo} {hi}"
+    );
+    for n in &mesh.normals {
+        assert!((n.iter().map(|c| c * c).sum::<f32>().sqrt() - 1.0).abs() < 1e-4);
+    }
+
+    let dropped = dir.join("dropped.ply");
+    let out = psr_on(
+        &input,
+        &dropped,
+        &["--depth", "5", "--no-attributes", "--quiet"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let header = ply_header(&dropped);
+    assert!(
+        !header.contains("red") && !header.contains("intensity") && !header.contains("nx"),
+        "{header}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -10,6 +10,7 @@
 use super::panic_boundary::{guard_no_handle, guard_value};
 use super::status::{psr_status, Failure, Outcome};
 use crate::Mesh;
+use std::ffi::CString;
 use std::ptr;
 
 /// A reconstructed triangle mesh. Created by psr_reconstructor_solve (or psr_mesh_trim, from
@@ -17,6 +18,25 @@ use std::ptr;
 /// made it. Opaque to C.
 pub struct psr_mesh {
     pub(super) mesh: Mesh,
+    /// The names of the mesh's channels as C strings, for psr_mesh_channel_name (made once, so
+    /// the pointers it returns live as long as the mesh).
+    pub(super) channel_names: Vec<CString>,
+}
+
+impl psr_mesh {
+    /// The C handle of `mesh` (every psr_mesh is made here).
+    pub(super) fn new(mesh: Mesh) -> psr_mesh {
+        // Channel names hold no NUL (PointSet refuses control characters in them).
+        let channel_names = mesh
+            .channels
+            .iter()
+            .map(|c| CString::new(c.name.replace('\0', "\u{FFFD}")).unwrap_or_default())
+            .collect();
+        psr_mesh {
+            mesh,
+            channel_names,
+        }
+    }
 }
 
 /// Test hook for psr's own Rust tests, not API (neither Rust nor C): wraps a mesh built in Rust
@@ -24,7 +44,7 @@ pub struct psr_mesh {
 /// data.
 #[doc(hidden)]
 pub fn debug_mesh_new(mesh: Mesh) -> *mut psr_mesh {
-    Box::into_raw(Box::new(psr_mesh { mesh }))
+    Box::into_raw(Box::new(psr_mesh::new(mesh)))
 }
 
 /// Number of vertices of m; 0 if m is NULL.
@@ -294,14 +314,12 @@ mod tests {
 
     /// A mesh with 2 vertices and 1 triangle.
     fn small_mesh() -> psr_mesh {
-        psr_mesh {
-            mesh: Mesh {
-                positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
-                triangles: vec![[0, 1, 1]],
-                densities: vec![1.0, 2.0],
-                ..Mesh::default()
-            },
-        }
+        psr_mesh::new(Mesh {
+            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+            triangles: vec![[0, 1, 1]],
+            densities: vec![1.0, 2.0],
+            ..Mesh::default()
+        })
     }
 
     /// Runs `what` on `m` with a `capacity`-element buffer, or NULL if `null_dst`, and returns

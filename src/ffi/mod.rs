@@ -42,6 +42,9 @@
 //! - `trim.rs`: psr_mesh_trim and its options, `psr_trim_options` (the first options struct:
 //!   it begins with its own size so it can grow) and `psr_trim_threshold`;
 //!   psr_mesh_trim_density and _depth.
+//! - `attributes.rs`: `psr_point_arrays` (a struct that begins with its own size),
+//!   psr_point_arrays_init and psr_reconstructor_add_point_arrays (confidence, colours,
+//!   channels); psr_reconstructor_set_vertex_normals; the mesh's normals, colours and channels.
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -70,7 +73,15 @@ mod mesh;
 mod normals;
 // Trimming a mesh by its sampling density.
 mod trim;
+// Points with confidence, colours and channels; the mesh's normals, colours and channels.
+mod attributes;
 
+pub use self::attributes::{
+    psr_mesh_channel, psr_mesh_channel_count, psr_mesh_channel_name, psr_mesh_color_components,
+    psr_mesh_colors, psr_mesh_copy_channel, psr_mesh_copy_colors, psr_mesh_copy_normals,
+    psr_mesh_normals, psr_point_arrays, psr_point_arrays_init, psr_reconstructor_add_point_arrays,
+    psr_reconstructor_get_vertex_normals, psr_reconstructor_set_vertex_normals,
+};
 pub use self::mesh::{
     psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_triangles,
     psr_mesh_densities, psr_mesh_free, psr_mesh_isovalue, psr_mesh_positions,

@@ -12,7 +12,7 @@ use crate::{Error, Params};
 ///
 /// # Safety
 /// `r` is NULL or a live handle from psr_reconstructor_new.
-unsafe fn set_param(
+pub(super) unsafe fn set_param(
     function: &'static str,
     r: *mut psr_reconstructor,
     apply: impl Fn(&mut Params),
@@ -43,7 +43,7 @@ unsafe fn set_param(
 /// # Safety
 /// `r` is NULL or a live handle from psr_reconstructor_new; `out` is NULL or valid for writes
 /// of `T`.
-unsafe fn get_param<T>(
+pub(super) unsafe fn get_param<T>(
     function: &'static str,
     r: *const psr_reconstructor,
     out: *mut T,

@@ -82,13 +82,14 @@ pub(super) fn check_array(
 /// infinite, or any normal is NaN, infinite or zero, nothing from this batch is appended, points
 /// from earlier batches stay, and the message names the first bad index within this batch.
 ///
-/// Extensions (per-point confidence weights, colours) will come as new functions, e.g.
-/// psr_reconstructor_add_points_ex taking a struct that begins with its own size, never by
-/// changing this signature.
+/// Per-point confidence weights, colours and channels come through
+/// psr_reconstructor_add_point_arrays, whose struct begins with its own size; this signature
+/// never changes.
 ///
 /// r must not be NULL; positions and normals may be NULL only when count is 0 (then nothing
 /// happens). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (a
-/// stride below 12, or count * stride overflowing), PSR_STATUS_NON_FINITE_POSITION,
+/// stride below 12, count * stride overflowing, or points before in r carry colours or
+/// channels, which these would lack), PSR_STATUS_NON_FINITE_POSITION,
 /// PSR_STATUS_NON_FINITE_NORMAL, PSR_STATUS_ZERO_NORMAL, PSR_STATUS_HANDLE_POISONED or
 /// PSR_STATUS_INTERNAL_ERROR.
 ///

@@ -49,7 +49,9 @@ pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
 /// PSR_STATUS_CANCELLED (the callback returned false), PSR_STATUS_HANDLE_POISONED,
 /// PSR_STATUS_INVALID_ARGUMENT (called from r's own progress callback, all points coincide, the
 /// points added without normals cannot be given normals: fewer of them than the neighbour
-/// count + 1, or all on a line, or PSR_ORIENTATION_SENSORS while some of them have no sensor),
+/// count + 1, or all on a line, or PSR_ORIENTATION_SENSORS while some of them have no sensor,
+/// or they meet points with colours or channels), PSR_STATUS_INVALID_WEIGHT (every confidence
+/// weight is 0),
 /// PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR (a bug; if it was a panic, r is
 /// now poisoned). On failure *out is left untouched. Points added without normals get them (estimated and oriented, see
 /// psr_reconstructor_add_positions) before the reconstruction starts.
@@ -98,7 +100,16 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
             &handle.points
         } else {
             // The points added without normals get theirs here and join the others (a copy of
-            // the oriented points while the solve runs).
+            // the oriented points while the solve runs). They carry no colours or channels, so
+            // they cannot join points that do.
+            if handle.points.colors().is_some() || !handle.points.channels().is_empty() {
+                return Err(Failure::new(
+                    psr_status::InvalidArgument,
+                    format!(
+                        "{F}: r holds points with colours or channels                          (psr_reconstructor_add_point_arrays) and points without normals                          (psr_reconstructor_add_positions), which carry none: give every point                          the same attributes, or clear the points and add them again"
+                    ),
+                ));
+            }
             let options = super::normals::estimation_for_solve(F, handle, params.threads)?;
             let unoriented = &handle.positions_without_normals;
             // (guard clears `busy` whichever way the body ends.)
@@ -114,7 +125,7 @@ pub unsafe extern "C" fn psr_reconstructor_solve(
         let result = crate::reconstruct_with_progress(points, &params, &mut progress);
         handle.busy.set(false);
         let mesh = result.map_err(|e| Failure::from_error(F, e))?;
-        let mesh = Box::into_raw(Box::new(psr_mesh { mesh }));
+        let mesh = Box::into_raw(Box::new(psr_mesh::new(mesh)));
         // SAFETY: `out` is not NULL (checked first) and valid for writing one pointer (this
         // function's contract).
         unsafe { write_out(F, "out", out, mesh) }

@@ -43,6 +43,12 @@ pub enum psr_status {
     /// limit, or no memory for their stacks). Nothing was computed and the handle stays usable:
     /// set fewer threads (psr_reconstructor_set_threads) or free resources and try again.
     ThreadsUnavailable = 12,
+    /// A colour component or channel value given with a point is NaN or infinite (the message
+    /// names the colours or the channel and gives the point's index in the batch).
+    NonFiniteAttribute = 13,
+    /// A confidence weight is negative, NaN or infinite (the message gives its index in the
+    /// batch), or, at solve, every weight is 0.
+    InvalidWeight = 14,
 }
 
 /// The name of a status, e.g. "PSR_STATUS_ZERO_NORMAL", as a static NUL-terminated string
@@ -63,6 +69,8 @@ pub extern "C" fn psr_status_string(status: c_int) -> *const c_char {
         10 => "PSR_STATUS_HANDLE_POISONED\0",
         11 => "PSR_STATUS_INTERNAL_ERROR\0",
         12 => "PSR_STATUS_THREADS_UNAVAILABLE\0",
+        13 => "PSR_STATUS_NON_FINITE_ATTRIBUTE\0",
+        14 => "PSR_STATUS_INVALID_WEIGHT\0",
         _ => "PSR_STATUS_UNKNOWN\0",
     };
     name.as_ptr().cast()
@@ -97,9 +105,8 @@ impl Failure {
             Error::NonFinitePosition { .. } => psr_status::NonFinitePosition,
             Error::NonFiniteNormal { .. } => psr_status::NonFiniteNormal,
             Error::ZeroNormal { .. } => psr_status::ZeroNormal,
-            // Weights are not exposed to C yet; when they are, this gets a status of its own.
-            Error::InvalidWeight { .. } => psr_status::InvalidArgument,
-            Error::NoPositiveWeight => psr_status::InvalidArgument,
+            Error::InvalidWeight { .. } => psr_status::InvalidWeight,
+            Error::NoPositiveWeight => psr_status::InvalidWeight,
             Error::DegenerateInput { .. } => psr_status::InvalidArgument,
             // Normal estimation is not exposed to C yet; these get statuses when it is.
             Error::TooFewPoints { .. } => psr_status::InvalidArgument,
@@ -109,6 +116,12 @@ impl Failure {
             Error::InvalidMesh(_) => psr_status::InvalidArgument,
             Error::Cancelled => psr_status::Cancelled,
             Error::ThreadsUnavailable { .. } => psr_status::ThreadsUnavailable,
+            Error::NonFiniteAttribute { .. } => psr_status::NonFiniteAttribute,
+            // Mismatched lengths, batches with other attributes than the points before them and
+            // bad channel names are malformed arguments.
+            Error::AttributeLength { .. } => psr_status::InvalidArgument,
+            Error::AttributesDiffer { .. } => psr_status::InvalidArgument,
+            Error::InvalidChannelName { .. } => psr_status::InvalidArgument,
             Error::Internal(_) => psr_status::InternalError,
         };
         Failure::new(status, format!("{function}: {error}"))
@@ -144,13 +157,18 @@ mod tests {
                 psr_status::ThreadsUnavailable,
                 "PSR_STATUS_THREADS_UNAVAILABLE",
             ),
+            (
+                psr_status::NonFiniteAttribute,
+                "PSR_STATUS_NON_FINITE_ATTRIBUTE",
+            ),
+            (psr_status::InvalidWeight, "PSR_STATUS_INVALID_WEIGHT"),
         ];
         for (status, name) in all {
             // SAFETY: psr_status_string returns a static NUL-terminated string, never NULL.
             let got = unsafe { CStr::from_ptr(psr_status_string(status as c_int)) };
             assert_eq!(got.to_str().unwrap(), name);
         }
-        for unknown in [-1, 13, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 15, c_int::MAX, c_int::MIN] {
             // SAFETY: as above.
             let got = unsafe { CStr::from_ptr(psr_status_string(unknown)) };
             assert_eq!(got.to_str().unwrap(), "PSR_STATUS_UNKNOWN");

@@ -241,7 +241,7 @@ unsafe fn try_trim(
     // contract).
     let trimming = unsafe { read_options(F, options) }?;
     let trimmed = crate::trim(&mesh.mesh, &trimming).map_err(|e| Failure::from_error(F, e))?;
-    let trimmed = Box::into_raw(Box::new(psr_mesh { mesh: trimmed }));
+    let trimmed = Box::into_raw(Box::new(psr_mesh::new(trimmed)));
     // SAFETY: `out` is not NULL (checked) and valid for writing one pointer (this function's
     // contract).
     unsafe { write_out(F, "out", out, trimmed) }
@@ -352,7 +352,7 @@ mod tests {
             ..Mesh::default()
         };
         mesh.stats.sample_density_quantiles = vec![1.0; 1001];
-        let m = psr_mesh { mesh };
+        let m = psr_mesh::new(mesh);
         let mut opts = defaults();
         assert_eq!(failure(&m, &opts).0, psr_status::Ok);
         opts.struct_size = 3;

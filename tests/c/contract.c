@@ -1,7 +1,9 @@
 /*
  * Contract tests of the psr C API, from C, against the installed header and library:
  * NULL for every pointer argument, free(NULL), solve before any points, a bad point in the
- * middle of a second batch, strides and overflow, points without normals and with sensors, short copy-out buffers, out-parameters left
+ * middle of a second batch, strides and overflow, points without normals and with sensors,
+ * points with colours and channels (psr_point_arrays, a struct from an older header
+ * included), short copy-out buffers, out-parameters left
  * alone on failure, the names of statuses and stages, cancellation from the callback, a forced
  * internal panic (when the library was built with the test hook), two handles on two threads
  * matching sequential runs, and trimming: psr_trim_options from this header, from an older
@@ -735,6 +737,158 @@ static void test_trim(void) {
     psr_mesh_free(t);
     psr_mesh_free(t_old);
     psr_mesh_free(t_new);
+/* What a caller compiled against an older header would pass: the first six fields of
+ * psr_point_arrays (positions and normals only), with its own, smaller size. */
+typedef struct {
+    size_t struct_size;
+    size_t count;
+    const float *positions;
+    size_t position_stride_bytes;
+    const float *normals;
+    size_t normal_stride_bytes;
+} older_point_arrays;
+
+/* Points with colours, a channel and weights through psr_point_arrays: NULL and size checks,
+ * a struct from an older header, bad values, and the mesh's colours, channels and normals. */
+static void test_point_arrays(void) {
+    enum { N = 3000 };
+    float *positions = malloc(3 * N * sizeof(float)), *normals = malloc(3 * N * sizeof(float));
+    float *colors = malloc(4 * N * sizeof(float)), *heights = malloc(N * sizeof(float));
+    float *weights = malloc(N * sizeof(float));
+    const char *names[1] = {"height"};
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL;
+    psr_point_arrays a;
+    older_point_arrays old;
+    size_t count = 0, k, nv;
+    bool vertex_normals = true;
+    float worst = 0.0f, *buffer;
+    int unit_outward = 1;
+
+    section("points with colours and channels: psr_point_arrays, older struct, mesh attributes");
+    sphere(N, positions, normals);
+    for (k = 0; k < N; k++) {
+        float z = normals[3 * k + 2];
+        colors[4 * k] = (z + 1.0f) / 2.0f;
+        colors[4 * k + 1] = 0.5f;
+        colors[4 * k + 2] = (1.0f - z) / 2.0f;
+        colors[4 * k + 3] = 1.0f;
+        heights[k] = z;
+        weights[k] = 1.0f;
+    }
+    CHECK_STATUS(psr_point_arrays_init(NULL, sizeof a), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_point_arrays_init(&a, 2 * sizeof(size_t)), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_point_arrays_init(&a, sizeof a), PSR_STATUS_OK);
+    CHECK(a.struct_size == sizeof a && a.count == 0 && a.colors == NULL && a.channel_count == 0);
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(NULL, &a), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "a is NULL"));
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_OK); /* count 0 */
+    CHECK_STATUS(psr_reconstructor_get_vertex_normals(r, &vertex_normals), PSR_STATUS_OK);
+    CHECK(!vertex_normals);
+    CHECK_STATUS(psr_reconstructor_get_vertex_normals(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_vertex_normals(NULL, true), PSR_STATUS_NULL_ARGUMENT);
+
+    /* A struct from an older header: its smaller size, its fields only. */
+    old.struct_size = sizeof old;
+    old.count = N;
+    old.positions = positions;
+    old.position_stride_bytes = 0;
+    old.normals = normals;
+    old.normal_stride_bytes = 0;
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, (const psr_point_arrays *)(const void *)&old),
+                 PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == N);
+    old.struct_size = 0; /* never initialised */
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, (const psr_point_arrays *)(const void *)&old),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "psr_point_arrays_init"));
+    CHECK_STATUS(psr_reconstructor_clear_points(r), PSR_STATUS_OK);
+
+    /* Bad batches: nothing is added. */
+    a.count = N;
+    a.positions = positions;
+    a.normals = normals;
+    a.colors = colors;
+    a.color_components = 3;
+    a.color_stride_bytes = 4 * sizeof(float); /* RGB read out of RGBA records */
+    a.channels = heights;
+    a.channel_count = 1;
+    a.channel_names = names;
+    a.confidence = weights;
+    a.normals = NULL;
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "normals"));
+    a.normals = normals;
+    a.color_components = 2;
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_INVALID_ARGUMENT);
+    a.color_components = 3;
+    a.channel_names = NULL;
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_NULL_ARGUMENT);
+    a.channel_names = names;
+    colors[4 * 17 + 2] = NAN;
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_NON_FINITE_ATTRIBUTE);
+    CHECK(contains(psr_reconstructor_last_error(r), "point 17"));
+    colors[4 * 17 + 2] = 0.5f;
+    weights[5] = -2.0f;
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_INVALID_WEIGHT);
+    CHECK(contains(psr_reconstructor_last_error(r), "weight 5"));
+    weights[5] = 1.0f;
+    CHECK_STATUS(psr_reconstructor_point_count(r, &count), PSR_STATUS_OK);
+    CHECK(count == 0);
+    CHECK(strcmp(psr_status_string(PSR_STATUS_NON_FINITE_ATTRIBUTE), "PSR_STATUS_NON_FINITE_ATTRIBUTE") == 0);
+    CHECK(strcmp(psr_status_string(PSR_STATUS_INVALID_WEIGHT), "PSR_STATUS_INVALID_WEIGHT") == 0);
+
+    /* A good batch; the arrays may go at once. */
+    CHECK_STATUS(psr_reconstructor_add_point_arrays(r, &a), PSR_STATUS_OK);
+    free(colors);
+    free(heights);
+    free(weights);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_vertex_normals(r, true), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    psr_reconstructor_free(r);
+    if (m != NULL) {
+        const float *p = psr_mesh_positions(m), *c = psr_mesh_colors(m);
+        const float *h = psr_mesh_channel(m, 0), *n = psr_mesh_normals(m);
+        nv = psr_mesh_vertex_count(m);
+        CHECK(psr_mesh_color_components(m) == 3 && psr_mesh_channel_count(m) == 1);
+        CHECK(strcmp(psr_mesh_channel_name(m, 0), "height") == 0);
+        CHECK(psr_mesh_channel_name(m, 1) == NULL && psr_mesh_channel(m, 1) == NULL);
+        CHECK(p != NULL && c != NULL && h != NULL && n != NULL);
+        for (k = 0; p != NULL && c != NULL && h != NULL && n != NULL && k < nv; k++) {
+            float x = p[3 * k] - 0.25f, y = p[3 * k + 1] - 0.25f, z = p[3 * k + 2] - 0.25f;
+            float len = sqrtf(x * x + y * y + z * z), zz = z / len;
+            float e = fabsf(c[3 * k] - (zz + 1.0f) / 2.0f);
+            if (fabsf(h[k] - zz) / 2.0f > e) e = fabsf(h[k] - zz) / 2.0f;
+            if (e > worst) worst = e;
+            unit_outward &= fabsf(n[3 * k] * n[3 * k] + n[3 * k + 1] * n[3 * k + 1] +
+                                  n[3 * k + 2] * n[3 * k + 2] - 1.0f) < 1e-4f &&
+                            (n[3 * k] * x + n[3 * k + 1] * y + n[3 * k + 2] * z) / len > 0.9f;
+        }
+        CHECK(worst < 0.03f);
+        CHECK(unit_outward);
+        buffer = malloc(3 * nv * sizeof(float));
+        CHECK_STATUS(psr_mesh_copy_colors(m, buffer, 3 * nv - 1), PSR_STATUS_BUFFER_TOO_SMALL);
+        CHECK_STATUS(psr_mesh_copy_colors(m, buffer, 3 * nv), PSR_STATUS_OK);
+        CHECK(memcmp(buffer, c, 3 * nv * sizeof(float)) == 0);
+        CHECK_STATUS(psr_mesh_copy_normals(m, buffer, 3 * nv), PSR_STATUS_OK);
+        CHECK(memcmp(buffer, n, 3 * nv * sizeof(float)) == 0);
+        CHECK_STATUS(psr_mesh_copy_channel(m, 0, buffer, nv), PSR_STATUS_OK);
+        CHECK(memcmp(buffer, h, nv * sizeof(float)) == 0);
+        CHECK_STATUS(psr_mesh_copy_channel(m, 1, buffer, nv), PSR_STATUS_INVALID_ARGUMENT);
+        CHECK_STATUS(psr_mesh_copy_channel(NULL, 0, buffer, nv), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_mesh_copy_normals(m, NULL, 3 * nv), PSR_STATUS_NULL_ARGUMENT);
+        free(buffer);
+        psr_mesh_free(m);
+    }
+    CHECK(psr_mesh_colors(NULL) == NULL && psr_mesh_normals(NULL) == NULL);
+    CHECK(psr_mesh_color_components(NULL) == 0 && psr_mesh_channel_count(NULL) == 0);
+    CHECK(psr_mesh_channel_name(NULL, 0) == NULL && psr_mesh_channel(NULL, 0) == NULL);
+    free(positions);
+    free(normals);
 }
 
 int main(void) {
@@ -745,6 +899,7 @@ int main(void) {
     test_mesh();
     test_positions_without_normals();
     test_sensors();
+    test_point_arrays();
     test_cancel();
     test_panic();
     test_threads();
