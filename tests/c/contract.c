@@ -737,6 +737,8 @@ static void test_trim(void) {
     psr_mesh_free(t);
     psr_mesh_free(t_old);
     psr_mesh_free(t_new);
+}
+
 /* What a caller compiled against an older header would pass: the first six fields of
  * psr_point_arrays (positions and normals only), with its own, smaller size. */
 typedef struct {
