@@ -242,9 +242,9 @@ fn open_surfaces_get_normals_and_colours_everywhere() {
 /// each input point's colour to the mesh's colour at its closest surface point is within the
 /// bound below at depth 8.
 ///
-/// The bound: `bench/attributes.py` measured psr at 15.4 and Open3D 0.20 at 18.0 on this input
-/// at depth 8 (docs/benchmarks.md, "Issue 16 — attributes"); 16.0 leaves psr's own figure a
-/// little room and stays well below Open3D's.
+/// The bound: `bench/attributes.py` measured psr at 15.37 and Open3D 0.20 at 18.05 (18.04 in
+/// another run) on this input at depth 8 (docs/benchmarks.md, "Issue 16 — colours"); 16.0
+/// leaves psr's own figure a little room and stays well below Open3D's.
 #[test]
 fn lion_colours_are_carried_at_least_as_well_as_open3d() {
     let Some(path) = data_or_skip(
