@@ -1727,33 +1727,18 @@ impl Entry {
     }
 }
 
-/// Writes a mesh as PLY in `options.format`: vertex `float x y z`, then whichever the mesh
-/// has of `float nx ny nz` (its normals), `float value` (the per-vertex density),
-/// `red green blue [alpha]` (its colours, as `options.color_type`) and a `float` property per
-/// channel (named like it); and face `list uchar int vertex_indices` (`uint` for meshes of
-/// more than 2³¹ vertices; more than 2³² are refused, see [`MAX_PLY_MESH_VERTICES`]). A channel
-/// named like another vertex property is refused.
-pub fn write_mesh_to_with(
-    mut w: impl Write,
-    mesh: &Mesh,
-    options: &WriteOptions,
-) -> io::Result<()> {
+/// Checks that every per-vertex array of `mesh` (densities and normals when not empty,
+/// colours, channels) has one entry per vertex and that every triangle's indices name a vertex:
+/// what a writer needs before it writes anything.
+pub(crate) fn check_mesh(mesh: &Mesh) -> io::Result<()> {
     let n = mesh.positions.len();
-    let with_density = !mesh.densities.is_empty();
-    let with_normals = !mesh.normals.is_empty();
     let per_vertex = [
-        (
-            "densities",
-            if with_density {
-                mesh.densities.len()
-            } else {
-                n
-            },
-        ),
-        ("normals", if with_normals { mesh.normals.len() } else { n }),
-        ("colors", mesh.colors.as_ref().map_or(n, Colors::len)),
+        ("densities", mesh.densities.len()),
+        ("normals", mesh.normals.len()),
     ]
     .into_iter()
+    .filter(|&(_, len)| len != 0)
+    .chain(mesh.colors.as_ref().map(|c| ("colors", c.len())))
     .chain(
         mesh.channels
             .iter()
@@ -1767,8 +1752,6 @@ pub fn write_mesh_to_with(
             ));
         }
     }
-    let index_type = face_index_type(n as u64)
-        .map_err(|message| io::Error::new(io::ErrorKind::InvalidInput, message))?;
     if let Some(t) = mesh
         .triangles
         .iter()
@@ -1779,6 +1762,26 @@ pub fn write_mesh_to_with(
             format!("mesh triangle {t:?} refers to a vertex beyond the {n} vertices"),
         ));
     }
+    Ok(())
+}
+
+/// Writes a mesh as PLY in `options.format`: vertex `float x y z`, then whichever the mesh
+/// has of `float nx ny nz` (its normals), `float value` (the per-vertex density),
+/// `red green blue [alpha]` (its colours, as `options.color_type`) and a `float` property per
+/// channel (named like it); and face `list uchar int vertex_indices` (`uint` for meshes of
+/// more than 2³¹ vertices; more than 2³² are refused, see [`MAX_PLY_MESH_VERTICES`]). A channel
+/// named like another vertex property is refused.
+pub fn write_mesh_to_with(
+    mut w: impl Write,
+    mesh: &Mesh,
+    options: &WriteOptions,
+) -> io::Result<()> {
+    check_mesh(mesh)?;
+    let n = mesh.positions.len();
+    let with_density = !mesh.densities.is_empty();
+    let with_normals = !mesh.normals.is_empty();
+    let index_type = face_index_type(n as u64)
+        .map_err(|message| io::Error::new(io::ErrorKind::InvalidInput, message))?;
     let mut header = format!(
         "ply\nformat {} 1.0\ncomment written by psr {}\nelement vertex {n}\n\
          property float x\nproperty float y\nproperty float z\n",
@@ -1835,7 +1838,7 @@ pub fn write_mesh_to_with(
 }
 
 /// Creates `path`, runs `write` on a buffered writer to it and flushes; errors name the path.
-fn write_file(
+pub(crate) fn write_file(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> io::Result<()> {
@@ -1854,7 +1857,7 @@ fn write_file(
 }
 
 /// Gathers small records into large writes.
-struct Chunk<W: Write> {
+pub(crate) struct Chunk<W: Write> {
     w: W,
     buf: Vec<u8>,
 }
@@ -1862,14 +1865,14 @@ struct Chunk<W: Write> {
 const CHUNK_BYTES: usize = 1 << 20;
 
 impl<W: Write> Chunk<W> {
-    fn new(w: W) -> Self {
+    pub(crate) fn new(w: W) -> Self {
         Chunk {
             w,
             buf: Vec::with_capacity(CHUNK_BYTES),
         }
     }
 
-    fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
+    pub(crate) fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
         if self.buf.len() + bytes.len() > CHUNK_BYTES {
             self.w.write_all(&self.buf)?;
             self.buf.clear();
@@ -1878,7 +1881,7 @@ impl<W: Write> Chunk<W> {
         Ok(())
     }
 
-    fn finish(mut self) -> io::Result<()> {
+    pub(crate) fn finish(mut self) -> io::Result<()> {
         self.w.write_all(&self.buf)?;
         self.w.flush()
     }
