@@ -15,7 +15,8 @@
 //! (`src/pipeline.rs` runs them; `docs/architecture.md` says where everything lives). The
 //! public surface is [`reconstruct`], [`reconstruct_with_progress`] and their types, [`trim`]
 //! (the mesh cut back to where its samples are, by their density), the normal estimation for
-//! clouds without normals, the C API in [`ffi`] and the PLY reader and writer in [`ply`].
+//! clouds without normals, the C API in [`ffi`], the PLY reader and writer in [`ply`], the OBJ
+//! writer in [`obj`] and PoissonRecon's raw point files (ASCII, `.bnpts`) in [`npts`].
 //! Points may carry colours and named channels onto the mesh ([`PointSet::with_colors`],
 //! [`PointSet::with_channel`], [`Mesh::colors`]).
 
@@ -36,6 +37,8 @@ mod grid;
 mod isovalue;
 mod mesh;
 mod normals;
+pub mod npts;
+pub mod obj;
 mod octree;
 mod parallel;
 mod params;

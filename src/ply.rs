@@ -11,7 +11,9 @@
 //!   `vertex_indices` (or `vertex_index`) lists, with polygons split into fans of triangles.
 //! * [`write_mesh`] writes a [`Mesh`] as binary little-endian PLY, with the per-vertex density as
 //!   `float value` (PoissonRecon's name for it), and the normals, colours and channels when the
-//!   mesh has them ([`write_mesh_with`] chooses the colours' type).
+//!   mesh has them ([`write_mesh_with`] chooses the colours' type and the format, ASCII
+//!   included). The face indices are `int`, or `uint` past 2³¹ vertices; a mesh past 2³²
+//!   vertices is refused with an error (PLY has no standard 64-bit integer), never wrapped.
 //! * [`write_point_cloud`] writes oriented points, in any of the three PLY formats.
 //!
 //! The readers accept the three formats (`ascii`, `binary_little_endian`, `binary_big_endian`),
@@ -1546,7 +1548,13 @@ fn read_mesh_impl<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<MeshDat
                             "vertex index {v} is out of range (the file has {vertex_count} vertices)"
                         ));
                     }
-                    corners.push(v as u32);
+                    // Exact: v is a whole number below vertex_count (a usize).
+                    let Ok(v) = u32::try_from(v as u64) else {
+                        return Err(format!(
+                            "vertex index {v} is beyond the 2^32 vertices psr's meshes can index"
+                        ));
+                    };
+                    corners.push(v);
                 }
                 for k in 2..corners.len() {
                     triangles.push([corners[0], corners[k - 1], corners[k]]);
@@ -1560,19 +1568,37 @@ fn read_mesh_impl<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<MeshDat
     Ok((positions, triangles))
 }
 
-/// How [`write_mesh_with`] writes a mesh's attributes.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// How [`write_mesh_with`] writes a mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub struct WriteOptions {
     /// The PLY type of the colours (default [`ColorType::U8`]); write the input's
     /// ([`PlyPoints::color_type`]) to give them back as they came.
     pub color_type: ColorType,
+    /// The encoding of the body (default [`PlyFormat::BinaryLittleEndian`], compact and what
+    /// PoissonRecon writes on little-endian machines; [`PlyFormat::Ascii`] is its `--ascii`).
+    pub format: PlyFormat,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            color_type: ColorType::U8,
+            format: PlyFormat::BinaryLittleEndian,
+        }
+    }
 }
 
 impl WriteOptions {
     /// These options with [`WriteOptions::color_type`] set to `color_type`.
     pub fn with_color_type(mut self, color_type: ColorType) -> Self {
         self.color_type = color_type;
+        self
+    }
+
+    /// These options with [`WriteOptions::format`] set to `format`.
+    pub fn with_format(mut self, format: PlyFormat) -> Self {
+        self.format = format;
         self
     }
 }
@@ -1582,42 +1608,137 @@ pub fn write_mesh(path: &Path, mesh: &Mesh) -> io::Result<()> {
     write_mesh_with(path, mesh, &WriteOptions::default())
 }
 
-/// Writes a mesh as binary little-endian PLY with `options` (see [`write_mesh_to_with`]).
+/// Writes a mesh as PLY with `options` (see [`write_mesh_to_with`]).
 pub fn write_mesh_with(path: &Path, mesh: &Mesh, options: &WriteOptions) -> io::Result<()> {
     write_file(path, |w| write_mesh_to_with(w, mesh, options))
 }
 
-/// [`write_mesh_to_with`] with the default options (colours as `uchar`).
+/// [`write_mesh_to_with`] with the default options (binary little-endian, colours as `uchar`).
 pub fn write_mesh_to(w: impl Write, mesh: &Mesh) -> io::Result<()> {
     write_mesh_to_with(w, mesh, &WriteOptions::default())
 }
 
-/// Writes a mesh as binary little-endian PLY: vertex `float x y z`, then whichever the mesh
-/// has of `float nx ny nz` (its normals), `float value` (the per-vertex density),
-/// `red green blue [alpha]` (its colours, as `options.color_type`) and a `float` property per
-/// channel (named like it); and face `list uchar int vertex_indices`. A channel named like
-/// another vertex property is refused.
-pub fn write_mesh_to_with(
-    mut w: impl Write,
-    mesh: &Mesh,
-    options: &WriteOptions,
-) -> io::Result<()> {
+/// The most vertices a mesh written as PLY may have: `uint` indices address 2³² of them.
+pub const MAX_PLY_MESH_VERTICES: u64 = 1 << 32;
+
+/// The PLY type of the face element's vertex indices for a mesh of `vertex_count` vertices:
+/// `int` while every index fits it (up to 2³¹ vertices), the type PoissonRecon, Open3D and
+/// MeshLab write and every reader takes; `uint` up to 2³² vertices ([`MAX_PLY_MESH_VERTICES`]);
+/// beyond that none, since PLY has no standard 64-bit integer type (PoissonRecon's BIG_DATA
+/// build writes a `longlong` few readers know), and the error says to write OBJ instead.
+fn face_index_type(vertex_count: u64) -> Result<Scalar, String> {
+    if vertex_count <= 1 << 31 {
+        Ok(Scalar::I32)
+    } else if vertex_count <= MAX_PLY_MESH_VERTICES {
+        Ok(Scalar::U32)
+    } else {
+        Err(format!(
+            "mesh has {vertex_count} vertices: PLY's largest standard index type (uint) \
+             addresses {MAX_PLY_MESH_VERTICES}; write OBJ instead, whose indices have no limit"
+        ))
+    }
+}
+
+/// One element entry (a vertex or a face) of a PLY body being put together, in either
+/// encoding: values as text separated by spaces, or as bytes.
+struct Entry {
+    format: PlyFormat,
+    buf: Vec<u8>,
+}
+
+impl Entry {
+    fn new(format: PlyFormat) -> Self {
+        Entry {
+            format,
+            buf: Vec::with_capacity(128),
+        }
+    }
+
+    fn big(&self) -> bool {
+        self.format == PlyFormat::BinaryBigEndian
+    }
+
+    /// Starts a value given as text in ASCII.
+    fn text(&mut self, value: impl fmt::Display) {
+        if !self.buf.is_empty() {
+            self.buf.push(b' ');
+        }
+        // Writing to a Vec cannot fail.
+        let _ = write!(self.buf, "{value}");
+    }
+
+    fn float(&mut self, v: f32) {
+        match self.format {
+            PlyFormat::Ascii => self.text(v),
+            PlyFormat::BinaryLittleEndian => self.buf.extend_from_slice(&v.to_le_bytes()),
+            PlyFormat::BinaryBigEndian => self.buf.extend_from_slice(&v.to_be_bytes()),
+        }
+    }
+
+    fn color(&mut self, ty: ColorType, v: f32) {
+        match self.format {
+            PlyFormat::Ascii => self.text(ty.text(v)),
+            _ => ty.encode(v, self.big(), &mut self.buf),
+        }
+    }
+
+    fn uchar(&mut self, v: u8) {
+        match self.format {
+            PlyFormat::Ascii => self.text(v),
+            _ => self.buf.push(v),
+        }
+    }
+
+    /// A vertex index as `ty` (from [`face_index_type`]); an index the type cannot hold is an
+    /// error, never a wrapped value.
+    fn index(&mut self, ty: Scalar, v: u32) -> io::Result<()> {
+        let bytes = match ty {
+            Scalar::I32 => {
+                let v = i32::try_from(v).map_err(|_| {
+                    io::Error::new(
+                        io::ErrorKind::InvalidInput,
+                        format!("vertex index {v} does not fit the PLY index type int"),
+                    )
+                })?;
+                if self.big() {
+                    v.to_be_bytes()
+                } else {
+                    v.to_le_bytes()
+                }
+            }
+            _ if self.big() => v.to_be_bytes(),
+            _ => v.to_le_bytes(),
+        };
+        match self.format {
+            PlyFormat::Ascii => self.text(v),
+            _ => self.buf.extend_from_slice(&bytes),
+        }
+        Ok(())
+    }
+
+    /// The entry's bytes (a line in ASCII); the entry is empty again after `put`.
+    fn put<W: Write>(&mut self, chunk: &mut Chunk<W>) -> io::Result<()> {
+        if self.format == PlyFormat::Ascii {
+            self.buf.push(b'\n');
+        }
+        chunk.put(&self.buf)?;
+        self.buf.clear();
+        Ok(())
+    }
+}
+
+/// Checks that every per-vertex array of `mesh` (densities and normals when not empty,
+/// colours, channels) has one entry per vertex and that every triangle's indices name a vertex:
+/// what a writer needs before it writes anything.
+pub(crate) fn check_mesh(mesh: &Mesh) -> io::Result<()> {
     let n = mesh.positions.len();
-    let with_density = !mesh.densities.is_empty();
-    let with_normals = !mesh.normals.is_empty();
     let per_vertex = [
-        (
-            "densities",
-            if with_density {
-                mesh.densities.len()
-            } else {
-                n
-            },
-        ),
-        ("normals", if with_normals { mesh.normals.len() } else { n }),
-        ("colors", mesh.colors.as_ref().map_or(n, Colors::len)),
+        ("densities", mesh.densities.len()),
+        ("normals", mesh.normals.len()),
     ]
     .into_iter()
+    .filter(|&(_, len)| len != 0)
+    .chain(mesh.colors.as_ref().map(|c| ("colors", c.len())))
     .chain(
         mesh.channels
             .iter()
@@ -1631,15 +1752,6 @@ pub fn write_mesh_to_with(
             ));
         }
     }
-    if n > i32::MAX as usize {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!(
-                "mesh has {n} vertices: PLY int indices cannot address more than {}",
-                i32::MAX
-            ),
-        ));
-    }
     if let Some(t) = mesh
         .triangles
         .iter()
@@ -1650,9 +1762,30 @@ pub fn write_mesh_to_with(
             format!("mesh triangle {t:?} refers to a vertex beyond the {n} vertices"),
         ));
     }
+    Ok(())
+}
+
+/// Writes a mesh as PLY in `options.format`: vertex `float x y z`, then whichever the mesh
+/// has of `float nx ny nz` (its normals), `float value` (the per-vertex density),
+/// `red green blue [alpha]` (its colours, as `options.color_type`) and a `float` property per
+/// channel (named like it); and face `list uchar int vertex_indices` (`uint` for meshes of
+/// more than 2³¹ vertices; more than 2³² are refused, see [`MAX_PLY_MESH_VERTICES`]). A channel
+/// named like another vertex property is refused.
+pub fn write_mesh_to_with(
+    mut w: impl Write,
+    mesh: &Mesh,
+    options: &WriteOptions,
+) -> io::Result<()> {
+    check_mesh(mesh)?;
+    let n = mesh.positions.len();
+    let with_density = !mesh.densities.is_empty();
+    let with_normals = !mesh.normals.is_empty();
+    let index_type = face_index_type(n as u64)
+        .map_err(|message| io::Error::new(io::ErrorKind::InvalidInput, message))?;
     let mut header = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment written by psr {}\nelement vertex {n}\n\
+        "ply\nformat {} 1.0\ncomment written by psr {}\nelement vertex {n}\n\
          property float x\nproperty float y\nproperty float z\n",
+        options.format.header_name(),
         env!("CARGO_PKG_VERSION")
     );
     let mut names = vec!["x", "y", "z"];
@@ -1671,41 +1804,41 @@ pub fn write_mesh_to_with(
     }
     add_channels(&mut header, &mut names, &mesh.channels)?;
     header.push_str(&format!(
-        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        mesh.triangles.len()
+        "element face {}\nproperty list uchar {} vertex_indices\nend_header\n",
+        mesh.triangles.len(),
+        index_type.name()
     ));
     w.write_all(header.as_bytes())?;
 
     let colors = mesh.colors.as_ref().map(Colors::as_flattened);
     let mut chunk = Chunk::new(w);
-    let mut record = Vec::with_capacity(64);
+    let mut entry = Entry::new(options.format);
     for (i, p) in mesh.positions.iter().enumerate() {
-        record.clear();
         let normal = mesh.normals.get(i).into_iter().flatten();
         let density = mesh.densities.get(i);
-        for v in p.iter().chain(normal).chain(density) {
-            record.extend_from_slice(&v.to_le_bytes());
+        for &v in p.iter().chain(normal).chain(density) {
+            entry.float(v);
         }
         for &c in colors.map_or(&[][..], |c| &c[i * components..(i + 1) * components]) {
-            options.color_type.encode(c, false, &mut record);
+            entry.color(options.color_type, c);
         }
         for channel in &mesh.channels {
-            record.extend_from_slice(&channel.values[i].to_le_bytes());
+            entry.float(channel.values[i]);
         }
-        chunk.put(&record)?;
+        entry.put(&mut chunk)?;
     }
     for t in &mesh.triangles {
-        let mut record = [3u8; 13];
-        for (k, &v) in t.iter().enumerate() {
-            record[1 + 4 * k..5 + 4 * k].copy_from_slice(&(v as i32).to_le_bytes());
+        entry.uchar(3);
+        for &v in t {
+            entry.index(index_type, v)?;
         }
-        chunk.put(&record)?;
+        entry.put(&mut chunk)?;
     }
     chunk.finish()
 }
 
 /// Creates `path`, runs `write` on a buffered writer to it and flushes; errors name the path.
-fn write_file(
+pub(crate) fn write_file(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> io::Result<()> {
@@ -1724,7 +1857,7 @@ fn write_file(
 }
 
 /// Gathers small records into large writes.
-struct Chunk<W: Write> {
+pub(crate) struct Chunk<W: Write> {
     w: W,
     buf: Vec<u8>,
 }
@@ -1732,14 +1865,14 @@ struct Chunk<W: Write> {
 const CHUNK_BYTES: usize = 1 << 20;
 
 impl<W: Write> Chunk<W> {
-    fn new(w: W) -> Self {
+    pub(crate) fn new(w: W) -> Self {
         Chunk {
             w,
             buf: Vec::with_capacity(CHUNK_BYTES),
         }
     }
 
-    fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
+    pub(crate) fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
         if self.buf.len() + bytes.len() > CHUNK_BYTES {
             self.w.write_all(&self.buf)?;
             self.buf.clear();
@@ -1748,7 +1881,7 @@ impl<W: Write> Chunk<W> {
         Ok(())
     }
 
-    fn finish(mut self) -> io::Result<()> {
+    pub(crate) fn finish(mut self) -> io::Result<()> {
         self.w.write_all(&self.buf)?;
         self.w.flush()
     }
@@ -2395,6 +2528,93 @@ mod tests {
         assert!(err.to_string().contains("no-such-dir"), "{err}");
     }
 
+    /// Proves: a mesh with every attribute round-trips in each of the three formats (ASCII is
+    /// PoissonRecon's --ascii): positions, normals, density, colours, channels and triangles
+    /// come back exactly, and the header names the format and the `int` index type.
+    #[test]
+    fn meshes_round_trip_in_every_format() {
+        let mut mesh = sample_mesh(true);
+        mesh.positions[1] = [1.0e6, -3.3333333e-7, 0.1];
+        mesh.normals = vec![
+            [0.0, 0.0, 1.0],
+            [0.6, 0.0, -0.8],
+            [0.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+        ];
+        let uchar = |c: [u8; 3]| c.map(|v| (v as f64 / 255.0) as f32);
+        mesh.colors = Some(Colors::Rgb(vec![
+            uchar([255, 0, 0]),
+            uchar([0, 255, 7]),
+            uchar([0, 0, 255]),
+            uchar([10, 20, 30]),
+        ]));
+        mesh.channels = vec![Channel::new("intensity", vec![0.0, 0.5, -1.0e-9, 1.5])];
+        for format in [
+            PlyFormat::Ascii,
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+        ] {
+            let mut bytes = Vec::new();
+            let options = WriteOptions::default().with_format(format);
+            write_mesh_to_with(&mut bytes, &mesh, &options).unwrap();
+            let text = String::from_utf8_lossy(&bytes);
+            assert!(
+                text.starts_with(&format!("ply\nformat {} 1.0\n", format.header_name())),
+                "{format:?}"
+            );
+            assert!(text.contains("property list uchar int vertex_indices\n"));
+            if format == PlyFormat::Ascii {
+                assert!(text.ends_with("\n3 0 1 2\n3 0 3 1\n3 3 2 1\n"), "{text}");
+            }
+            let back = read_point_cloud_from(&bytes[..]).unwrap();
+            assert_eq!(back.positions, mesh.positions, "{format:?}");
+            assert_eq!(back.normals, mesh.normals, "{format:?}");
+            assert_eq!(back.confidence.as_deref(), Some(&mesh.densities[..]));
+            assert_eq!(back.colors, mesh.colors, "{format:?}");
+            assert_eq!(back.channels, mesh.channels, "{format:?}");
+            let (positions, triangles) = read_mesh_from(&bytes[..]).unwrap();
+            assert_eq!(positions, mesh.positions, "{format:?}");
+            assert_eq!(triangles, mesh.triangles, "{format:?}");
+        }
+    }
+
+    /// Proves: the face index type follows the vertex count (int up to 2^31 vertices, uint up
+    /// to 2^32) and a larger mesh is refused with a message that says why and what to do,
+    /// without allocating such a mesh; an index that does not fit the chosen type is an error,
+    /// never a wrapped value.
+    #[test]
+    fn face_indices_are_int_then_uint_and_never_wrap() {
+        assert_eq!(face_index_type(0), Ok(Scalar::I32));
+        assert_eq!(face_index_type(1 << 31), Ok(Scalar::I32));
+        assert_eq!(face_index_type((1 << 31) + 1), Ok(Scalar::U32));
+        assert_eq!(face_index_type(1 << 32), Ok(Scalar::U32));
+        let message = face_index_type((1 << 32) + 1).unwrap_err();
+        assert!(
+            message.contains("4294967297 vertices") && message.contains("OBJ"),
+            "{message}"
+        );
+        for format in [
+            PlyFormat::Ascii,
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+        ] {
+            let mut entry = Entry::new(format);
+            assert!(entry.index(Scalar::I32, 1 << 31).is_err(), "{format:?}");
+            entry.index(Scalar::I32, (1 << 31) - 1).unwrap();
+            entry.index(Scalar::U32, u32::MAX).unwrap();
+            let expected: Vec<u8> = match format {
+                PlyFormat::Ascii => b"2147483647 4294967295".to_vec(),
+                PlyFormat::BinaryLittleEndian => {
+                    [0xff, 0xff, 0xff, 0x7f, 0xff, 0xff, 0xff, 0xff].to_vec()
+                }
+                PlyFormat::BinaryBigEndian => {
+                    [0x7f, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff].to_vec()
+                }
+            };
+            assert_eq!(entry.buf, expected, "{format:?}");
+        }
+    }
+
     /// The same mesh (a unit square as a quad, plus a triangle above it) in each format, with a
     /// double coordinate, an extra vertex property, a list-typed face index and an element after
     /// the faces: every format gives the same positions, and the quad becomes a fan.
@@ -2490,5 +2710,20 @@ mod tests {
             property float z\nend_header\n";
         let message = read_mesh_from(no_faces.as_bytes()).unwrap_err().to_string();
         assert!(message.contains("no 'face' element"), "{message}");
+    }
+
+    /// Proves: a face index past u32 (in a file that declares more vertices than that, faces
+    /// first; double indices, as the reader knows no 64-bit integer type) is an error, not an index saturated or wrapped into psr's 32-bit triangles.
+    #[test]
+    fn face_indices_past_32_bits_are_errors() {
+        let text =
+            "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar double vertex_indices\n\
+            element vertex 5000000000\nproperty float x\nproperty float y\nproperty float z\n\
+            end_header\n3 0 1 4294967296\n";
+        let message = read_mesh_from(text.as_bytes()).unwrap_err().to_string();
+        assert!(
+            message.contains("4294967296") && message.contains("2^32"),
+            "{message}"
+        );
     }
 }

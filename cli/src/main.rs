@@ -8,7 +8,7 @@
 //!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
 //!     [--no-density] [--no-attributes] [--vertex-normals]
 //!     [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
-//!     [--min-piece-area F] [--min-piece-triangles N] [--quiet] [--verbose]
+//!     [--min-piece-area F] [--min-piece-triangles N] [--colors] [--ascii] [--quiet] [--verbose]
 //! ```
 //!
 //! The input's colours and every other vertex property (but the ones psr interprets) are
@@ -16,9 +16,12 @@
 //! is the untrimmed, watertight mesh unless a `--trim*` option asks for it to be cut back to
 //! where the points are (`psr::trim`).
 //!
-//! Both file names must end in `.ply` (any case): psr reads PLY point clouds and writes binary
-//! PLY meshes, and refuses to write PLY under another name. `psr --help` gives each option's
-//! PoissonRecon 18.75 equivalent (`tests/cli.rs` checks that every option has one).
+//! The file names' extensions (any case) say the formats: the input is PLY (`.ply`),
+//! PoissonRecon's binary points (`.bnpts`) or ASCII points (`.npts`, `.xyz`; see `psr::npts`);
+//! the output is PLY (`.ply`, binary unless `--ascii`) or Wavefront OBJ (`.obj`). Any other
+//! extension is refused with the list of those accepted, so that a file never holds a format
+//! its name denies. `psr --help` gives each option's PoissonRecon 18.75 equivalent
+//! (`tests/cli.rs` checks that every option has one).
 //!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
 //! reconstruction error.
@@ -32,13 +35,13 @@ use std::time::Instant;
 use clap::builder::{OsStringValueParser, TypedValueParser};
 use clap::{ArgGroup, Parser};
 use psr::{
-    ply, Boundary, Mesh, NormalEstimation, Orientation, Params, PointSet, Splatting, Stage,
-    Threshold, Trimming, VertexPlacement,
+    npts, obj, ply, Boundary, Mesh, NormalEstimation, Orientation, Params, PointSet, Splatting,
+    Stage, Threshold, Trimming, VertexPlacement,
 };
 
-/// Poisson surface reconstruction: turns a point cloud (PLY with x y z, and nx ny nz when it has
-/// normals; psr estimates and orients them when it has not) into a watertight triangle mesh
-/// (binary PLY).
+/// Poisson surface reconstruction: turns a point cloud (PLY, or PoissonRecon's .bnpts or ASCII
+/// points, with normals or without: psr estimates and orients them when they are missing) into a
+/// watertight triangle mesh (PLY or OBJ).
 ///
 /// Each option's help ends with its equivalent in Kazhdan's PoissonRecon 18.75, or says that
 /// there is none.
@@ -48,23 +51,31 @@ use psr::{
     version,
     max_term_width = 100,
     after_help = "PoissonRecon 18.75 options not named above have no counterpart here, notably \
-                  --degree (psr's B-splines have degree 2; PoissonRecon's default is 1) and \
-                  --ascii (psr writes binary PLY only). The --trim options stand for \
-                  PoissonRecon's separate SurfaceTrimmer program run on its --density output.",
+                  --degree (psr's B-splines have degree 2; PoissonRecon's default is 1). The \
+                  --trim options stand for PoissonRecon's separate SurfaceTrimmer program run on \
+                  its --density output.",
     group = ArgGroup::new("trimming").multiple(false)
 )]
 struct Args {
-    /// Input point cloud: PLY (ASCII or binary) whose vertex element has x y z (and nx ny nz, or
-    /// see --normals); the
-    /// name must end in .ply. PoissonRecon: --in (which also reads .bnpts).
-    #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_input))]
+    /// Input point cloud, in the format its extension (any case) names: .ply, PLY (ASCII or
+    /// binary) whose vertex element has x y z, and nx ny nz or see --normals; .bnpts,
+    /// PoissonRecon's binary points, per point six little-endian float32 x y z nx ny nz (and
+    /// three colour bytes with --colors); .npts or .xyz, ASCII, one point per line: x y z, or
+    /// x y z nx ny nz, or x y z nx ny nz r g b with colours 0-255, the same on every line
+    /// (blank lines and lines starting with # are skipped). PoissonRecon: --in (which reads
+    /// every name but .ply and .bnpts as ASCII, its numbers in any line layout).
+    #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(input_path))]
     input: PathBuf,
 
-    /// Output mesh: binary little-endian PLY (vertex x y z; nx ny nz with --vertex-normals;
-    /// value unless --no-density; the input's colours, in its type, and its other vertex
-    /// properties as floats unless --no-attributes; face vertex_indices); the name must end in
-    /// .ply. PoissonRecon: --out.
-    #[arg(long = "out", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(ply_output))]
+    /// Output mesh, in the format its extension (any case) names: .ply, binary little-endian
+    /// PLY (ASCII with --ascii): vertex x y z; nx ny nz with --vertex-normals; value unless
+    /// --no-density; the input's colours, in its type, and its other vertex properties as
+    /// floats unless --no-attributes; face vertex_indices as int (uint past 2^31 vertices;
+    /// PLY cannot index past 2^32, such a mesh is refused: write .obj). Or .obj, Wavefront
+    /// OBJ: v x y z (v x y z r g b, 0-1, when coloured); vn with --vertex-normals; f with
+    /// 1-based indices (no limit); no density or other properties. PoissonRecon: --out (PLY
+    /// only).
+    #[arg(long = "out", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(output_path))]
     output: PathBuf,
 
     /// Maximum octree depth (1..=16): the finest cells are 2^-depth of the bounding cube.
@@ -211,12 +222,25 @@ struct Args {
     /// Do not carry the input's colours (red green blue [alpha], or diffuse_red..., or r g b
     /// [a]) and its other vertex properties onto the mesh; by default every scalar vertex
     /// property but x y z, the normals, confidence/value and the sensor positions is carried,
-    /// averaged over the samples around each vertex that face the same way. PoissonRecon:
-    /// --colors (for its non-PLY input; PLY colours and other vertex data are carried there
-    /// automatically) and --data (its pull factor for extrapolating them into holes from
-    /// coarser depths; psr fills holes from their rims along the surface instead).
+    /// averaged over the samples around each vertex that face the same way. PoissonRecon: none
+    /// (it always carries a PLY input's colours and other vertex data, and a raw input's
+    /// colours under --colors; its --data is its pull factor for extrapolating them into holes
+    /// from coarser depths, where psr fills holes from their rims along the surface).
     #[arg(long)]
     no_attributes: bool,
+
+    /// The raw input's points have a colour after their normal: a .bnpts record is then 27
+    /// bytes (six float32, then r g b as bytes) instead of 24, which the file cannot tell. An
+    /// ASCII input is read by its count of numbers per line (9 = with colours) either way;
+    /// with --colors it must have them. PLY inputs declare their colours in the header, so it
+    /// changes nothing there. PoissonRecon: --colors.
+    #[arg(long)]
+    colors: bool,
+
+    /// Write a .ply output as ASCII PLY (larger and slower than binary; for reading by eye or
+    /// by tools without binary PLY). An .obj output is text anyway. PoissonRecon: --ascii.
+    #[arg(long)]
+    ascii: bool,
 
     /// Write a unit outward normal per vertex (nx ny nz, the gradient of the indicator
     /// function). PoissonRecon: --normals.
@@ -245,28 +269,83 @@ fn point3(text: &str) -> Result<[f64; 3], String> {
     }
 }
 
-/// The value of `--in`: a file psr can read, which is PLY (the name says so).
-fn ply_input(name: OsString) -> Result<PathBuf, String> {
-    ply_path(name, "psr reads point clouds from PLY files only")
+/// The formats `--in` reads, by extension.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum InputFormat {
+    /// PLY, ASCII or binary (`psr::ply`).
+    Ply,
+    /// PoissonRecon's binary points (`psr::npts::read_binary`).
+    Bnpts,
+    /// PoissonRecon's ASCII points (`psr::npts::read_ascii`).
+    Ascii,
 }
 
-/// The value of `--out`: psr writes binary PLY, so the name must say PLY; a mesh.obj that holds
-/// PLY would mislead whatever opens it.
-fn ply_output(name: OsString) -> Result<PathBuf, String> {
-    ply_path(name, "psr writes meshes as binary PLY only")
+/// The extensions `--in` accepts (any case), in the order the messages list them.
+const INPUT_EXTENSIONS: [(&str, InputFormat); 4] = [
+    ("ply", InputFormat::Ply),
+    ("bnpts", InputFormat::Bnpts),
+    ("npts", InputFormat::Ascii),
+    ("xyz", InputFormat::Ascii),
+];
+
+/// The formats `--out` writes, by extension.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum OutputFormat {
+    /// PLY, binary or ASCII (`psr::ply::write_mesh_with`).
+    Ply,
+    /// Wavefront OBJ (`psr::obj::write_mesh`).
+    Obj,
 }
 
-/// `name` as a path if its extension is `.ply` (any case); otherwise why not.
-fn ply_path(name: OsString, what: &str) -> Result<PathBuf, String> {
-    let path = PathBuf::from(name);
+/// The extensions `--out` accepts (any case).
+const OUTPUT_EXTENSIONS: [(&str, OutputFormat); 2] =
+    [("ply", OutputFormat::Ply), ("obj", OutputFormat::Obj)];
+
+/// The format of `path` among `known` by its extension (any case), or a message that lists
+/// the extensions accepted: a name psr does not know is refused rather than guessed at.
+fn format_of<F: Copy>(path: &Path, known: &[(&str, F)], what: &str) -> Result<F, String> {
+    let list: Vec<String> = known.iter().map(|(ext, _)| format!(".{ext}")).collect();
+    let list = match list.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
+    };
     match path.extension() {
-        Some(ext) if ext.eq_ignore_ascii_case("ply") => Ok(path),
-        Some(ext) => Err(format!(
-            "{what}: give a file name ending in .ply, not .{}",
-            ext.to_string_lossy()
+        Some(ext) => known
+            .iter()
+            .find(|(known, _)| ext.eq_ignore_ascii_case(known))
+            .map(|&(_, format)| format)
+            .ok_or_else(|| {
+                format!(
+                    "{what} {list} files: give a file name ending in one of those, not .{}",
+                    ext.to_string_lossy()
+                )
+            }),
+        None => Err(format!(
+            "{what} {list} files: give a file name ending in one of those"
         )),
-        None => Err(format!("{what}: give a file name ending in .ply")),
     }
+}
+
+fn input_format(path: &Path) -> Result<InputFormat, String> {
+    format_of(path, &INPUT_EXTENSIONS, "psr reads point clouds from")
+}
+
+fn output_format(path: &Path) -> Result<OutputFormat, String> {
+    format_of(path, &OUTPUT_EXTENSIONS, "psr writes meshes to")
+}
+
+/// The value of `--in`: a file whose name says a format psr reads.
+fn input_path(name: OsString) -> Result<PathBuf, String> {
+    let path = PathBuf::from(name);
+    input_format(&path).map(|_| path)
+}
+
+/// The value of `--out`: a file whose name says a format psr writes (a mesh.stl that held PLY
+/// would mislead whatever opens it).
+fn output_path(name: OsString) -> Result<PathBuf, String> {
+    let path = PathBuf::from(name);
+    output_format(&path).map(|_| path)
 }
 
 impl Args {
@@ -502,7 +581,7 @@ fn run(args: &Args) -> Result<(), Failure> {
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
     let mut progress = ProgressLine::default();
     let start = Instant::now();
-    let mut cloud = ply::read_points(&args.input).map_err(|e| Failure::Run(e.to_string()))?;
+    let mut cloud = read_input(args)?;
     let normals_from = oriented_normals(args, &mut cloud, &mut |stage, fraction| {
         if show_progress {
             progress.update(stage, fraction);
@@ -585,8 +664,7 @@ fn run(args: &Args) -> Result<(), Failure> {
         mesh.densities = Vec::new();
     }
     let start = Instant::now();
-    let options = ply::WriteOptions::default().with_color_type(color_type);
-    ply::write_mesh_with(&args.output, &mesh, &options).map_err(|e| Failure::Run(e.to_string()))?;
+    write_output(args, &mesh, color_type)?;
     let write_seconds = start.elapsed().as_secs_f64();
 
     if args.verbose {
@@ -609,6 +687,64 @@ fn run(args: &Args) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// Reads the input in the format its name says.
+fn read_input(args: &Args) -> Result<ply::PlyPoints, Failure> {
+    let format = input_format(&args.input).map_err(Failure::Usage)?;
+    match format {
+        InputFormat::Ply => ply::read_points(&args.input).map_err(|e| Failure::Run(e.to_string())),
+        InputFormat::Bnpts => npts::read_binary(&args.input, args.colors).map_err(|e| {
+            Failure::Run(if e.kind() == std::io::ErrorKind::InvalidData {
+                format!("{e} (.bnpts records are 24 bytes, 27 with --colors)")
+            } else {
+                e.to_string()
+            })
+        }),
+        InputFormat::Ascii => {
+            let cloud = npts::read_ascii(&args.input).map_err(|e| Failure::Run(e.to_string()))?;
+            if args.colors && cloud.colors.is_none() && !cloud.is_empty() {
+                return Err(Failure::Usage(format!(
+                    "--colors was given but {} has no colours: a coloured point is \
+                     x y z nx ny nz r g b, 9 numbers on a line",
+                    args.input.display()
+                )));
+            }
+            Ok(cloud)
+        }
+    }
+}
+
+/// Writes the mesh in the format the output's name says.
+fn write_output(args: &Args, mesh: &Mesh, color_type: ply::ColorType) -> Result<(), Failure> {
+    let format = output_format(&args.output).map_err(Failure::Usage)?;
+    let written = match format {
+        OutputFormat::Ply => {
+            let options = ply::WriteOptions::default()
+                .with_color_type(color_type)
+                .with_format(if args.ascii {
+                    ply::PlyFormat::Ascii
+                } else {
+                    ply::PlyFormat::BinaryLittleEndian
+                });
+            ply::write_mesh_with(&args.output, mesh, &options)
+        }
+        OutputFormat::Obj => {
+            let mut left_out: Vec<String> = Vec::new();
+            if !mesh.densities.is_empty() {
+                left_out.push("the density (value)".to_string());
+            }
+            left_out.extend(mesh.channels.iter().map(|c| c.name.clone()));
+            if args.verbose && !left_out.is_empty() {
+                eprintln!(
+                    "psr: OBJ has no place for {}; not written (a .ply output keeps them)",
+                    left_out.join(", ")
+                );
+            }
+            obj::write_mesh(&args.output, mesh)
+        }
+    };
+    written.map_err(|e| Failure::Run(e.to_string()))
 }
 
 /// The attributes the points carry onto the mesh, for --verbose: "" or ", carrying colors

@@ -42,38 +42,54 @@ fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// Proves: an output name whose extension psr does not write is refused before anything runs,
+/// with a message naming the option, the extensions accepted and the one given.
 #[test]
-fn an_output_name_that_is_not_ply_is_a_usage_error() {
+fn an_unknown_output_extension_is_a_usage_error_listing_the_accepted_ones() {
     let dir = scratch("out-ext");
     let kitten = kitten();
-    for name in ["mesh.obj", "mesh.stl", "mesh", "mesh.ply.gz"] {
+    for (name, given) in [
+        ("mesh.stl", ", not .stl"),
+        ("mesh.off", ", not .off"),
+        ("mesh.ply.gz", ", not .gz"),
+        ("mesh", "one of those"),
+    ] {
         let out_path = dir.join(name);
         let out = psr_on(&kitten, &out_path, &["--depth", "4"]);
         let message = stderr(&out);
         assert_eq!(out.status.code(), Some(2), "--out {name}: {message}");
         assert!(
-            message.contains("--out") && message.contains("binary PLY") && message.contains(".ply"),
-            "--out {name}: the message should name the option, what psr writes and the extension it wants: {message}"
+            message.contains("--out")
+                && message.contains("psr writes meshes to .ply or .obj files")
+                && message.contains(given),
+            "--out {name}: the message should name the option, the extensions psr writes and \
+             the one given: {message}"
         );
         assert!(!out_path.exists(), "--out {name} was written anyway");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Proves: an input name whose extension psr does not read is refused, listing the
+/// extensions it reads (PoissonRecon would read it as ASCII whatever it holds).
 #[test]
-fn an_input_name_that_is_not_ply_is_a_usage_error() {
+fn an_unknown_input_extension_is_a_usage_error_listing_the_accepted_ones() {
     let dir = scratch("in-ext");
-    let xyz = dir.join("cloud.xyz");
-    std::fs::write(&xyz, "0 0 0 0 0 1\n").unwrap();
     let out_path = dir.join("mesh.ply");
-    let out = psr_on(&xyz, &out_path, &[]);
-    let message = stderr(&out);
-    assert_eq!(out.status.code(), Some(2), "{message}");
-    assert!(
-        message.contains("--in") && message.contains("PLY") && message.contains(".xyz"),
-        "{message}"
-    );
-    assert!(!out_path.exists());
+    for name in ["cloud.pts", "cloud.txt", "cloud"] {
+        let input = dir.join(name);
+        std::fs::write(&input, "0 0 0 0 0 1\n").unwrap();
+        let out = psr_on(&input, &out_path, &[]);
+        let message = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{name}: {message}");
+        assert!(
+            message.contains("--in")
+                && message
+                    .contains("psr reads point clouds from .ply, .bnpts, .npts or .xyz files"),
+            "{name}: {message}"
+        );
+        assert!(!out_path.exists());
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -187,7 +203,9 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--trim-quantile", "none"),
         ("--min-piece-area", "SurfaceTrimmer --aRatio"),
         ("--min-piece-triangles", "none"),
-        ("--no-attributes", "--colors"),
+        ("--no-attributes", "none"),
+        ("--colors", "--colors"),
+        ("--ascii", "--ascii"),
         ("--vertex-normals", "--normals"),
         ("--quiet", "none"),
         ("--verbose", "--verbose"),
@@ -653,5 +671,210 @@ fn colours_and_other_properties_are_carried_onto_the_mesh() {
         !header.contains("red") && !header.contains("intensity") && !header.contains("nx"),
         "{header}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Runs psr on `input` writing `output` with `extra`, and asserts that it succeeded.
+fn reconstruct(input: &Path, output: &Path, extra: &[&str]) {
+    let out = psr_on(input, output, extra);
+    assert!(
+        out.status.success(),
+        "psr --in {} --out {} {extra:?}: {}",
+        input.display(),
+        output.display(),
+        stderr(&out)
+    );
+}
+
+/// Proves: the kitten as PoissonRecon's ASCII points (x y z nx ny nz, .npts) and as positions
+/// alone (x y z, .xyz: normals estimated) gives the same mesh as the same points in PLY, to
+/// the bit (the text holds each float exactly).
+#[test]
+fn ascii_points_with_and_without_normals_are_read_like_ply() {
+    let dir = scratch("ascii-in");
+    let cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
+    let with_normals = dir.join("kitten.npts");
+    psr::npts::write_ascii(&with_normals, &cloud).unwrap();
+    let first = std::fs::read_to_string(&with_normals).unwrap();
+    assert_eq!(first.lines().next().unwrap().split(' ').count(), 6);
+    let mut positions_only = psr::ply::PlyPoints::default();
+    positions_only.positions = cloud.positions.clone();
+    let without_normals = dir.join("kitten.XYZ");
+    psr::npts::write_ascii(&without_normals, &positions_only).unwrap();
+    let bare_ply = kitten_without_normals(&dir);
+
+    for (ascii, ply, name) in [
+        (&with_normals, kitten(), "normals"),
+        (&without_normals, bare_ply, "estimated"),
+    ] {
+        let from_ascii = dir.join(format!("{name}-ascii.ply"));
+        let from_ply = dir.join(format!("{name}-ply.ply"));
+        reconstruct(ascii, &from_ascii, &["--depth", "5", "--quiet"]);
+        reconstruct(&ply, &from_ply, &["--depth", "5", "--quiet"]);
+        let mesh = psr::ply::read_mesh(&from_ascii).unwrap();
+        assert!(mesh.1.len() > 1000, "{name}: {} triangles", mesh.1.len());
+        assert_eq!(mesh, psr::ply::read_mesh(&from_ply).unwrap(), "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: an ASCII file whose lines disagree is a run error naming the file and the line, and
+/// --colors on an ASCII file without colours is a usage error.
+#[test]
+fn bad_ascii_points_are_refused_naming_the_line() {
+    let dir = scratch("ascii-bad");
+    let input = dir.join("cloud.npts");
+    std::fs::write(
+        &input,
+        "# x y z nx ny nz\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 1\n",
+    )
+    .unwrap();
+    let out_path = dir.join("mesh.ply");
+    let out = psr_on(&input, &out_path, &["--depth", "4"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("cloud.npts: line 4: 5 numbers, but line 2 (the first point) has 6"),
+        "{}",
+        stderr(&out)
+    );
+    std::fs::write(&input, "0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 1 0\n").unwrap();
+    let out = psr_on(&input, &out_path, &["--depth", "4", "--colors"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--colors"), "{}", stderr(&out));
+    assert!(!out_path.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: the kitten as .bnpts gives the same mesh as the PLY; with colours (--colors, 27-byte
+/// records) the colours reach the mesh, and the wrong layout is refused with a hint.
+#[test]
+fn bnpts_points_are_read_with_and_without_colours() {
+    let dir = scratch("bnpts");
+    let cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
+    let plain = dir.join("kitten.bnpts");
+    psr::npts::write_binary(&plain, &cloud).unwrap();
+    assert_eq!(
+        std::fs::metadata(&plain).unwrap().len(),
+        24 * cloud.len() as u64
+    );
+    let from_bnpts = dir.join("bnpts.ply");
+    let from_ply = dir.join("ply.ply");
+    reconstruct(&plain, &from_bnpts, &["--depth", "5", "--quiet"]);
+    reconstruct(&kitten(), &from_ply, &["--depth", "5", "--quiet"]);
+    assert_eq!(
+        psr::ply::read_mesh(&from_bnpts).unwrap(),
+        psr::ply::read_mesh(&from_ply).unwrap()
+    );
+
+    let (coloured_ply, _) = coloured_kitten(&dir);
+    let mut coloured = psr::ply::read_point_cloud(&coloured_ply).unwrap();
+    coloured.channels.clear();
+    let rgb = dir.join("kitten_rgb.bnpts");
+    psr::npts::write_binary(&rgb, &coloured).unwrap();
+    let mesh_path = dir.join("rgb.ply");
+    reconstruct(&rgb, &mesh_path, &["--depth", "5", "--quiet", "--colors"]);
+    let header = ply_header(&mesh_path);
+    assert!(header.contains("property uchar red"), "{header}");
+    let mesh = psr::ply::read_points(&mesh_path).unwrap();
+    let Some(psr::Colors::Rgb(colors)) = &mesh.colors else {
+        panic!("RGB colours expected")
+    };
+    assert!(
+        colors.iter().all(|c| (c[1] - 0.5).abs() < 0.01),
+        "green is 128/255 everywhere"
+    );
+
+    // 27-byte records read as 24-byte ones: 5,210 × 27 is not a multiple of 24.
+    let out = psr_on(&rgb, &dir.join("wrong.ply"), &["--depth", "4"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("not a whole number of 24-byte records")
+            && stderr(&out).contains("27 with --colors"),
+        "{}",
+        stderr(&out)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: --ascii writes ASCII PLY holding the same mesh as the binary output (positions to
+/// the bit, density and normals as properties).
+#[test]
+fn ascii_ply_output_holds_the_binary_mesh() {
+    let dir = scratch("ascii-out");
+    let binary = dir.join("binary.ply");
+    let ascii = dir.join("ascii.ply");
+    let args = ["--depth", "5", "--quiet", "--vertex-normals"];
+    reconstruct(&kitten(), &binary, &args);
+    reconstruct(&kitten(), &ascii, &[&args[..], &["--ascii"]].concat());
+    let header = ply_header(&ascii);
+    assert!(header.starts_with("ply\nformat ascii 1.0\n"), "{header}");
+    assert!(
+        header.contains("property float value\n")
+            && header.contains("property list uchar int vertex_indices"),
+        "{header}"
+    );
+    assert_eq!(
+        psr::ply::read_mesh(&ascii).unwrap(),
+        psr::ply::read_mesh(&binary).unwrap()
+    );
+    assert_eq!(
+        psr::ply::read_point_cloud(&ascii).unwrap(),
+        psr::ply::read_point_cloud(&binary).unwrap(),
+        "the vertices with their normals and density"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: an .obj output holds the PLY output's mesh (the same vertices and triangles,
+/// 1-based), with a vn per vertex under --vertex-normals and `v x y z r g b` when coloured;
+/// --verbose says what OBJ cannot hold.
+#[test]
+fn obj_output_holds_the_ply_mesh() {
+    let dir = scratch("obj-out");
+    let (input, _) = coloured_kitten(&dir);
+    let ply = dir.join("mesh.ply");
+    let obj = dir.join("mesh.OBJ");
+    reconstruct(
+        &input,
+        &ply,
+        &["--depth", "5", "--quiet", "--vertex-normals"],
+    );
+    let out = psr_on(
+        &input,
+        &obj,
+        &["--depth", "5", "--vertex-normals", "--verbose"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("OBJ has no place for the density (value), intensity, label"),
+        "{}",
+        stderr(&out)
+    );
+    let (positions, triangles) = psr::obj::read_mesh(&obj).unwrap();
+    assert_eq!(
+        (positions, triangles),
+        psr::ply::read_mesh(&ply).unwrap(),
+        "the same mesh"
+    );
+    let text = std::fs::read_to_string(&obj).unwrap();
+    let vertices: Vec<&str> = text.lines().filter(|l| l.starts_with("v ")).collect();
+    let normals = text.lines().filter(|l| l.starts_with("vn ")).count();
+    let faces: Vec<&str> = text.lines().filter(|l| l.starts_with("f ")).collect();
+    assert_eq!(normals, vertices.len());
+    assert!(
+        vertices.iter().all(|v| v.split(' ').count() == 7),
+        "v x y z r g b"
+    );
+    let indices: Vec<u64> = faces
+        .iter()
+        .flat_map(|f| f.split(' ').skip(1))
+        .map(|corner| {
+            let (v, n) = corner.split_once("//").expect("v//n corners");
+            assert_eq!(v, n);
+            v.parse().unwrap()
+        })
+        .collect();
+    assert_eq!(indices.iter().min(), Some(&1), "1-based");
+    assert_eq!(indices.iter().max(), Some(&(vertices.len() as u64)));
     let _ = std::fs::remove_dir_all(&dir);
 }
