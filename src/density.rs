@@ -14,9 +14,19 @@
 //!   that count is n. It is the paper's min(D, D + log₄(W/W̄)) with the reference density tied to
 //!   a sample count (PoissonRecon's `samplesPerNode`) instead of the mean, so uniformly dense
 //!   scans keep their full depth.
+//!
+//! Where W(s) < n the kernel depth is finer than the sampling, and W there is mostly the
+//! sample's own splat (≈ 0.2–0.4 at any depth), which would put every sample, however sparse or
+//! isolated, within about a level of D̂. So the counts are also kept at every coarser depth
+//! (each restricted from the next finer one), and such a sample's density is read at coarser
+//! and coarser depths d until W_d(s) ≥ n; its depth lies between d and d + 1 by the counts seen
+//! at the two (d + ln(W_d/n) / ln(W_d/W_{d+1})), and its area is (115/192)·h_d²/W_d. This is
+//! what PoissonRecon does too. It keeps the tree, the splat and the screening from following a
+//! requested depth beyond what the samples resolve (issue 16's "bumps": exact samples of a box
+//! came out less accurate at depth 12 than unscreened), and gives stray samples a coarse depth.
 
 use crate::bspline::stencil27;
-use crate::grid::{morton, KeyMap};
+use crate::grid::{morton, unmorton, KeyMap};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -44,15 +54,16 @@ fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
     out
 }
 
-/// The splatted sample counts at the kernel depth.
+/// The splatted sample counts at the kernel depth and at every coarser depth.
 pub struct DensityField {
     pub depth: u32,
-    inv_h: f64,
-    counts: KeyMap<f64>,
+    /// `levels[d]`: the counts at depth d, for d in 0..=depth.
+    levels: Vec<KeyMap<f64>>,
 }
 
 impl DensityField {
-    /// Splats a unit weight per sample (times its confidence, when given).
+    /// Splats a unit weight per sample (times its confidence, when given) at `depth`, and
+    /// restricts the counts to every coarser depth.
     pub fn splat(positions: &[DVec3], confidence: Option<&[f64]>, depth: u32) -> Self {
         let inv_h = (depth as f64).exp2();
         let mut counts: KeyMap<f64> = KeyMap::default();
@@ -62,16 +73,24 @@ impl DensityField {
                 *counts.entry(morton(node)).or_insert(0.0) += w * c;
             }
         }
-        DensityField {
-            depth,
-            inv_h,
-            counts,
+        let mut levels = vec![counts];
+        for _ in 0..depth {
+            let coarser = restrict(levels.last().expect("the kernel depth's counts"));
+            levels.push(coarser);
         }
+        levels.reverse();
+        DensityField { depth, levels }
     }
 
-    /// W(q) = Σ_o count_o B_o(q).
+    /// W(q) = Σ_o count_o B_o(q) at the kernel depth.
     pub fn evaluate(&self, q: DVec3) -> f64 {
-        let (c, w) = stencil27(q, self.inv_h);
+        self.evaluate_at(self.depth, q)
+    }
+
+    /// W_d(q) = Σ_o count_o B_o(q) over the depth-d counts, d ≤ the kernel depth.
+    pub fn evaluate_at(&self, depth: u32, q: DVec3) -> f64 {
+        let counts = &self.levels[depth as usize];
+        let (c, w) = stencil27(q, (depth as f64).exp2());
         let mut sum = 0.0;
         for (k, wz) in w[2].iter().enumerate() {
             for (j, wy) in w[1].iter().enumerate() {
@@ -81,7 +100,7 @@ impl DensityField {
                         c[1] - 1 + j as i32,
                         c[2] - 1 + k as i32,
                     ]);
-                    if let Some(n) = self.counts.get(&key) {
+                    if let Some(n) = counts.get(&key) {
                         sum += n * wx * wy * wz;
                     }
                 }
@@ -89,6 +108,33 @@ impl DensityField {
         }
         sum
     }
+}
+
+/// The counts of one depth coarser: each node's count, as a mass at its centre, splatted
+/// trilinearly onto the coarser nodes. A centre lies a quarter of a coarse width from the
+/// nearest coarse centre on each axis, so it gives ¾ to that node and ¼ to the next one away
+/// (total mass kept). Nodes are visited in key order, so the sums do not depend on the map's
+/// layout.
+fn restrict(fine: &KeyMap<f64>) -> KeyMap<f64> {
+    let mut nodes: Vec<(u64, f64)> = fine.iter().map(|(&k, &v)| (k, v)).collect();
+    nodes.sort_unstable_by_key(|n| n.0);
+    let mut coarse: KeyMap<f64> = KeyMap::default();
+    coarse.reserve(nodes.len() / 2);
+    for (key, count) in nodes {
+        let node = unmorton(key);
+        let axis = node.map(|j| {
+            let i = j.div_euclid(2);
+            [(i, 0.75), (if j % 2 == 0 { i - 1 } else { i + 1 }, 0.25)]
+        });
+        for (x, wx) in axis[0] {
+            for (y, wy) in axis[1] {
+                for (z, wz) in axis[2] {
+                    *coarse.entry(morton([x, y, z])).or_insert(0.0) += count * wx * wy * wz;
+                }
+            }
+        }
+    }
+    coarse
 }
 
 /// Per-sample results of the density stage (from W(s), the density at each sample, which is
@@ -123,41 +169,61 @@ pub fn quantiles(values: &[f64]) -> Vec<f32> {
 }
 
 /// Evaluates W at every sample and derives its area and depth.
+///
+/// Where the kernel depth sees at least `samples_per_node` samples around a sample, its depth
+/// is D̂ + log₄(W/n) and its area (115/192)·h²/W as in the module documentation. Where it sees
+/// fewer (sparse sampling, a stray sample, the edge of a scan), W at the kernel depth says
+/// little: a sample's own splat alone gives W ≈ 0.2–0.4 at any depth, so every sample, however
+/// isolated, would get a depth within about one level of D̂ and an area of a few kernel cells.
+/// Instead the density is read at coarser and coarser depths until a node's neighbourhood
+/// holds n samples, and the depth is placed between the last two depths by the counts actually
+/// seen there (rather than assuming ×4 a depth, which holds only on a well-sampled surface):
+/// d + ln(W_d/n) / ln(W_d/W_{d+1}), and the area is read at depth d. A sample whose
+/// neighbourhood never holds n samples gets depth 0.
 pub fn estimate(
     field: &DensityField,
     positions: &[DVec3],
     max_depth: u32,
     samples_per_node: f64,
 ) -> SampleDensity {
-    let h2 = (-2.0 * field.depth as f64).exp2();
-    let density: Vec<f64> = positions.par_iter().map(|&p| field.evaluate(p)).collect();
-    // A sample always lies within the support of its own splat, so W(s) > 0 unless its
-    // confidence is 0; such samples get no area and the coarsest depth.
-    let area = density
-        .iter()
-        .map(|&w| {
-            if w > 0.0 {
-                PLANE_KERNEL_PEAK * h2 / w
-            } else {
-                0.0
+    let kernel_depth = field.depth;
+    let per_sample: Vec<(f64, f64, f64)> = positions
+        .par_iter()
+        .map(|&p| {
+            let w = field.evaluate(p);
+            if w <= 0.0 {
+                // A sample always lies within the support of its own splat, so W(s) > 0 unless
+                // its confidence is 0: such samples get no area and the coarsest depth.
+                return (w, 0.0, 0.0);
             }
-        })
-        .collect();
-    let depth = density
-        .iter()
-        .map(|&w| {
-            if w > 0.0 {
-                (field.depth as f64 + (w / samples_per_node).log2() * 0.5)
-                    .clamp(0.0, max_depth as f64)
-            } else {
-                0.0
+            if w >= samples_per_node {
+                let depth = kernel_depth as f64 + (w / samples_per_node).log2() * 0.5;
+                let area = PLANE_KERNEL_PEAK * (-2.0 * kernel_depth as f64).exp2() / w;
+                return (w, area, depth.min(max_depth as f64));
             }
+            let mut finer = w;
+            let mut d = kernel_depth;
+            while d > 0 {
+                d -= 1;
+                let coarser = field.evaluate_at(d, p);
+                if coarser >= samples_per_node {
+                    let area = PLANE_KERNEL_PEAK * (-2.0 * d as f64).exp2() / coarser;
+                    let step = if coarser > finer {
+                        ((coarser / samples_per_node).ln() / (coarser / finer).ln()).min(1.0)
+                    } else {
+                        0.0
+                    };
+                    return (w, area, (d as f64 + step).min(max_depth as f64));
+                }
+                finer = coarser;
+            }
+            (w, PLANE_KERNEL_PEAK / finer, 0.0)
         })
         .collect();
     SampleDensity {
-        area,
-        depth,
-        quantiles: quantiles(&density),
+        area: per_sample.iter().map(|s| s.1).collect(),
+        depth: per_sample.iter().map(|s| s.2).collect(),
+        quantiles: quantiles(&per_sample.iter().map(|s| s.0).collect::<Vec<_>>()),
     }
 }
 
@@ -278,6 +344,69 @@ mod tests {
             (mean_area / (s * s) - 1.0).abs() < 0.02,
             "mean area {mean_area} vs {}",
             s * s
+        );
+    }
+
+    /// Proves that a sampling sparser than the kernel depth's nodes gets the depth and area its
+    /// spacing implies, not those its own splat suggests: a plane sampled every 1/64 (16 kernel
+    /// nodes of depth 8 per sample) has n = 1.5 samples per node of width h where
+    /// (115/192)·(h·64)² = 1.5, h = 1/40.4, depth 5.34; the area per sample is (1/64)².
+    /// Read at the kernel depth alone, W ≈ 0.3 (mostly the sample's own splat) would give depth
+    /// 8 + log₄(0.3/1.5) ≈ 6.8 and an area of 2 kernel cells, an eighth of the true one.
+    #[test]
+    fn sparse_sampling_is_read_at_the_depth_where_a_node_holds_enough_samples() {
+        let s = 1.0 / 64.0;
+        let z = 0.5 + 0.3 / 256.0;
+        let mut pts = Vec::new();
+        for i in 8..56 {
+            for j in 8..56 {
+                pts.push(DVec3::new((i as f64 + 0.37) * s, (j as f64 + 0.61) * s, z));
+            }
+        }
+        let field = DensityField::splat(&pts, None, 8);
+        let centre = pts.len() / 2 + 24;
+        let est = estimate(&field, &pts[centre..centre + 1], 10, 1.5);
+        let expected_depth = (64.0 * (115.0f64 / 192.0 / 1.5).sqrt()).log2();
+        assert!(
+            (est.depth[0] - expected_depth).abs() < 0.35,
+            "depth {} vs {expected_depth}",
+            est.depth[0]
+        );
+        assert!(
+            (est.area[0] / (s * s) - 1.0).abs() < 0.25,
+            "area {} vs {}",
+            est.area[0],
+            s * s
+        );
+    }
+
+    /// Proves that a stray sample, alone in its neighbourhood, is splatted coarse (a node must
+    /// reach the nearby surface's samples to hold n of them) instead of within a level of the
+    /// kernel depth as its own splat alone would suggest (W ≈ 0.3: depth ≈ 6.8 at kernel
+    /// depth 8).
+    #[test]
+    fn a_stray_sample_is_splatted_coarse() {
+        let mut pts = Vec::new();
+        for i in 0..256 {
+            for j in 0..256 {
+                pts.push(DVec3::new(
+                    (i as f64 + 0.5) / 256.0,
+                    (j as f64 + 0.5) / 256.0,
+                    0.3,
+                ));
+            }
+        }
+        let stray = DVec3::new(0.5, 0.5, 0.3 + 24.0 / 256.0);
+        pts.push(stray);
+        let field = DensityField::splat(&pts, None, 8);
+        let est = estimate(&field, &[stray, pts[100]], 10, 1.5);
+        assert!(est.depth[0] <= 5.0, "stray sample's depth {}", est.depth[0]);
+        // The plane's spacing is a kernel node's width: n = 1.5 samples per node at depth
+        // 8 − log₂(√(1.5·192/115)) = 7.34.
+        assert!(
+            est.depth[1] >= 7.0,
+            "surface sample's depth {}",
+            est.depth[1]
         );
     }
 
