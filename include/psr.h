@@ -496,6 +496,38 @@ typedef struct {
     const char *const *channel_names;
 } psr_point_arrays;
 
+/**
+ * How one depth's linear solve ended (psr_mesh_solve_stats). Set struct_size to
+ * sizeof(psr_depth_solve) before the call: it tells the library how much it may write.
+ */
+typedef struct {
+    /**
+     * The size of this struct as your header defines it (sizeof(psr_depth_solve)); set it
+     * before calling psr_mesh_solve_stats, which leaves it as it is.
+     */
+    size_t struct_size;
+    /**
+     * The octree depth of this solve.
+     */
+    uint32_t depth;
+    /**
+     * Conjugate-gradient iterations run.
+     */
+    uint32_t iterations;
+    /**
+     * Unknowns (octree nodes) at this depth.
+     */
+    uint64_t unknowns;
+    /**
+     * |b - Ax| / |b| at the end (0 when b = 0).
+     */
+    double relative_residual;
+    /**
+     * Wall seconds for this depth (right-hand side, operator set-up and iterations).
+     */
+    double seconds;
+} psr_depth_solve;
+
 
 
 #ifdef __cplusplus
@@ -599,6 +631,32 @@ psr_status psr_reconstructor_set_depth(psr_reconstructor *r, uint32_t depth);
 psr_status psr_reconstructor_get_depth(const psr_reconstructor *r, uint32_t *out);
 
 /**
+ * Sets the target width of the finest cells, in input units, which then chooses the depth
+ * instead of psr_reconstructor_set_depth: the smallest depth from 1 to 16 whose cells (the
+ * bounding cube's side, the points' bounding box's longest side times the scale, over 2^depth)
+ * are at most width wide; 16 when even those are wider. psr_mesh_depth reports the depth
+ * used. 0 turns it off (the default: the depth decides); otherwise finite and > 0.
+ * PoissonRecon --width (which, when > 0, likewise overrides --depth), Open3D's width argument
+ * of create_from_point_cloud_poisson (ignored there when depth is given); PCL has none.
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth (negative, NaN or
+ * infinite: PSR_STATUS_INVALID_PARAMETER).
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_width(psr_reconstructor *r, double width);
+
+/**
+ * Writes the target width of the finest cells to *out, 0 when it is off (the depth decides).
+ * r and out must not be NULL. Returns the statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_width(const psr_reconstructor *r, double *out);
+
+/**
  * Sets the depth down to which the octree is complete, so the coarse solution is defined
  * everywhere. Default 5, range 0 to 16 (values above depth act as depth).
  * PoissonRecon --fullDepth, PCL setMinDepth.
@@ -623,7 +681,8 @@ psr_status psr_reconstructor_get_full_depth(const psr_reconstructor *r, uint32_t
  * Sets the depth at which the sampling density is estimated. A negative value (the default,
  * -1) means automatic: depth - 2, at least 0. Range: negative, or 0 to 16; it must not exceed
  * depth, which psr_reconstructor_solve checks (PSR_STATUS_INVALID_PARAMETER), so setters may
- * come in any order. PoissonRecon --kernelDepth.
+ * come in any order; with a width set (psr_reconstructor_set_width) a larger value acts as
+ * the depth the width chooses. PoissonRecon --kernelDepth.
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
  *
@@ -1412,6 +1471,74 @@ psr_status psr_mesh_copy_colors(const psr_mesh *m, float *dst, size_t capacity_f
  * `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
  */
 psr_status psr_mesh_copy_channel(const psr_mesh *m, size_t index, float *dst, size_t capacity_floats);
+
+/**
+ * Writes to *out the maximum octree depth the reconstruction of m used: the depth set with
+ * psr_reconstructor_set_depth, or the one psr_reconstructor_set_width chose. 0 for a mesh no
+ * reconstruction made. A trimmed mesh reports the figures of the mesh it was cut from (so do
+ * the other functions here).
+ *
+ * m and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT or
+ * PSR_STATUS_INTERNAL_ERROR; *out is written only on success.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or valid for writes.
+ */
+psr_status psr_mesh_depth(const psr_mesh *m, uint32_t *out);
+
+/**
+ * Writes to *out the octree's finest depth: psr_mesh_depth's, or less when the sampling
+ * density put no sample that deep (sparse points at a high depth), where the tree and the
+ * surface stop (never above the full depth). psr_mesh_node_counts has this + 1 entries.
+ *
+ * m and out must not be NULL. Returns the statuses of psr_mesh_depth.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or valid for writes.
+ */
+psr_status psr_mesh_finest_depth(const psr_mesh *m, uint32_t *out);
+
+/**
+ * Copies the octree's node (unknown) counts per depth into out, index = depth, from 0 to
+ * psr_mesh_finest_depth; capacity is the number of uint64_t out can hold, and *count gets
+ * the number written. To ask for the count alone, pass out = NULL and capacity = 0: *count
+ * gets the number of entries there are. A mesh no reconstruction made has none.
+ *
+ * m and count must not be NULL; out may be NULL only with capacity 0. Returns PSR_STATUS_OK,
+ * PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (capacity > 0 but less than the
+ * entries; nothing is written, *count neither) or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or valid for writes of `capacity` values; `count`
+ * is NULL or valid for writes.
+ */
+psr_status psr_mesh_node_counts(const psr_mesh *m, uint64_t *out, size_t capacity, size_t *count);
+
+/**
+ * Number of per-depth solves of m, coarse to fine (psr_mesh_solve_stats' indices); 0 if m is
+ * NULL or no reconstruction made it.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh.
+ */
+size_t psr_mesh_solve_count(const psr_mesh *m);
+
+/**
+ * Writes how the solve at index (0 = the coarsest, up to psr_mesh_solve_count(m) - 1) ended
+ * into *out: its depth, unknowns, iterations, final relative residual and seconds. Set
+ * out->struct_size = sizeof(psr_depth_solve) first: the library writes the fields it knows
+ * that fit in that size, and sets the rest of a larger (newer) struct to zero.
+ *
+ * m and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_ARGUMENT (index out of range, or out->struct_size smaller than this
+ * header's first psr_depth_solve or implausibly large: not set) or PSR_STATUS_INTERNAL_ERROR;
+ * *out is written only on success.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or points to a psr_depth_solve whose struct_size
+ * bytes are writable.
+ */
+psr_status psr_mesh_solve_stats(const psr_mesh *m, size_t index, psr_depth_solve *out);
 
 #ifdef __cplusplus
 }  // extern "C"

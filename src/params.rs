@@ -71,7 +71,17 @@ pub enum VertexPlacement {
 pub struct Params {
     /// Maximum octree depth D: the finest cells are 2^-D of the (scaled) bounding cube.
     /// Default 8, range 1..=16. PoissonRecon `--depth`, Open3D `depth`, PCL `setDepth`.
+    /// Ignored when [`Params::width`] is set, which chooses the depth instead.
     pub depth: u32,
+    /// Target width of the finest cells, in input units: when set, it overrides
+    /// [`Params::depth`] with the smallest depth whose finest cell (the bounding cube's side,
+    /// that is the bounding box's longest side × [`Params::scale`], over 2^depth) is at most
+    /// `width`, at least 1 and at most 16 ([`MAX_DEPTH`]; a finer width gets depth 16, whose
+    /// cells are wider than asked). The depth used is in [`crate::Stats::depth`]. Default
+    /// `None` (the depth decides); range: finite and positive. PoissonRecon `--width` (which
+    /// likewise overrides `--depth` when positive, by the same rule); Open3D's `width`
+    /// argument of `create_from_point_cloud_poisson` (ignored there when depth is given).
+    pub width: Option<f64>,
     /// Depth down to which the octree is complete (every node exists), so that the coarse
     /// solution is defined everywhere. Default 5, range 0..=depth (clamped to depth when larger).
     /// PoissonRecon `--fullDepth`, PCL `setMinDepth`.
@@ -120,6 +130,7 @@ impl Default for Params {
     fn default() -> Self {
         Params {
             depth: 8,
+            width: None,
             full_depth: 5,
             kernel_depth: None,
             samples_per_node: 1.5,
@@ -140,6 +151,13 @@ impl Params {
     /// These parameters with [`Params::depth`] set to `depth`.
     pub fn with_depth(mut self, depth: u32) -> Self {
         self.depth = depth;
+        self
+    }
+
+    /// These parameters with [`Params::width`] set to `width` (`None` lets
+    /// [`Params::depth`] decide again).
+    pub fn with_width(mut self, width: Option<f64>) -> Self {
+        self.width = width;
         self
     }
 
@@ -215,6 +233,28 @@ impl Params {
         self
     }
 
+    /// The maximum depth a reconstruction uses for a bounding cube of side `cube_side` (input
+    /// units): [`Params::depth`], or, when [`Params::width`] is set, the smallest depth in
+    /// 1..=16 whose cells `cube_side / 2^depth` are no wider than it (16 when none is).
+    pub fn depth_for_cube(&self, cube_side: f64) -> u32 {
+        let Some(width) = self.width else {
+            return self.depth;
+        };
+        (1..=MAX_DEPTH)
+            .find(|&d| cube_side / (d as f64).exp2() <= width)
+            .unwrap_or(MAX_DEPTH)
+    }
+
+    /// These parameters with the depth chosen for a bounding cube of side `cube_side`
+    /// ([`Params::depth_for_cube`]) and no width, as the pipeline runs them.
+    pub(crate) fn for_cube(&self, cube_side: f64) -> Params {
+        Params {
+            depth: self.depth_for_cube(cube_side),
+            width: None,
+            ..self.clone()
+        }
+    }
+
     /// The kernel depth actually used (resolves `None` to depth − 2).
     pub fn effective_kernel_depth(&self) -> u32 {
         self.kernel_depth
@@ -246,8 +286,22 @@ impl Params {
                 "an integer in 0..=16 (values above depth act as depth)",
             ));
         }
+        if let Some(width) = self.width {
+            if !(width.is_finite() && width > 0.0) {
+                return Err(bad("width", width, "a finite number > 0 (or no width)"));
+            }
+        }
         if let Some(k) = self.kernel_depth {
-            if k > self.depth {
+            // With a width the depth is only known once the points are, and a larger kernel
+            // depth acts as the depth chosen.
+            if self.width.is_some() && k > MAX_DEPTH {
+                return Err(bad(
+                    "kernel_depth",
+                    k,
+                    "an integer in 0..=16 (with a width, values above the chosen depth act as it)",
+                ));
+            }
+            if self.width.is_none() && k > self.depth {
                 return Err(bad("kernel_depth", k, "an integer in 0..=depth"));
             }
         }
@@ -293,5 +347,45 @@ impl Params {
             ));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Proves: a width picks the smallest depth whose cells (cube side / 2^depth) are no wider,
+    /// a cell exactly as wide included; at least 1 and at most 16; without a width the depth
+    /// stands.
+    #[test]
+    fn a_width_picks_the_smallest_depth_with_cells_no_wider() {
+        let with = |w: f64| Params::default().with_width(Some(w));
+        let side = 2.2;
+        assert_eq!(with(side / 128.0).depth_for_cube(side), 7, "exactly 2^-7");
+        assert_eq!(with(side / 128.0 * 0.999).depth_for_cube(side), 8);
+        assert_eq!(with(side / 128.0 * 1.001).depth_for_cube(side), 7);
+        assert_eq!(with(side * 10.0).depth_for_cube(side), 1, "never below 1");
+        assert_eq!(with(side * 1e-9).depth_for_cube(side), MAX_DEPTH, "capped");
+        assert_eq!(Params::default().with_depth(5).depth_for_cube(side), 5);
+        let resolved = with(side / 128.0).with_depth(11).for_cube(side);
+        assert_eq!((resolved.depth, resolved.width), (7, None));
+    }
+
+    /// Proves: a width must be finite and positive; with one, a kernel depth above the depth
+    /// field is allowed (it acts as the depth chosen), but not above 16.
+    #[test]
+    fn widths_are_checked_and_free_the_kernel_depth_from_the_depth_field() {
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let err = Params::default().with_width(Some(bad)).validate();
+            assert!(
+                matches!(err, Err(Error::InvalidParameter { name: "width", .. })),
+                "{bad}: {err:?}"
+            );
+        }
+        let p = Params::default().with_depth(4).with_kernel_depth(Some(9));
+        assert!(p.validate().is_err());
+        assert!(p.clone().with_width(Some(0.01)).validate().is_ok());
+        let p = p.with_width(Some(0.01)).with_kernel_depth(Some(17));
+        assert!(p.validate().is_err());
     }
 }

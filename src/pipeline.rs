@@ -140,8 +140,10 @@ pub(crate) fn run(
     clock.stats.points = points.len();
     clock.report(Stage::Points, 0.0)?;
 
-    // 1. Points: into the unit cube, in Morton order.
+    // 1. Points: into the unit cube, in Morton order. A width chooses the depth from the cube.
     let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
+    let params = &params.for_cube(map.size);
+    clock.stats.depth = params.depth;
     let mut samples = pool.install(|| Samples::in_morton_order(points, &map, params.depth))?;
     clock.done(Stage::Points)?;
 
@@ -177,6 +179,7 @@ pub(crate) fn run(
         )
     });
     let finest = tree.max_depth() as usize;
+    clock.stats.finest_depth = tree.max_depth();
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 

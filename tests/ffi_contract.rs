@@ -123,6 +123,7 @@ fn null_for_every_pointer_argument() {
 
         // Setters with a NULL handle.
         assert_eq!(psr_reconstructor_set_depth(null_r, 6), NULL);
+        assert_eq!(psr_reconstructor_set_width(null_r, 0.5), NULL);
         assert_eq!(psr_reconstructor_set_full_depth(null_r, 3), NULL);
         assert_eq!(psr_reconstructor_set_kernel_depth(null_r, 3), NULL);
         assert_eq!(psr_reconstructor_set_samples_per_node(null_r, 2.0), NULL);
@@ -142,6 +143,7 @@ fn null_for_every_pointer_argument() {
         let mut d = 77.0f64;
         let mut z = 77usize;
         assert_eq!(psr_reconstructor_get_depth(null_r, &mut u), NULL);
+        assert_eq!(psr_reconstructor_get_width(null_r, &mut d), NULL);
         assert_eq!(psr_reconstructor_get_full_depth(null_r, &mut u), NULL);
         assert_eq!(psr_reconstructor_get_kernel_depth(null_r, &mut i), NULL);
         assert_eq!(psr_reconstructor_get_samples_per_node(null_r, &mut f), NULL);
@@ -158,6 +160,7 @@ fn null_for_every_pointer_argument() {
 
         assert_eq!(psr_reconstructor_get_depth(r, ptr::null_mut()), NULL);
         assert!(last_error(r).contains("out is NULL"), "{}", last_error(r));
+        assert_eq!(psr_reconstructor_get_width(r, ptr::null_mut()), NULL);
         assert_eq!(psr_reconstructor_get_full_depth(r, ptr::null_mut()), NULL);
         assert_eq!(psr_reconstructor_get_kernel_depth(r, ptr::null_mut()), NULL);
         assert_eq!(
@@ -294,10 +297,37 @@ fn null_for_every_pointer_argument() {
         assert_eq!(psr_mesh_copy_positions(null_m, fbuf.as_mut_ptr(), 16), NULL);
         assert_eq!(psr_mesh_copy_triangles(null_m, ubuf.as_mut_ptr(), 16), NULL);
         assert_eq!(psr_mesh_copy_densities(null_m, fbuf.as_mut_ptr(), 16), NULL);
+        let mut nodes = [0u64; 4];
+        let mut solve = psr_depth_solve {
+            struct_size: std::mem::size_of::<psr_depth_solve>(),
+            depth: 77,
+            iterations: 77,
+            unknowns: 77,
+            relative_residual: 77.0,
+            seconds: 77.0,
+        };
+        assert_eq!(psr_mesh_depth(null_m, &mut u), NULL);
+        assert_eq!(psr_mesh_finest_depth(null_m, &mut u), NULL);
+        assert_eq!(
+            psr_mesh_node_counts(null_m, nodes.as_mut_ptr(), 4, &mut z),
+            NULL
+        );
+        assert_eq!(psr_mesh_solve_count(null_m), 0);
+        assert_eq!(psr_mesh_solve_stats(null_m, 0, &mut solve), NULL);
+        assert_eq!((u, z, solve.depth), (77, 77, 77));
         let m = tetrahedron();
         assert_eq!(psr_mesh_copy_positions(m, ptr::null_mut(), 16), NULL);
         assert_eq!(psr_mesh_copy_triangles(m, ptr::null_mut(), 16), NULL);
         assert_eq!(psr_mesh_copy_densities(m, ptr::null_mut(), 16), NULL);
+        assert_eq!(psr_mesh_depth(m, ptr::null_mut()), NULL);
+        assert_eq!(psr_mesh_finest_depth(m, ptr::null_mut()), NULL);
+        assert_eq!(
+            psr_mesh_node_counts(m, nodes.as_mut_ptr(), 4, ptr::null_mut()),
+            NULL
+        );
+        assert_eq!(psr_mesh_node_counts(m, ptr::null_mut(), 4, &mut z), NULL);
+        assert_eq!(psr_mesh_solve_stats(m, 0, ptr::null_mut()), NULL);
+        assert_eq!(z, 77);
         psr_mesh_free(m);
 
         psr_reconstructor_free(r);
@@ -343,6 +373,12 @@ fn new_handle_has_the_documented_defaults() {
             psr_status::Ok
         );
         assert_eq!(d, defaults.solver_tolerance);
+        assert_eq!(psr_reconstructor_get_width(r, &mut d), psr_status::Ok);
+        assert_eq!(
+            (d, defaults.width),
+            (0.0, None),
+            "no width: the depth decides"
+        );
         assert_eq!(point_count(r), 0);
         assert_eq!(last_error(r), "");
         psr_reconstructor_free(r);
@@ -411,6 +447,21 @@ fn setters_round_trip_and_reject_out_of_range_values_by_name() {
             psr_status::Ok
         );
         assert_eq!(d, 1e-7);
+        assert_eq!(psr_reconstructor_set_width(r, 0.25), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_width(r, &mut d), psr_status::Ok);
+        assert_eq!(d, 0.25);
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(
+                psr_reconstructor_set_width(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(last_error(r).contains("width"), "{}", last_error(r));
+        }
+        assert_eq!(psr_reconstructor_get_width(r, &mut d), psr_status::Ok);
+        assert_eq!(d, 0.25, "a rejected width leaves the width as it was");
+        assert_eq!(psr_reconstructor_set_width(r, 0.0), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_width(r, &mut d), psr_status::Ok);
+        assert_eq!(d, 0.0, "0 turns the width off");
 
         // Each bad value: INVALID_PARAMETER, a message naming the parameter, old value kept.
         let bad: [(psr_status, &str); 14] = [
@@ -1050,6 +1101,149 @@ fn mesh_arrays(m: *const psr_mesh) -> MeshArrays {
         );
         (p, t, d, psr_mesh_isovalue(m).to_bits())
     }
+}
+
+/// Proves: the figures a host reads through the C API are the Rust `Stats`: the depth used
+/// (here chosen by a width), the finest depth, the nodes per depth (a count query, a short
+/// buffer refused untouched) and every solve (an unset struct_size and an index past the end
+/// refused untouched); a mesh no reconstruction made reports none.
+#[test]
+fn mesh_figures_are_the_reconstructions_stats() {
+    let r = new_handle();
+    let (p, nrm) = sphere(3000, [0.1, -0.2, 0.3], 1.0);
+    let points =
+        psr::PointSet::from_slices(triples(&p).as_slice(), triples(&nrm).as_slice()).unwrap();
+    // Cube side about 2.2: a width of 0.05 needs 2^d >= 44, depth 6.
+    let params = psr::Params::default().with_width(Some(0.05));
+    let want = psr::reconstruct(&points, &params).unwrap().stats;
+    assert_eq!(want.depth, 6);
+    unsafe {
+        assert_eq!(psr_reconstructor_set_width(r, 0.05), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_add_points(r, p.as_ptr(), 0, nrm.as_ptr(), 0, 3000),
+            psr_status::Ok
+        );
+    }
+    let Some(m) = solve_or_skip(r, "mesh_figures_are_the_reconstructions_stats") else {
+        unsafe { psr_reconstructor_free(r) };
+        return;
+    };
+    unsafe {
+        psr_reconstructor_free(r);
+        let (mut depth, mut finest) = (0u32, 0u32);
+        assert_eq!(psr_mesh_depth(m, &mut depth), psr_status::Ok);
+        assert_eq!(psr_mesh_finest_depth(m, &mut finest), psr_status::Ok);
+        assert_eq!((depth, finest), (want.depth, want.finest_depth));
+
+        let mut count = 0usize;
+        assert_eq!(
+            psr_mesh_node_counts(m, ptr::null_mut(), 0, &mut count),
+            psr_status::Ok
+        );
+        assert_eq!(count, finest as usize + 1);
+        let mut short = vec![7u64; count - 1];
+        let mut unchanged = 99usize;
+        assert_eq!(
+            psr_mesh_node_counts(m, short.as_mut_ptr(), short.len(), &mut unchanged),
+            psr_status::BufferTooSmall
+        );
+        assert!(short.iter().all(|&n| n == 7) && unchanged == 99);
+        let mut nodes = vec![0u64; count + 2];
+        assert_eq!(
+            psr_mesh_node_counts(m, nodes.as_mut_ptr(), nodes.len(), &mut count),
+            psr_status::Ok
+        );
+        let want_nodes: Vec<u64> = want.nodes_per_depth.iter().map(|&n| n as u64).collect();
+        assert_eq!(&nodes[..count], &want_nodes[..]);
+        assert_eq!(&nodes[count..], &[0, 0], "nothing past the entries");
+
+        let solves = psr_mesh_solve_count(m);
+        assert_eq!(solves, want.solves.len());
+        assert!(solves > 0);
+        let size = std::mem::size_of::<psr_depth_solve>();
+        for (k, w) in want.solves.iter().enumerate() {
+            let mut s = psr_depth_solve {
+                struct_size: size,
+                depth: 0,
+                iterations: 0,
+                unknowns: 0,
+                relative_residual: 0.0,
+                seconds: 0.0,
+            };
+            assert_eq!(psr_mesh_solve_stats(m, k, &mut s), psr_status::Ok);
+            assert_eq!(s.struct_size, size, "left as the caller set it");
+            assert_eq!(
+                (s.depth, s.unknowns, s.iterations),
+                (w.depth, w.unknowns as u64, w.iterations)
+            );
+            // Same input, same parameters: the same residual bit for bit; timings differ.
+            assert_eq!(s.relative_residual, w.relative_residual);
+            assert!(s.seconds >= 0.0 && s.seconds.is_finite());
+        }
+        let sentinel = psr_depth_solve {
+            struct_size: size,
+            depth: 5,
+            iterations: 5,
+            unknowns: 5,
+            relative_residual: 5.0,
+            seconds: 5.0,
+        };
+        let mut s = sentinel;
+        assert_eq!(
+            psr_mesh_solve_stats(m, solves, &mut s),
+            psr_status::InvalidArgument
+        );
+        assert_eq!(s, sentinel, "an index past the end writes nothing");
+        for bad in [0, 8, size - 1, 1 << 20] {
+            s.struct_size = bad;
+            assert_eq!(
+                psr_mesh_solve_stats(m, 0, &mut s),
+                psr_status::InvalidArgument,
+                "struct_size {bad}"
+            );
+            assert_eq!(
+                (s.depth, s.unknowns),
+                (5, 5),
+                "a refused size writes nothing"
+            );
+        }
+        // A newer header's larger struct: the fields this library does not know are zeroed.
+        #[repr(C)]
+        struct Newer {
+            known: psr_depth_solve,
+            later: [u64; 2],
+        }
+        let mut newer = Newer {
+            known: sentinel,
+            later: [0xABAB; 2],
+        };
+        newer.known.struct_size = std::mem::size_of::<Newer>();
+        assert_eq!(psr_mesh_solve_stats(m, 0, &mut newer.known), psr_status::Ok);
+        assert_eq!(newer.known.depth, want.solves[0].depth);
+        assert_eq!(newer.later, [0, 0]);
+        psr_mesh_free(m);
+
+        // A mesh no reconstruction made: depth 0, no nodes, no solves.
+        let t = tetrahedron();
+        assert_eq!(psr_mesh_depth(t, &mut depth), psr_status::Ok);
+        assert_eq!(depth, 0);
+        assert_eq!(
+            psr_mesh_node_counts(t, ptr::null_mut(), 0, &mut count),
+            psr_status::Ok
+        );
+        assert_eq!(count, 0);
+        assert_eq!(psr_mesh_solve_count(t), 0);
+        assert_eq!(
+            psr_mesh_solve_stats(t, 0, &mut s),
+            psr_status::InvalidArgument
+        );
+        psr_mesh_free(t);
+    }
+}
+
+/// Flat x y z floats as triples.
+fn triples(flat: &[f32]) -> Vec<[f32; 3]> {
+    flat.chunks(3).map(|c| [c[0], c[1], c[2]]).collect()
 }
 
 #[test]

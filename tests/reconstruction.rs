@@ -703,6 +703,57 @@ fn assert_bit_identical(a: &Mesh, b: &Mesh, label: &str) {
     );
 }
 
+/// Proves: a width (PoissonRecon's `--width`) chooses the smallest depth whose finest cells,
+/// the bounding cube's side over 2^depth, are no wider, overriding `depth`, and gives the mesh
+/// of that depth asked for directly, bit for bit; `Stats` reports the depth used and the
+/// octree's finest depth, which sparse samples keep below it.
+#[test]
+fn a_width_chooses_the_depth_and_stats_report_it() {
+    let (positions, normals) = sample_sphere(20_000, 1.0, [0.0; 3], 17);
+    let points = point_set(&positions, &normals);
+    // The cube side as the pipeline computes it: the longest side of the bounding box × scale.
+    let extent = (0..3)
+        .map(|a| {
+            let (lo, hi) = positions.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                (lo.min(p[a] as f64), hi.max(p[a] as f64))
+            });
+            hi - lo
+        })
+        .fold(0.0, f64::max);
+    let side = extent * Params::default().scale as f64;
+    for (width, depth) in [(side / 128.0, 7), (side / 128.0 * 0.99, 8)] {
+        let label = format!("width {width} (depth {depth})");
+        let by_width = run(
+            &points,
+            &Params::default().with_depth(3).with_width(Some(width)),
+            &label,
+        );
+        assert_eq!(by_width.stats.depth, depth, "{label}");
+        assert!(by_width.stats.finest_depth <= depth, "{label}");
+        let by_depth = run(&points, &Params::default().with_depth(depth), &label);
+        assert_eq!(by_depth.stats.depth, depth, "{label}");
+        assert_eq!(by_width.stats.finest_depth, by_depth.stats.finest_depth);
+        assert_bit_identical(&by_width, &by_depth, &label);
+    }
+    // 200 points at depth 10: the density stops the tree above depth 10.
+    let (positions, normals) = sample_sphere(200, 1.0, [0.0; 3], 9);
+    let sparse = run(
+        &point_set(&positions, &normals),
+        &Params::default().with_depth(10),
+        "sparse",
+    );
+    eprintln!(
+        "sparse: depth {}, finest {}",
+        sparse.stats.depth, sparse.stats.finest_depth
+    );
+    assert_eq!(sparse.stats.depth, 10);
+    assert!(sparse.stats.finest_depth < 10, "{:?}", sparse.stats);
+    assert_eq!(
+        sparse.stats.nodes_per_depth.len(),
+        sparse.stats.finest_depth as usize + 1
+    );
+}
+
 /// Proves: the thread count does not change the result, not even in the last bit (Params
 /// documents "The result does not depend on it"): a 20k-point sphere and the kitten scan at
 /// depth 7, and the kitten at the default depth 8, with 1 and with 2 threads.

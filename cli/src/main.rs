@@ -1,7 +1,7 @@
 //! `psr`: reconstructs a watertight triangle mesh from a point cloud, oriented or not.
 //!
 //! ```text
-//! psr --in cloud.ply --out mesh.ply [--depth 8] [--full-depth 5] [--kernel-depth N]
+//! psr --in cloud.ply --out mesh.ply [--depth 8 | --width W] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
 //!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
@@ -82,6 +82,13 @@ struct Args {
     /// PoissonRecon: --depth.
     #[arg(long, value_name = "D", default_value_t = Params::default().depth)]
     depth: u32,
+
+    /// Target width of the finest cells, in input units (> 0): chooses the depth instead of
+    /// --depth (the smallest in 1..=16 whose cells, the bounding cube's side over 2^depth, are at
+    /// most W wide); the depth used is printed. PoissonRecon: --width (which also overrides
+    /// --depth when > 0).
+    #[arg(long, value_name = "W")]
+    width: Option<f64>,
 
     /// Depth down to which the octree is complete (0..=16; values above --depth act as it).
     /// PoissonRecon: --fullDepth.
@@ -354,6 +361,7 @@ impl Args {
     fn params(&self) -> Params {
         Params::default()
             .with_depth(self.depth)
+            .with_width(self.width)
             .with_full_depth(self.full_depth)
             .with_kernel_depth(self.kernel_depth)
             .with_samples_per_node(self.samples_per_node)
@@ -818,8 +826,15 @@ fn summary(mesh: &Mesh, reconstruct_seconds: f64, read_seconds: f64, write_secon
         ),
         None => String::new(),
     };
+    // The depth used (chosen by --width, or --depth), and the tree's finest where the samples'
+    // density stopped it above that.
+    let depth = if stats.finest_depth < stats.depth {
+        format!("depth {} (finest {})", stats.depth, stats.finest_depth)
+    } else {
+        format!("depth {}", stats.depth)
+    };
     format!(
-        "psr: {} points, {} nodes, {} vertices, {} triangles{trimmed}; {}{}total \
+        "psr: {} points, {depth}, {} nodes, {} vertices, {} triangles{trimmed}; {}{}total \
          {reconstruct_seconds:.2}s (read {read_seconds:.2}s, write {write_seconds:.2}s)",
         stats.points,
         stats.total_nodes(),
@@ -841,7 +856,11 @@ fn print_details(mesh: &Mesh) {
             .max()
             .unwrap_or(0),
     );
-    let mut out = String::from("psr: depth   unknowns  iterations  rel. residual  seconds\n");
+    let mut out = format!(
+        "psr: depth {} used, octree to depth {}\n",
+        stats.depth, stats.finest_depth
+    );
+    out.push_str("psr: depth   unknowns  iterations  rel. residual  seconds\n");
     for depth in 0..depths {
         let nodes = stats.nodes_per_depth.get(depth).copied().unwrap_or(0);
         out.push_str(&format!("psr: {depth:>5} {nodes:>10}"));

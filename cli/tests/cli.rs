@@ -118,6 +118,52 @@ fn a_parameter_out_of_range_is_a_usage_error_naming_the_option() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Proves: --width chooses the depth (the summary and --verbose say which), overriding
+/// --depth, and a width that is not > 0 is a usage error naming --width.
+#[test]
+fn a_width_chooses_the_depth_and_the_summary_says_which() {
+    let dir = scratch("width");
+    let kitten = kitten();
+    let out_path = dir.join("mesh.ply");
+    // The kitten's cube side, as psr computes it: the longest side of its box × 1.1.
+    let cloud = psr::ply::read_point_cloud(&kitten).unwrap();
+    let side = (0..3)
+        .map(|a| {
+            let (lo, hi) = cloud
+                .positions
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                    (lo.min(p[a] as f64), hi.max(p[a] as f64))
+                });
+            hi - lo
+        })
+        .fold(0.0, f64::max)
+        * 1.1f32 as f64;
+    let width = side / 100.0; // 2^6 < 100 <= 2^7: depth 7
+    let out = psr_on(
+        &kitten,
+        &out_path,
+        &["--depth", "3", "--width", &width.to_string(), "--verbose"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("points, depth 7"),
+        "the summary names the depth: {}",
+        stderr(&out)
+    );
+    assert!(
+        stderr(&out).contains("psr: depth 7 used"),
+        "{}",
+        stderr(&out)
+    );
+    for bad in ["--width=0", "--width=-1", "--width=nan"] {
+        let out = psr_on(&kitten, &out_path, &[bad]);
+        assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+        assert!(stderr(&out).contains("--width"), "{}", stderr(&out));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_missing_input_file_is_a_run_error() {
     let dir = scratch("missing");
@@ -180,6 +226,7 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--in", "--in"),
         ("--out", "--out"),
         ("--depth", "--depth"),
+        ("--width", "--width"),
         ("--full-depth", "--fullDepth"),
         ("--kernel-depth", "--kernelDepth"),
         ("--samples-per-node", "--samplesPerNode"),

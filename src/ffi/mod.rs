@@ -45,6 +45,9 @@
 //! - `attributes.rs`: `psr_point_arrays` (a struct that begins with its own size),
 //!   psr_point_arrays_init and psr_reconstructor_add_point_arrays (confidence, colours,
 //!   channels); psr_reconstructor_set_vertex_normals; the mesh's normals, colours and channels.
+//! - `stats.rs`: the mesh's figures (the Rust `Stats`): psr_mesh_depth, _finest_depth,
+//!   _node_counts, _solve_count and _solve_stats with `psr_depth_solve` (an out-struct that
+//!   begins with its own size).
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -75,6 +78,8 @@ mod normals;
 mod trim;
 // Points with confidence, colours and channels; the mesh's normals, colours and channels.
 mod attributes;
+// The mesh's figures: depths, nodes per depth, the solves (psr_depth_solve).
+mod stats;
 
 pub use self::attributes::{
     psr_mesh_channel, psr_mesh_channel_count, psr_mesh_channel_name, psr_mesh_color_components,
@@ -100,12 +105,13 @@ pub use self::params::{
     psr_reconstructor_get_samples_per_node, psr_reconstructor_get_scale,
     psr_reconstructor_get_solver_tolerance, psr_reconstructor_get_splatting,
     psr_reconstructor_get_threads, psr_reconstructor_get_vertex_placement,
-    psr_reconstructor_set_boundary, psr_reconstructor_set_depth, psr_reconstructor_set_full_depth,
-    psr_reconstructor_set_kernel_depth, psr_reconstructor_set_max_solver_iterations,
-    psr_reconstructor_set_point_weight, psr_reconstructor_set_samples_per_node,
-    psr_reconstructor_set_scale, psr_reconstructor_set_solver_tolerance,
-    psr_reconstructor_set_splatting, psr_reconstructor_set_threads,
-    psr_reconstructor_set_vertex_placement, psr_splatting, psr_vertex_placement,
+    psr_reconstructor_get_width, psr_reconstructor_set_boundary, psr_reconstructor_set_depth,
+    psr_reconstructor_set_full_depth, psr_reconstructor_set_kernel_depth,
+    psr_reconstructor_set_max_solver_iterations, psr_reconstructor_set_point_weight,
+    psr_reconstructor_set_samples_per_node, psr_reconstructor_set_scale,
+    psr_reconstructor_set_solver_tolerance, psr_reconstructor_set_splatting,
+    psr_reconstructor_set_threads, psr_reconstructor_set_vertex_placement,
+    psr_reconstructor_set_width, psr_splatting, psr_vertex_placement,
 };
 pub use self::points::{
     psr_reconstructor_add_points, psr_reconstructor_clear_points, psr_reconstructor_point_count,
@@ -117,6 +123,10 @@ pub use self::reconstructor::{
 pub use self::solve::psr_reconstructor_debug_panic_next_solve;
 pub use self::solve::{psr_reconstructor_set_progress_callback, psr_reconstructor_solve};
 pub use self::stage::{psr_progress_fn, psr_stage, psr_stage_string};
+pub use self::stats::{
+    psr_depth_solve, psr_mesh_depth, psr_mesh_finest_depth, psr_mesh_node_counts,
+    psr_mesh_solve_count, psr_mesh_solve_stats,
+};
 pub use self::status::{psr_status, psr_status_string};
 pub use self::trim::{
     psr_mesh_trim, psr_mesh_trim_density, psr_mesh_trim_depth, psr_trim_options,

@@ -99,6 +99,48 @@ pub unsafe extern "C" fn psr_reconstructor_get_depth(
     unsafe { get_param("psr_reconstructor_get_depth", r, out, |p| p.depth) }
 }
 
+/// Sets the target width of the finest cells, in input units, which then chooses the depth
+/// instead of psr_reconstructor_set_depth: the smallest depth from 1 to 16 whose cells (the
+/// bounding cube's side, the points' bounding box's longest side times the scale, over 2^depth)
+/// are at most width wide; 16 when even those are wider. psr_mesh_depth reports the depth
+/// used. 0 turns it off (the default: the depth decides); otherwise finite and > 0.
+/// PoissonRecon --width (which, when > 0, likewise overrides --depth), Open3D's width argument
+/// of create_from_point_cloud_poisson (ignored there when depth is given); PCL has none.
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth (negative, NaN or
+/// infinite: PSR_STATUS_INVALID_PARAMETER).
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_width(
+    r: *mut psr_reconstructor,
+    width: f64,
+) -> psr_status {
+    let width = (width != 0.0).then_some(width);
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe { set_param("psr_reconstructor_set_width", r, |p| p.width = width) }
+}
+
+/// Writes the target width of the finest cells to *out, 0 when it is off (the depth decides).
+/// r and out must not be NULL. Returns the statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_width(
+    r: *const psr_reconstructor,
+    out: *mut f64,
+) -> psr_status {
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_width", r, out, |p| {
+            p.width.unwrap_or(0.0)
+        })
+    }
+}
+
 /// Sets the depth down to which the octree is complete, so the coarse solution is defined
 /// everywhere. Default 5, range 0 to 16 (values above depth act as depth).
 /// PoissonRecon --fullDepth, PCL setMinDepth.
@@ -138,7 +180,8 @@ pub unsafe extern "C" fn psr_reconstructor_get_full_depth(
 /// Sets the depth at which the sampling density is estimated. A negative value (the default,
 /// -1) means automatic: depth - 2, at least 0. Range: negative, or 0 to 16; it must not exceed
 /// depth, which psr_reconstructor_solve checks (PSR_STATUS_INVALID_PARAMETER), so setters may
-/// come in any order. PoissonRecon --kernelDepth.
+/// come in any order; with a width set (psr_reconstructor_set_width) a larger value acts as
+/// the depth the width chooses. PoissonRecon --kernelDepth.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
 ///

@@ -8,7 +8,8 @@
  * internal panic (when the library was built with the test hook), two handles on two threads
  * matching sequential runs, and trimming: psr_trim_options from this header, from an older
  * (smaller) and a newer (larger) one, bad sizes and values, and the trimmed mesh outliving its
- * source.
+ * source; the target width, and the mesh's figures (depths, nodes per depth, psr_depth_solve
+ * from this header and from a newer one, bad sizes and indices).
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -176,6 +177,99 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_mesh_copy_positions(NULL, buf, 8), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_copy_triangles(NULL, (uint32_t *)buf, 8), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_copy_densities(NULL, buf, 8), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_width(NULL, 0.5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_width(NULL, &d), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_finest_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_node_counts(NULL, NULL, 0, &z), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(psr_mesh_solve_count(NULL) == 0);
+    {
+        psr_depth_solve s;
+        s.struct_size = sizeof s;
+        CHECK_STATUS(psr_mesh_solve_stats(NULL, 0, &s), PSR_STATUS_NULL_ARGUMENT);
+    }
+    CHECK(u == 7 && d == 7.0 && z == 7);
+}
+
+/* A psr_depth_solve from a newer header: this one's fields and one more. */
+typedef struct {
+    psr_depth_solve known;
+    uint64_t later;
+} newer_depth_solve;
+
+static void test_stats(void) {
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL;
+    const size_t n = 3000;
+    float *p = malloc(3 * n * sizeof(float)), *nr = malloc(3 * n * sizeof(float));
+    uint32_t depth = 0, finest = 0;
+    uint64_t nodes[20], short_nodes[2] = {7, 7};
+    size_t count = 0, unchanged = 99, k, solves;
+    double width = 0.0;
+    psr_depth_solve s;
+    newer_depth_solve newer;
+
+    section("the width, and the mesh's depths, nodes per depth and solves");
+    sphere(n, p, nr);
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_width(r, &width), PSR_STATUS_OK);
+    CHECK(width == 0.0);
+    CHECK_STATUS(psr_reconstructor_set_width(r, -1.0), PSR_STATUS_INVALID_PARAMETER);
+    CHECK(contains(psr_reconstructor_last_error(r), "width"));
+    /* The unit sphere's cube is 2.2 wide: cells of at most 0.05 need 2^depth >= 44, depth 6. */
+    CHECK_STATUS(psr_reconstructor_set_width(r, 0.05), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_width(r, &width), PSR_STATUS_OK);
+    CHECK(width == 0.05);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 3), PSR_STATUS_OK); /* the width wins */
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, nr, 0, n), PSR_STATUS_OK);
+    free(p);
+    free(nr);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    psr_reconstructor_free(r);
+    if (m == NULL)
+        return;
+
+    CHECK_STATUS(psr_mesh_depth(m, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_depth(m, &depth), PSR_STATUS_OK);
+    CHECK(depth == 6);
+    CHECK_STATUS(psr_mesh_finest_depth(m, &finest), PSR_STATUS_OK);
+    CHECK(finest >= 5 && finest <= depth);
+
+    CHECK_STATUS(psr_mesh_node_counts(m, NULL, 0, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_node_counts(m, NULL, 4, &count), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_node_counts(m, NULL, 0, &count), PSR_STATUS_OK);
+    CHECK(count == (size_t)finest + 1);
+    CHECK_STATUS(psr_mesh_node_counts(m, short_nodes, 2, &unchanged), PSR_STATUS_BUFFER_TOO_SMALL);
+    CHECK(short_nodes[0] == 7 && short_nodes[1] == 7 && unchanged == 99);
+    CHECK_STATUS(psr_mesh_node_counts(m, nodes, 20, &count), PSR_STATUS_OK);
+    CHECK(count == (size_t)finest + 1);
+    CHECK(nodes[0] == 1 && nodes[1] == 8); /* complete to the full depth */
+    CHECK(nodes[finest] > 0);
+
+    solves = psr_mesh_solve_count(m);
+    CHECK(solves > 0 && solves <= count);
+    for (k = 0; k < solves; k++) {
+        memset(&s, 0, sizeof s);
+        s.struct_size = sizeof s;
+        CHECK_STATUS(psr_mesh_solve_stats(m, k, &s), PSR_STATUS_OK);
+        CHECK(s.struct_size == sizeof s);
+        CHECK(s.depth <= finest && s.unknowns > 0);
+        CHECK(s.relative_residual >= 0.0 && s.seconds >= 0.0);
+    }
+    CHECK(s.depth == finest); /* coarse to fine: the last is the finest */
+    s.depth = 77;
+    CHECK_STATUS(psr_mesh_solve_stats(m, solves, &s), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(s.depth == 77);
+    s.struct_size = sizeof s - 1; /* smaller than any header's: not set */
+    CHECK_STATUS(psr_mesh_solve_stats(m, 0, &s), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(s.depth == 77);
+    CHECK_STATUS(psr_mesh_solve_stats(m, 0, NULL), PSR_STATUS_NULL_ARGUMENT);
+    newer.known.struct_size = sizeof newer;
+    newer.later = 0xABABABABu;
+    CHECK_STATUS(psr_mesh_solve_stats(m, 0, &newer.known), PSR_STATUS_OK);
+    CHECK(newer.known.struct_size == sizeof newer && newer.known.unknowns > 0);
+    CHECK(newer.later == 0); /* a field this library does not know: not reported */
+    psr_mesh_free(m);
 }
 
 static void test_order_and_parameters(void) {
@@ -906,6 +1000,7 @@ int main(void) {
     test_panic();
     test_threads();
     test_trim();
+    test_stats();
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }
