@@ -76,7 +76,7 @@ pub struct Params {
     /// Target width of the finest cells, in input units: when set, it overrides
     /// [`Params::depth`] with the smallest depth whose finest cell (the bounding cube's side,
     /// that is the bounding box's longest side × [`Params::scale`], over 2^depth) is at most
-    /// `width`, at least 1 and at most 16 ([`MAX_DEPTH`]; a finer width gets depth 16, whose
+    /// `width`, at least 1 and at most 16 (a finer width gets depth 16, whose
     /// cells are wider than asked). The depth used is in [`crate::Stats::depth`]. Default
     /// `None` (the depth decides); range: finite and positive. PoissonRecon `--width` (which
     /// likewise overrides `--depth` when positive, by the same rule); Open3D's `width`
