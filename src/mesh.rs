@@ -33,10 +33,6 @@ pub struct Stats {
     /// The maximum depth D the reconstruction used: [`crate::Params::depth`], or the depth
     /// [`crate::Params::width`] chose. 0 for a mesh not made by a reconstruction.
     pub depth: u32,
-    /// The octree's finest depth: D, or less when the sampling density put no sample that deep
-    /// (sparse points at a high depth), in which case the tree and the mesh stop there (never
-    /// above the full depth). Equals `nodes_per_depth.len() - 1`.
-    pub finest_depth: u32,
     /// Octree nodes (unknowns) per depth, index = depth, from 0 to [`Stats::finest_depth`].
     pub nodes_per_depth: Vec<usize>,
     /// The isovalue γ the surface was extracted at (§4.4).
@@ -90,6 +86,13 @@ pub struct TrimReport {
 }
 
 impl Stats {
+    /// The octree's finest depth: D, or less when the sampling density put no sample that deep
+    /// (sparse points at a high depth), in which case the tree and the mesh stop there (never
+    /// above the full depth). 0 for a mesh not made by a reconstruction.
+    pub fn finest_depth(&self) -> u32 {
+        self.nodes_per_depth.len().saturating_sub(1) as u32
+    }
+
     /// Total octree nodes over all depths.
     pub fn total_nodes(&self) -> usize {
         self.nodes_per_depth.iter().sum()

@@ -179,7 +179,6 @@ pub(crate) fn run(
         )
     });
     let finest = tree.max_depth() as usize;
-    clock.stats.finest_depth = tree.max_depth();
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
 

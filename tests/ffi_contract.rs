@@ -1133,7 +1133,7 @@ fn mesh_figures_are_the_reconstructions_stats() {
         let (mut depth, mut finest) = (0u32, 0u32);
         assert_eq!(psr_mesh_depth(m, &mut depth), psr_status::Ok);
         assert_eq!(psr_mesh_finest_depth(m, &mut finest), psr_status::Ok);
-        assert_eq!((depth, finest), (want.depth, want.finest_depth));
+        assert_eq!((depth, finest), (want.depth, want.finest_depth()));
 
         let mut count = 0usize;
         assert_eq!(

@@ -729,10 +729,10 @@ fn a_width_chooses_the_depth_and_stats_report_it() {
             &label,
         );
         assert_eq!(by_width.stats.depth, depth, "{label}");
-        assert!(by_width.stats.finest_depth <= depth, "{label}");
+        assert!(by_width.stats.finest_depth() <= depth, "{label}");
         let by_depth = run(&points, &Params::default().with_depth(depth), &label);
         assert_eq!(by_depth.stats.depth, depth, "{label}");
-        assert_eq!(by_width.stats.finest_depth, by_depth.stats.finest_depth);
+        assert_eq!(by_width.stats.finest_depth(), by_depth.stats.finest_depth());
         assert_bit_identical(&by_width, &by_depth, &label);
     }
     // 200 points at depth 10: the density stops the tree above depth 10.
@@ -744,13 +744,14 @@ fn a_width_chooses_the_depth_and_stats_report_it() {
     );
     eprintln!(
         "sparse: depth {}, finest {}",
-        sparse.stats.depth, sparse.stats.finest_depth
+        sparse.stats.depth,
+        sparse.stats.finest_depth()
     );
     assert_eq!(sparse.stats.depth, 10);
-    assert!(sparse.stats.finest_depth < 10, "{:?}", sparse.stats);
+    assert!(sparse.stats.finest_depth() < 10, "{:?}", sparse.stats);
     assert_eq!(
         sparse.stats.nodes_per_depth.len(),
-        sparse.stats.finest_depth as usize + 1
+        sparse.stats.finest_depth() as usize + 1
     );
 }
 

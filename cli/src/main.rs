@@ -828,8 +828,8 @@ fn summary(mesh: &Mesh, reconstruct_seconds: f64, read_seconds: f64, write_secon
     };
     // The depth used (chosen by --width, or --depth), and the tree's finest where the samples'
     // density stopped it above that.
-    let depth = if stats.finest_depth < stats.depth {
-        format!("depth {} (finest {})", stats.depth, stats.finest_depth)
+    let depth = if stats.finest_depth() < stats.depth {
+        format!("depth {} (finest {})", stats.depth, stats.finest_depth())
     } else {
         format!("depth {}", stats.depth)
     };
@@ -858,7 +858,8 @@ fn print_details(mesh: &Mesh) {
     );
     let mut out = format!(
         "psr: depth {} used, octree to depth {}\n",
-        stats.depth, stats.finest_depth
+        stats.depth,
+        stats.finest_depth()
     );
     out.push_str("psr: depth   unknowns  iterations  rel. residual  seconds\n");
     for depth in 0..depths {

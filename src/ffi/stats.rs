@@ -84,7 +84,7 @@ pub unsafe extern "C" fn psr_mesh_finest_depth(m: *const psr_mesh, out: *mut u32
     guard_no_handle(F, || {
         // SAFETY: `m` is NULL or a live mesh and `out` is NULL or valid for writes (this
         // function's contract).
-        unsafe { write_out(F, "out", out, stats_of(F, m)?.finest_depth) }
+        unsafe { write_out(F, "out", out, stats_of(F, m)?.finest_depth()) }
     })
 }
 
