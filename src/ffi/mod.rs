@@ -55,6 +55,11 @@
 // The files in the header's order (cbindgen writes functions in the order it reads them; these
 // comments also keep rustfmt from sorting the lines).
 // No C functions: the one catch_unwind and the pointer helpers.
+/// The largest struct_size accepted in a size-prefixed struct (psr_trim_options,
+/// psr_depth_solve): far above any foreseeable version of one, low enough that an unset or
+/// uninitialised size is refused rather than read as a huge struct.
+const MAX_STRUCT_SIZE: usize = 4096;
+
 mod panic_boundary;
 // psr_status_string.
 mod status;

@@ -10,6 +10,7 @@
 use super::mesh::psr_mesh;
 use super::panic_boundary::{guard_no_handle, guard_value, write_out};
 use super::status::{psr_status, Failure, Outcome};
+use super::MAX_STRUCT_SIZE;
 use crate::mesh::Stats;
 use std::mem::{offset_of, size_of};
 use std::ptr;
@@ -33,10 +34,6 @@ pub struct psr_depth_solve {
     /// Wall seconds for this depth (right-hand side, operator set-up and iterations).
     pub seconds: f64,
 }
-
-/// The largest struct_size accepted: far above any foreseeable psr_depth_solve, low enough that
-/// an unset size is refused rather than read as a huge struct.
-const MAX_STRUCT_SIZE: usize = 4096;
 
 /// The figures of a live mesh, or the failure naming `function`'s NULL m.
 ///

@@ -11,6 +11,7 @@
 use super::mesh::psr_mesh;
 use super::panic_boundary::{guard_no_handle, guard_value, require_out, write_out};
 use super::status::{psr_status, Failure, Outcome};
+use super::MAX_STRUCT_SIZE;
 use crate::{Error, Threshold, Trimming};
 use std::mem::{offset_of, size_of};
 use std::ptr;
@@ -61,10 +62,6 @@ pub struct psr_trim_options {
     /// Pieces of fewer triangles than this are dropped too. Default 0.
     pub min_piece_triangles: u32,
 }
-
-/// The largest struct_size accepted: far above any foreseeable psr_trim_options, low enough
-/// that an uninitialised size is refused rather than read as a huge struct.
-const MAX_STRUCT_SIZE: usize = 4096;
 
 /// The default options, as psr_trim_options_init writes them (the Rust API's defaults).
 fn defaults() -> psr_trim_options {
