@@ -21,7 +21,7 @@
 //! `scans_have_no_unsupported_components`.
 
 use psr::{reconstruct, Mesh, Params, PointSet};
-use psr_test_support::{data_or_skip, sample_sphere, Rng};
+use psr_test_support::{data_or_skip, sample_sphere, vertex_components, Rng};
 use std::collections::HashMap;
 
 /// The fewest samples within a finest cell of a component that may make it (see the module
@@ -31,26 +31,10 @@ const MIN_SUPPORT: usize = 8;
 /// Per component but the largest: (triangles, samples within `cell` of its vertices).
 fn unsupported_components(mesh: &Mesh, samples: &[[f32; 3]], cell: f64) -> Vec<(usize, usize)> {
     // Components by shared vertices.
-    let n = mesh.positions.len();
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            parent[x as usize] = parent[parent[x as usize] as usize];
-            x = parent[x as usize];
-        }
-        x
-    }
-    for t in &mesh.triangles {
-        for k in 1..3 {
-            let (a, b) = (find(&mut parent, t[0]), find(&mut parent, t[k]));
-            if a != b {
-                parent[a.max(b) as usize] = a.min(b);
-            }
-        }
-    }
+    let component = vertex_components(mesh.positions.len(), &mesh.triangles);
     let mut triangles_of: HashMap<u32, usize> = HashMap::new();
     for t in &mesh.triangles {
-        *triangles_of.entry(find(&mut parent, t[0])).or_default() += 1;
+        *triangles_of.entry(component[t[0] as usize]).or_default() += 1;
     }
     let largest = triangles_of
         .iter()
@@ -66,7 +50,7 @@ fn unsupported_components(mesh: &Mesh, samples: &[[f32; 3]], cell: f64) -> Vec<(
     }
     let mut support: HashMap<u32, Vec<u32>> = HashMap::new();
     for (v, p) in mesh.positions.iter().enumerate() {
-        let root = find(&mut parent, v as u32);
+        let root = component[v];
         if Some(root) == largest || !triangles_of.contains_key(&root) {
             continue;
         }

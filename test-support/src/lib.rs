@@ -11,7 +11,7 @@
 //!   bounding-box diagonals for normalisation.
 //! * Mesh topology: [`MeshTopology::of`] (boundary / non-manifold edges, non-manifold vertices,
 //!   orientation, components, Euler characteristic, duplicate vertices, degenerate triangles),
-//!   [`signed_volume`], [`surface_area`].
+//!   [`vertex_components`] (the component of each vertex), [`signed_volume`], [`surface_area`].
 //! * Distances to a triangle mesh: [`MeshDistance`] (a bounding-volume hierarchy with exact
 //!   point–triangle distances), [`sample_mesh`], [`chamfer_to_surface`],
 //!   [`one_sided_mesh_distance`].

@@ -73,6 +73,17 @@ impl UnionFind {
     }
 }
 
+/// The connected component of each of `vertex_count` vertices, joined by the triangles' edges:
+/// the smallest vertex index of its component (a vertex no triangle uses is its own).
+pub fn vertex_components(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let mut sets = UnionFind::new(vertex_count);
+    for t in triangles {
+        sets.union(t[0], t[1]);
+        sets.union(t[0], t[2]);
+    }
+    (0..vertex_count as u32).map(|v| sets.find(v)).collect()
+}
+
 impl MeshTopology {
     /// Analyses the mesh given by `positions` and `triangles`.
     pub fn of(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Self {
