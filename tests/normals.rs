@@ -12,9 +12,10 @@ use psr::{
     PointSet,
 };
 use psr_test_support::{
-    chamfer_to_surface, data_or_skip, jitter_positions, perturb_normals, sample_box, sample_sphere,
-    sample_sphere_nonuniform, sample_torus, sample_two_tori, sphere_bbox_diagonal, sphere_distance,
-    thin_unevenly, torus_bbox_diagonal, torus_distance, MeshTopology,
+    chamfer_to_surface, data_or_skip, jitter_positions, perturb_normals, sample_box,
+    sample_hollow_ball, sample_sphere, sample_sphere_nonuniform, sample_torus, sample_two_boxes,
+    sample_two_tori, sphere_bbox_diagonal, sphere_distance, thin_unevenly, torus_bbox_diagonal,
+    torus_distance, MeshTopology,
 };
 use std::time::Instant;
 
@@ -118,12 +119,134 @@ fn thin_plate_normals_point_outward() {
     assert_agreement("thin plate", three_ways("thin plate", &p, &n, 0.002));
 }
 
+/// The median distance from a point to its `k`-th nearest neighbour (the radius of the
+/// neighbourhoods the estimation uses), over every 300th point, by brute force.
+fn neighbourhood_radius(positions: &[[f32; 3]], k: usize) -> f64 {
+    let mut radii: Vec<f64> = positions
+        .iter()
+        .step_by(300)
+        .map(|p| {
+            let mut d: Vec<f64> = positions
+                .iter()
+                .map(|q| {
+                    (0..3)
+                        .map(|a| (p[a] as f64 - q[a] as f64).powi(2))
+                        .sum::<f64>()
+                })
+                .collect();
+            d.select_nth_unstable_by(k, f64::total_cmp);
+            d[k].sqrt()
+        })
+        .collect();
+    radii.sort_by(f64::total_cmp);
+    radii[radii.len() / 2]
+}
+
+/// Proves: two sheets closer than a neighbourhood keep their own orientations. A hollow ball (60k
+/// points: a unit sphere, and inside it the cavity's wall, a sphere of radius 0.98 with its
+/// normals towards the centre), whose wall is 0.02 thick: half the radius of a 20-neighbourhood
+/// here (0.039, both spheres counted), one sample spacing. Every neighbourhood holds both
+/// spheres; the points' neighbours on the other sphere are found by the two-sheet split
+/// (`sheets.rs`), kept out of the spanning trees, and the two spheres are joined by the votes
+/// across them (adjacent sheets of a closed surface face opposite ways). Before that, one sphere
+/// came out with the other's orientation (51 % agreement). Clean and with noise σ = 0.001; see
+/// `two_sheets_unevenly_sampled` for the uneven sampling.
+#[test]
+fn hollow_ball_with_a_wall_thinner_than_a_neighbourhood() {
+    let (p, n) = sample_hollow_ball(60_000, 0.02, 7);
+    let radius = neighbourhood_radius(&p, 20);
+    eprintln!("hollow ball: wall 0.02, 20-neighbourhood radius {radius:.4}");
+    assert!(
+        0.02 < 0.6 * radius,
+        "the wall is thinner than a neighbourhood"
+    );
+    let clean = measure("hollow ball, wall 0.02", &p, &n);
+    let noisy = measure(
+        "hollow ball, wall 0.02, noise 0.001",
+        &jitter_positions(&p, 0.001, 99),
+        &n,
+    );
+    // The true lines with every third sign flipped, re-oriented.
+    let scrambled: Vec<[f32; 3]> = n
+        .iter()
+        .enumerate()
+        .map(|(i, m)| if i % 3 == 0 { m.map(|c| -c) } else { *m })
+        .collect();
+    let fixed = orient_normals(&p, &scrambled, &NormalEstimation::default()).unwrap();
+    let reoriented = agreement(&fixed, &n);
+    eprintln!(
+        "hollow ball, true lines re-oriented: agreement {:.4} %",
+        100.0 * reoriented
+    );
+    for (how, f) in [
+        ("clean", clean),
+        ("noisy", noisy),
+        ("re-oriented", reoriented),
+    ] {
+        assert!(
+            f >= REQUIRED_AGREEMENT,
+            "hollow ball {how}: only {:.4} % of the normals point outward",
+            100.0 * f
+        );
+    }
+}
+
+/// Proves: two bodies a gap narrower than a neighbourhood apart keep their own orientations:
+/// two boxes 2 × 2 × 0.5 (80k points), one on top of the other with a gap of 0.04 between the
+/// faces that face each other, 0.9 of a 20-neighbourhood's radius. Before the two-sheet split,
+/// 0.51 % of the normals were flipped (99.49 % agreement), at the gap 0.02 16 % (one box's
+/// gap face and what the tree reached from it). Clean and with noise σ = 0.001.
+#[test]
+fn two_boxes_a_gap_narrower_than_a_neighbourhood_apart() {
+    let (p, n) = sample_two_boxes(80_000, [1.0, 1.0, 0.25], 0.04, 6);
+    let radius = neighbourhood_radius(&p, 20);
+    eprintln!("two boxes: gap 0.04, 20-neighbourhood radius {radius:.4}");
+    assert!(0.04 < radius, "the gap is narrower than a neighbourhood");
+    let clean = measure("two boxes, gap 0.04", &p, &n);
+    let noisy = measure(
+        "two boxes, gap 0.04, noise 0.001",
+        &jitter_positions(&p, 0.001, 99),
+        &n,
+    );
+    for (how, f) in [("clean", clean), ("noisy", noisy)] {
+        assert!(
+            f >= REQUIRED_AGREEMENT,
+            "two boxes {how}: only {:.4} % of the normals point outward",
+            100.0 * f
+        );
+    }
+}
+
+/// Proves, and records a known shortfall: the same two shapes thinned to a 10× density contrast
+/// along x keep at least 99 % of their normals outward, but not the 99.9 %: where the
+/// sampling is sparse a neighbourhood is wider than the wall or the gap by more, fewer of the
+/// neighbourhoods split cleanly, and the edges missed as crossing between sheets carry signs
+/// across (measured with this test: hollow ball 99.31 %, two boxes 99.80 %).
+#[test]
+fn two_sheets_unevenly_sampled() {
+    let (p, n) = sample_hollow_ball(60_000, 0.02, 7);
+    let (p, n) = thin_unevenly(&p, &n, 10.0, 98);
+    let ball = measure("hollow ball, wall 0.02, uneven 10x", &p, &n);
+    let (p, n) = sample_two_boxes(80_000, [1.0, 1.0, 0.25], 0.04, 6);
+    let (p, n) = thin_unevenly(&p, &n, 10.0, 98);
+    let boxes = measure("two boxes, gap 0.04, uneven 10x", &p, &n);
+    for (shape, f) in [("hollow ball", ball), ("two boxes", boxes)] {
+        assert!(
+            f >= 0.99,
+            "{shape}, uneven: only {:.4} % of the normals point outward",
+            100.0 * f
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Determinism, other orientations, bad input
 // ---------------------------------------------------------------------------------------------
 
-/// Proves: 1 and 2 threads give the same normals bit for bit (propagation, noisy torus, and
-/// a cloud with exact duplicates and lattice ties).
+/// Proves: 1, 2 and 3 threads give the same normals bit for bit (propagation, noisy torus, a
+/// cloud with exact duplicates and lattice ties, and a hollow ball whose wall is thinner than a
+/// neighbourhood, so that the two-sheet split and the votes across sheets are exercised), and
+/// so does re-orientation of given normals.
 #[test]
 fn one_and_two_threads_give_the_same_normals_bit_for_bit() {
     let (p, _) = sample_torus(40_000, 1.0, 0.35, 6);
@@ -134,15 +257,30 @@ fn one_and_two_threads_give_the_same_normals_bit_for_bit() {
             p.push([3.0 + 0.01 * x as f32, 0.01 * y as f32, 0.0]);
         }
     }
-    let bits = |threads: usize| -> Vec<[u32; 3]> {
-        let options = NormalEstimation::default().with_threads(threads);
-        estimate_normals(&p, &options)
-            .unwrap()
-            .iter()
-            .map(|n| n.map(f32::to_bits))
-            .collect()
+    let (ball, ball_normals) = sample_hollow_ball(30_000, 0.03, 8);
+    let ball = jitter_positions(&ball, 0.001, 9);
+    let bits = |normals: Vec<[f32; 3]>| -> Vec<[u32; 3]> {
+        normals.iter().map(|n| n.map(f32::to_bits)).collect()
     };
-    assert!(bits(1) == bits(2), "1 and 2 threads differ");
+    for (label, cloud) in [("torus and lattice", &p), ("hollow ball", &ball)] {
+        let with = |threads: usize| {
+            let options = NormalEstimation::default().with_threads(threads);
+            bits(estimate_normals(cloud, &options).unwrap())
+        };
+        let one = with(1);
+        assert!(one == with(2), "{label}: 1 and 2 threads differ");
+        assert!(one == with(3), "{label}: 1 and 3 threads differ");
+    }
+    let scrambled: Vec<[f32; 3]> = ball_normals
+        .iter()
+        .enumerate()
+        .map(|(i, n)| if i % 3 == 0 { n.map(|c| -c) } else { *n })
+        .collect();
+    let with = |threads: usize| {
+        let options = NormalEstimation::default().with_threads(threads);
+        bits(orient_normals(&ball, &scrambled, &options).unwrap())
+    };
+    assert!(with(1) == with(2), "re-orientation: 1 and 2 threads differ");
 }
 
 /// Proves: estimation and re-orientation report `Stage::Normals` on the calling thread with

@@ -8,15 +8,21 @@
 //!
 //! The eigenvectors come from cyclic Jacobi rotations on the 3×3 matrix: accurate to a few ulps
 //! of ‖C‖ whatever the eigenvalue gaps, and for repeated eigenvalues still an orthonormal basis,
-//! so never NaN. Each point's result depends on its own neighbourhood only.
+//! so never NaN. Each point's result depends on its own neighbourhood only (and, for the few
+//! ambiguous planes `sheets.rs` revisits, on its neighbours' first fits).
+//!
+//! Where the neighbourhood holds two sheets of the surface, the plane through all of it is
+//! wrong; `sheets.rs` finds that case from the same gathered points and replaces e₀ by the
+//! normal of two parallel planes fitted to the two sheets.
 //!
 //! A neighbourhood whose points coincide (C = 0) or lie on one line (λ₁ ≤ [`PLANE_RATIO`] · λ₂)
 //! defines no plane. Such a point is marked; `fill_undefined` then gives it the normal of its
-//! nearest graph neighbour (kNN in either direction) that has one, in synchronous rounds (each round reads only the previous
-//! round's normals), so the result is deterministic. Points with no defined normal anywhere in
-//! reach keep the Jacobi vector (finite, unit, deterministic).
+//! nearest graph neighbour (kNN in either direction) that has one, in synchronous rounds (each
+//! round reads only the previous round's normals), so the result is deterministic. Points with no
+//! defined normal anywhere in reach keep the Jacobi vector (finite, unit, deterministic).
 
 use super::neighbors::Neighbors;
+use super::sheets::{self, Sheets};
 use super::{StepProgress, BATCH};
 use crate::error::Result;
 use glam::DVec3;
@@ -35,42 +41,79 @@ pub(super) struct Fit {
     pub(super) defined: bool,
 }
 
-/// The PCA normal of every point's neighbourhood (point itself + its neighbours), in `pool`,
-/// [`BATCH`] points at a time, with `progress(fraction done)` called on the calling thread after
-/// each batch (it may stop the work).
+/// The PCA normal of every point's neighbourhood (point itself + its neighbours), refined where
+/// the neighbourhood holds two sheets (see `sheets.rs`), in `pool`, [`BATCH`] points at a time,
+/// with `progress(fraction done)` called on the calling thread after each batch (it may stop the
+/// work). Returns the fits, which neighbours lie on another sheet, and the points whose PCA
+/// plane is ambiguous (for `sheets::revisit_ambiguous`), in index order.
 pub(super) fn fit_planes(
     positions: &[DVec3],
     neighbors: &Neighbors,
     pool: &rayon::ThreadPool,
     progress: StepProgress<'_>,
-) -> Result<Vec<Fit>> {
-    let mut fits = Vec::with_capacity(positions.len());
-    let batches = positions.len().div_ceil(BATCH);
+) -> Result<(Vec<Fit>, Sheets, Vec<u32>)> {
+    let n = positions.len();
+    let mut fits = Vec::with_capacity(n);
+    let mut sheets = Sheets::none(n, neighbors.k());
+    let mut ambiguous = Vec::new();
+    let batches = n.div_ceil(BATCH);
+    let mut rows = sheets.rows_mut();
     for batch in 0..batches {
-        let points = batch * BATCH..((batch + 1) * BATCH).min(positions.len());
-        pool.install(|| {
-            fits.par_extend(
-                points
-                    .into_par_iter()
-                    .with_min_len(256)
-                    .map(|i| fit_plane(positions, neighbors, i)),
-            )
+        let points = batch * BATCH..((batch + 1) * BATCH).min(n);
+        let mut words: Vec<&mut [u64]> = rows.by_ref().take(points.len()).collect();
+        let results: Vec<(Fit, bool)> = pool.install(|| {
+            points
+                .clone()
+                .into_par_iter()
+                .zip(words.par_iter_mut())
+                .with_min_len(256)
+                .map_init(
+                    || {
+                        (
+                            sheets::Scratch::default(),
+                            Vec::with_capacity(neighbors.k() + 1),
+                        )
+                    },
+                    |(scratch, rel), (i, bits)| {
+                        fit_plane(positions, neighbors, i, rel, scratch, bits)
+                    },
+                )
+                .collect()
         });
+        for (at, (fit, unclear)) in results.into_iter().enumerate() {
+            if unclear {
+                ambiguous.push((points.start + at) as u32);
+            }
+            fits.push(fit);
+        }
         progress((batch + 1) as f32 / batches as f32)?;
     }
-    Ok(fits)
+    drop(rows);
+    Ok((fits, sheets, ambiguous))
 }
 
-/// The PCA normal of point `i`'s neighbourhood.
-fn fit_plane(positions: &[DVec3], neighbors: &Neighbors, i: usize) -> Fit {
-    let k = neighbors.k();
+/// The PCA normal of point `i`'s neighbourhood, or the normal of the two sheets it holds (then
+/// `bits` marks the neighbours across); and whether the PCA plane is ambiguous and the
+/// neighbourhood was not found to hold two sheets.
+fn fit_plane(
+    positions: &[DVec3],
+    neighbors: &Neighbors,
+    i: usize,
+    rel: &mut Vec<DVec3>,
+    scratch: &mut sheets::Scratch,
+    bits: &mut [u64],
+) -> (Fit, bool) {
     let row = neighbors.of(i);
-    let points = std::iter::once(positions[i]).chain(row.iter().map(|&j| positions[j as usize]));
-    let count = (k + 1) as f64;
-    let mean = points.clone().fold(DVec3::ZERO, |s, p| s + p) / count;
+    // Relative to the point itself: the covariance about the mean is the same, with less
+    // cancellation far from the origin.
+    rel.clear();
+    rel.push(DVec3::ZERO);
+    rel.extend(row.iter().map(|&j| positions[j as usize] - positions[i]));
+    let count = rel.len() as f64;
+    let mean = rel.iter().fold(DVec3::ZERO, |s, &p| s + p) / count;
     let mut c = [[0.0f64; 3]; 3];
-    for p in points {
-        let d = p - mean;
+    for p in rel.iter() {
+        let d = *p - mean;
         for (a, row) in c.iter_mut().enumerate() {
             for (b, entry) in row.iter_mut().enumerate().skip(a) {
                 *entry += d[a] * d[b];
@@ -80,10 +123,32 @@ fn fit_plane(positions: &[DVec3], neighbors: &Neighbors, i: usize) -> Fit {
     (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
     let (values, vectors) = jacobi_eigen(c);
     let defined = values[2] > 0.0 && values[1] > PLANE_RATIO * values[2];
-    Fit {
-        normal: vectors[0],
-        defined,
+    if !defined {
+        return (
+            Fit {
+                normal: vectors[0],
+                defined,
+            },
+            false,
+        );
     }
+    if let Some(two) = sheets::two_sheets(rel, vectors[0], scratch) {
+        sheets::mark_across(scratch, bits);
+        return (
+            Fit {
+                normal: two.normal,
+                defined,
+            },
+            false,
+        );
+    }
+    (
+        Fit {
+            normal: vectors[0],
+            defined,
+        },
+        values[0] > sheets::AMBIGUOUS * values[1],
+    )
 }
 
 /// Gives every point without a defined normal the normal of its nearest graph neighbour that

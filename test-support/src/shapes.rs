@@ -160,6 +160,48 @@ pub fn sample_two_tori(
     (positions, normals)
 }
 
+/// `n` points on a hollow ball: the sphere of radius 1 about the origin (normals outward) and,
+/// inside it, the sphere of radius 1 − `wall` (normals inward, towards the centre: the cavity's
+/// wall), area-uniform over both, so the solid between them is `wall` thick. Returns
+/// (positions, normals).
+pub fn sample_hollow_ball(n: usize, wall: f64, seed: u64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    assert!(
+        wall > 0.0 && wall < 1.0,
+        "the wall must be thinner than the ball"
+    );
+    let inner = 1.0 - wall;
+    let outer_count = (n as f64 / (1.0 + inner * inner)).round() as usize;
+    let (mut positions, mut normals) = sample_sphere(outer_count, 1.0, [0.0; 3], seed);
+    let (p, m) = sample_sphere(n - outer_count, inner, [0.0; 3], seed.wrapping_add(1));
+    positions.extend(p);
+    normals.extend(m.iter().map(|v| v.map(|c| -c)));
+    (positions, normals)
+}
+
+/// `n` points on two boxes with the given half extents, stacked along z with a `gap` between
+/// them (the lower box's top face and the upper box's bottom face `gap` apart, facing each
+/// other), half the points on each, outward normals. Returns (positions, normals).
+pub fn sample_two_boxes(
+    n: usize,
+    half_extents: [f64; 3],
+    gap: f64,
+    seed: u64,
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let offset = half_extents[2] + 0.5 * gap;
+    let (mut positions, mut normals) = sample_box(n / 2, half_extents, seed);
+    for p in positions.iter_mut() {
+        p[2] = (p[2] as f64 - offset) as f32;
+    }
+    let (upper, upper_normals) = sample_box(n - n / 2, half_extents, seed.wrapping_add(1));
+    positions.extend(
+        upper
+            .iter()
+            .map(|p| [p[0], p[1], (p[2] as f64 + offset) as f32]),
+    );
+    normals.extend(upper_normals);
+    (positions, normals)
+}
+
 /// Thins a sampling unevenly: each point is kept with probability
 /// ratio^((t − 1) / 2), t = the point's x mapped linearly from the points' x range onto
 /// [−1, 1], so the density falls `ratio`× from the largest x to the smallest. Returns the kept
