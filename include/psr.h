@@ -891,6 +891,31 @@ psr_status psr_reconstructor_set_vertex_placement(psr_reconstructor *r, int32_t 
 psr_status psr_reconstructor_get_vertex_placement(const psr_reconstructor *r, int32_t *out);
 
 /**
+ * Sets the fewest input samples that must lie in the octree cells a closed component of the
+ * surface crosses for it to stay in the mesh (the largest component always stays): the level
+ * set's tiny "bubbles" beside the surface, around a few stray samples, are left out, while a
+ * real part of the scan, however small, carries its own samples. Default 8; 0 keeps every
+ * component. psr_mesh_unsupported_components tells how many were left out. No PoissonRecon
+ * equivalent.
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_min_component_samples(psr_reconstructor *r, uint32_t samples);
+
+/**
+ * Writes the fewest samples a closed component needs to stay (see
+ * psr_reconstructor_set_min_component_samples) to *out. r and out must not be NULL. Returns
+ * the statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_min_component_samples(const psr_reconstructor *r, uint32_t *out);
+
+/**
  * Appends `count` oriented points to r. Position i is the 3 floats at
  * `(const char *)positions + i * position_stride_bytes`, normal i likewise; a stride of 0 means
  * tightly packed (12 bytes), otherwise it must be at least 12 (interleaved vertex structs are
@@ -1513,6 +1538,16 @@ psr_status psr_mesh_finest_depth(const psr_mesh *m, uint32_t *out);
  * is NULL or valid for writes.
  */
 psr_status psr_mesh_node_counts(const psr_mesh *m, uint64_t *out, size_t capacity, size_t *count);
+
+/**
+ * Number of closed components of the level set that the reconstruction left out of m because
+ * too few samples support them (psr_reconstructor_set_min_component_samples); 0 if m is NULL
+ * or no reconstruction made it.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh.
+ */
+size_t psr_mesh_unsupported_components(const psr_mesh *m);
 
 /**
  * Number of per-depth solves of m, coarse to fine (psr_mesh_solve_stats' indices); 0 if m is

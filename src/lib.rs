@@ -28,6 +28,7 @@
 
 mod attributes;
 mod bspline;
+mod components;
 mod density;
 mod error;
 mod evaluate;

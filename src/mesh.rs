@@ -54,6 +54,12 @@ pub struct Stats {
     /// How the mesh was cut back to its samples by [`crate::trim`]; `None` for a mesh as the
     /// reconstruction made it.
     pub trim: Option<TrimReport>,
+    /// Closed components of the level set left out of the mesh because fewer than
+    /// [`crate::Params::min_component_samples`] samples support them (bubbles beside the
+    /// surface), and their triangles.
+    pub unsupported_components: usize,
+    /// The triangles of [`Stats::unsupported_components`].
+    pub unsupported_triangles: usize,
 }
 
 /// What [`crate::trim`] did: the threshold it cut at, in both of its units, and what it kept.

@@ -124,6 +124,16 @@ pub struct Params {
     /// Whether the mesh gets a unit outward normal per vertex ([`crate::Mesh::normals`]),
     /// ∇χ/|∇χ| at the vertex. Default false. PoissonRecon `--normals`.
     pub vertex_normals: bool,
+    /// The fewest input samples that must lie in the octree leaves a closed component of the
+    /// surface crosses for the component to stay (the largest component always stays). The
+    /// level set of χ can have tiny closed pieces ("bubbles") beside the surface, around a few
+    /// stray samples or none; a real part of the scan, however small, carries its own samples.
+    /// Default 8: the smallest closed surface extraction makes crosses 2 × 2 × 2 cells, and the
+    /// density estimate calls a node sampled at [`Params::samples_per_node`] (1.5) samples, so
+    /// fewer than 8 cannot define one. 0 keeps every component. The number removed is in
+    /// [`crate::Stats::unsupported_components`]. No PoissonRecon equivalent (its output keeps
+    /// them; its SurfaceTrimmer's `--aRatio` drops small pieces by area instead).
+    pub min_component_samples: u32,
 }
 
 impl Default for Params {
@@ -143,6 +153,7 @@ impl Default for Params {
             boundary: Boundary::Neumann,
             vertex_placement: VertexPlacement::Fitted,
             vertex_normals: false,
+            min_component_samples: 8,
         }
     }
 }
@@ -230,6 +241,13 @@ impl Params {
     /// These parameters with [`Params::vertex_normals`] set to `vertex_normals`.
     pub fn with_vertex_normals(mut self, vertex_normals: bool) -> Self {
         self.vertex_normals = vertex_normals;
+        self
+    }
+
+    /// These parameters with [`Params::min_component_samples`] set to `samples` (0 keeps every
+    /// component).
+    pub fn with_min_component_samples(mut self, samples: u32) -> Self {
+        self.min_component_samples = samples;
         self
     }
 

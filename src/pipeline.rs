@@ -4,6 +4,7 @@
 //! is dropped (the memory-saving interleavings are named where they happen).
 
 use crate::attributes;
+use crate::components;
 use crate::density::{self, DensityField};
 use crate::evaluate::Indicator;
 use crate::extract;
@@ -262,6 +263,16 @@ pub(crate) fn run(
             with_normals,
         )
     });
+    // The level set's closed pieces that too few samples support (bubbles) are left out.
+    let mut raw = raw;
+    let removed = components::drop_unsupported(
+        &mut raw,
+        &tree,
+        &samples.positions,
+        params.min_component_samples,
+    );
+    clock.stats.unsupported_components = removed.components;
+    clock.stats.unsupported_triangles = removed.triangles;
     clock.done(Stage::Extract)?;
 
     // 9. Mesh: back to input coordinates, with the sampling density at each vertex, and the

@@ -125,6 +125,7 @@ fn null_for_every_pointer_argument() {
         assert_eq!(psr_reconstructor_set_depth(null_r, 6), NULL);
         assert_eq!(psr_reconstructor_set_width(null_r, 0.5), NULL);
         assert_eq!(psr_reconstructor_set_full_depth(null_r, 3), NULL);
+        assert_eq!(psr_reconstructor_set_min_component_samples(null_r, 3), NULL);
         assert_eq!(psr_reconstructor_set_kernel_depth(null_r, 3), NULL);
         assert_eq!(psr_reconstructor_set_samples_per_node(null_r, 2.0), NULL);
         assert_eq!(psr_reconstructor_set_scale(null_r, 1.2), NULL);
@@ -145,6 +146,10 @@ fn null_for_every_pointer_argument() {
         assert_eq!(psr_reconstructor_get_depth(null_r, &mut u), NULL);
         assert_eq!(psr_reconstructor_get_width(null_r, &mut d), NULL);
         assert_eq!(psr_reconstructor_get_full_depth(null_r, &mut u), NULL);
+        assert_eq!(
+            psr_reconstructor_get_min_component_samples(null_r, &mut u),
+            NULL
+        );
         assert_eq!(psr_reconstructor_get_kernel_depth(null_r, &mut i), NULL);
         assert_eq!(psr_reconstructor_get_samples_per_node(null_r, &mut f), NULL);
         assert_eq!(psr_reconstructor_get_scale(null_r, &mut f), NULL);
@@ -162,6 +167,10 @@ fn null_for_every_pointer_argument() {
         assert!(last_error(r).contains("out is NULL"), "{}", last_error(r));
         assert_eq!(psr_reconstructor_get_width(r, ptr::null_mut()), NULL);
         assert_eq!(psr_reconstructor_get_full_depth(r, ptr::null_mut()), NULL);
+        assert_eq!(
+            psr_reconstructor_get_min_component_samples(r, ptr::null_mut()),
+            NULL
+        );
         assert_eq!(psr_reconstructor_get_kernel_depth(r, ptr::null_mut()), NULL);
         assert_eq!(
             psr_reconstructor_get_samples_per_node(r, ptr::null_mut()),
@@ -313,6 +322,7 @@ fn null_for_every_pointer_argument() {
             NULL
         );
         assert_eq!(psr_mesh_solve_count(null_m), 0);
+        assert_eq!(psr_mesh_unsupported_components(null_m), 0);
         assert_eq!(psr_mesh_solve_stats(null_m, 0, &mut solve), NULL);
         assert_eq!((u, z, solve.depth), (77, 77, 77));
         let m = tetrahedron();
@@ -344,6 +354,11 @@ fn new_handle_has_the_documented_defaults() {
         assert_eq!(u, defaults.depth);
         assert_eq!(psr_reconstructor_get_full_depth(r, &mut u), psr_status::Ok);
         assert_eq!(u, defaults.full_depth);
+        assert_eq!(
+            psr_reconstructor_get_min_component_samples(r, &mut u),
+            psr_status::Ok
+        );
+        assert_eq!(u, defaults.min_component_samples);
         assert_eq!(
             psr_reconstructor_get_kernel_depth(r, &mut i),
             psr_status::Ok
@@ -396,6 +411,15 @@ fn setters_round_trip_and_reject_out_of_range_values_by_name() {
         assert_eq!(psr_reconstructor_set_full_depth(r, 2), psr_status::Ok);
         assert_eq!(psr_reconstructor_get_full_depth(r, &mut u), psr_status::Ok);
         assert_eq!(u, 2);
+        assert_eq!(
+            psr_reconstructor_set_min_component_samples(r, 0),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_min_component_samples(r, &mut u),
+            psr_status::Ok
+        );
+        assert_eq!(u, 0);
         assert_eq!(psr_reconstructor_set_kernel_depth(r, 4), psr_status::Ok);
         assert_eq!(
             psr_reconstructor_get_kernel_depth(r, &mut i),

@@ -6,7 +6,7 @@
 //!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
 //!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
-//!     [--no-density] [--no-attributes] [--vertex-normals]
+//!     [--no-density] [--no-attributes] [--vertex-normals] [--min-component-samples 8]
 //!     [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
 //!     [--min-piece-area F] [--min-piece-triangles N] [--colors] [--ascii] [--quiet] [--verbose]
 //! ```
@@ -254,6 +254,14 @@ struct Args {
     #[arg(long)]
     vertex_normals: bool,
 
+    /// Leave out every closed component of the surface but the largest that fewer than N input
+    /// samples support (lie in the octree cells it crosses): the tiny "bubbles" the level set
+    /// can have beside the surface around a few stray samples. A real part of the scan carries
+    /// its own samples and stays, however small. 0 keeps every component. PoissonRecon: none
+    /// (it keeps them; its SurfaceTrimmer's --aRatio drops small pieces by area).
+    #[arg(long, value_name = "N", default_value_t = Params::default().min_component_samples)]
+    min_component_samples: u32,
+
     /// Print nothing but errors. PoissonRecon: none (it is quiet unless --verbose).
     #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
@@ -383,6 +391,7 @@ impl Args {
                 VerticesArg::OnIsosurface => VertexPlacement::OnIsosurface,
             })
             .with_vertex_normals(self.vertex_normals)
+            .with_min_component_samples(self.min_component_samples)
     }
 
     /// The trimming the options ask for, or `None` (the untrimmed mesh) when none does.
@@ -874,6 +883,10 @@ fn print_details(mesh: &Mesh) {
         }
     }
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
+    out.push_str(&format!(
+        "\npsr: {} unsupported components left out ({} triangles; --min-component-samples)",
+        stats.unsupported_components, stats.unsupported_triangles
+    ));
     if let Some(t) = &stats.trim {
         out.push_str(&format!(
             "\npsr: trimmed at density {} (depth-like {:.3}): {} crossings snapped onto \

@@ -254,6 +254,7 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--colors", "--colors"),
         ("--ascii", "--ascii"),
         ("--vertex-normals", "--normals"),
+        ("--min-component-samples", "none"),
         ("--quiet", "none"),
         ("--verbose", "--verbose"),
     ];

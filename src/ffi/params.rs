@@ -677,3 +677,47 @@ pub unsafe extern "C" fn psr_reconstructor_get_vertex_placement(
         )
     }
 }
+
+/// Sets the fewest input samples that must lie in the octree cells a closed component of the
+/// surface crosses for it to stay in the mesh (the largest component always stays): the level
+/// set's tiny "bubbles" beside the surface, around a few stray samples, are left out, while a
+/// real part of the scan, however small, carries its own samples. Default 8; 0 keeps every
+/// component. psr_mesh_unsupported_components tells how many were left out. No PoissonRecon
+/// equivalent.
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_min_component_samples(
+    r: *mut psr_reconstructor,
+    samples: u32,
+) -> psr_status {
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_min_component_samples", r, |p| {
+            p.min_component_samples = samples
+        })
+    }
+}
+
+/// Writes the fewest samples a closed component needs to stay (see
+/// psr_reconstructor_set_min_component_samples) to *out. r and out must not be NULL. Returns
+/// the statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_min_component_samples(
+    r: *const psr_reconstructor,
+    out: *mut u32,
+) -> psr_status {
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param("psr_reconstructor_get_min_component_samples", r, out, |p| {
+            p.min_component_samples
+        })
+    }
+}

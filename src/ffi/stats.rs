@@ -151,6 +151,20 @@ unsafe fn try_node_counts(
     unsafe { write_out(F, "count", count, nodes.len()) }
 }
 
+/// Number of closed components of the level set that the reconstruction left out of m because
+/// too few samples support them (psr_reconstructor_set_min_component_samples); 0 if m is NULL
+/// or no reconstruction made it.
+///
+/// # Safety
+/// `m` is NULL or a live mesh.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_unsupported_components(m: *const psr_mesh) -> usize {
+    guard_value("psr_mesh_unsupported_components", 0, || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change.
+        unsafe { m.as_ref() }.map_or(0, |m| m.mesh.stats.unsupported_components)
+    })
+}
+
 /// Number of per-depth solves of m, coarse to fine (psr_mesh_solve_stats' indices); 0 if m is
 /// NULL or no reconstruction made it.
 ///

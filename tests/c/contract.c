@@ -102,6 +102,7 @@ static void test_null_arguments(void) {
 
     CHECK_STATUS(psr_reconstructor_set_depth(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_full_depth(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_min_component_samples(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_kernel_depth(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_samples_per_node(NULL, 2.0f), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_scale(NULL, 1.2f), PSR_STATUS_NULL_ARGUMENT);
@@ -111,6 +112,7 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_set_solver_tolerance(NULL, 1e-3), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_full_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_min_component_samples(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_kernel_depth(NULL, &i), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_samples_per_node(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_scale(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
@@ -140,6 +142,13 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_get_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK(contains(psr_reconstructor_last_error(r), "out is NULL"));
     CHECK_STATUS(psr_reconstructor_get_full_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, &u), PSR_STATUS_OK);
+    CHECK(u == 8);
+    CHECK_STATUS(psr_reconstructor_set_min_component_samples(r, 0), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, &u), PSR_STATUS_OK);
+    CHECK(u == 0);
+    CHECK_STATUS(psr_reconstructor_set_min_component_samples(r, 8), PSR_STATUS_OK);
     CHECK_STATUS(psr_reconstructor_get_kernel_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_samples_per_node(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_scale(r, NULL), PSR_STATUS_NULL_ARGUMENT);
@@ -183,6 +192,7 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_mesh_finest_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_node_counts(NULL, NULL, 0, &z), PSR_STATUS_NULL_ARGUMENT);
     CHECK(psr_mesh_solve_count(NULL) == 0);
+    CHECK(psr_mesh_unsupported_components(NULL) == 0);
     {
         psr_depth_solve s;
         s.struct_size = sizeof s;
@@ -246,6 +256,7 @@ static void test_stats(void) {
     CHECK(nodes[0] == 1 && nodes[1] == 8); /* complete to the full depth */
     CHECK(nodes[finest] > 0);
 
+    CHECK(psr_mesh_unsupported_components(m) == 0); /* a clean sphere has no bubbles */
     solves = psr_mesh_solve_count(m);
     CHECK(solves > 0 && solves <= count);
     for (k = 0; k < solves; k++) {
