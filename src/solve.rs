@@ -124,9 +124,7 @@ pub(crate) fn cascade(
                 .zip(level.core.par_iter().zip(&coarse_div))
                 .for_each(|(a, (&c, div))| *a = rho_here[c as usize] + div - *a);
             if let Some(target) = params.boundary.screening_target() {
-                for (a, t) in rhs.iter_mut().zip(op.screening_target(target)) {
-                    *a += t;
-                }
+                op.add_screening_target(target, &mut rhs);
             }
             rhs
         });

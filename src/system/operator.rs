@@ -98,23 +98,23 @@ impl<'a> DepthOperator<'a> {
         );
     }
 
-    /// α·Σ_q W_q t φ_o(q) at every core node (in core order), φ_o the node's folded function:
-    /// the right-hand side that turns the screening term α·Σ_q W_q χ(q)² into
-    /// α·Σ_q W_q (χ(q) − t)², pulling χ to `target` t at the samples instead of to 0. Zeros
-    /// without screening. Summed as [`DepthOperator::apply`]'s screening sweep sums, with
-    /// W_q t in place of W_q χ(q).
-    pub fn screening_target(&mut self, target: f64) -> Vec<f64> {
+    /// Adds α·Σ_q W_q t φ_o(q) to `out[c]` at every core node c (in core order), φ_o the
+    /// node's folded function: the right-hand side that turns the screening term
+    /// α·Σ_q W_q χ(q)² into α·Σ_q W_q (χ(q) − t)², pulling χ to `target` t at the samples
+    /// instead of to 0. Nothing without screening. Summed as [`DepthOperator::apply`]'s
+    /// screening sweep sums, with W_q t in place of W_q χ(q), into `out` itself (no vector
+    /// beside it).
+    pub fn add_screening_target(&mut self, target: f64, out: &mut [f64]) {
         let level = self.level;
         let proxies = self.proxies;
         let bricks = &self.bricks;
-        let mut out = vec![0.0; level.core.len()];
         let Some(cells) = &self.screening_cells else {
-            return out;
+            return;
         };
         let scale = self.screening;
         bricks.for_each_brick::<0, ()>(
             |_, _, _| {},
-            &mut out,
+            out,
             vec![(); bricks.len()],
             |_, scratch, cb, core_nodes, ()| {
                 let acc = &mut scratch.screened;
@@ -137,11 +137,10 @@ impl<'a> DepthOperator<'a> {
                     },
                 );
                 for (o, [x, y, z]) in core_nodes {
-                    *o = scale * acc[padded(x, y, z)];
+                    *o += scale * acc[padded(x, y, z)];
                 }
             },
         );
-        out
     }
 
     /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V whose coefficients on K_d

@@ -470,7 +470,8 @@ fn brick_screening_matches_the_node_by_node_sum() {
             let diagonal = op.diagonal();
             let lap_diagonal = DepthOperator::new(level, &proxies, 0.0).diagonal();
             // The screening target's right-hand side: the same sums with W_q t for W_q χ(q).
-            let target_rhs = op.screening_target(target);
+            let mut target_rhs = vec![0.0; level.core.len()];
+            op.add_screening_target(target, &mut target_rhs);
             for (k, &c) in level.core.iter().enumerate() {
                 let want = laplacian[k] + alpha * screened[c as usize];
                 assert!(
