@@ -261,6 +261,13 @@ typedef enum {
      * The 2006 paper: node functions simply end beyond the cube (PoissonRecon --bType 1).
      */
     PSR_BOUNDARY_FREE = 1,
+    /**
+     * chi = 0 on the cube's faces, which are then outside the surface: an open scan (terrain,
+     * room, tunnel) closes on itself inside the cube instead of running out to the faces and
+     * being capped there as with Neumann (PoissonRecon --bType 2; no Open3D or PCL
+     * equivalent). Costs the same as Neumann.
+     */
+    PSR_BOUNDARY_DIRICHLET = 2,
 } psr_boundary;
 
 /**
@@ -827,8 +834,8 @@ psr_status psr_reconstructor_set_solver_tolerance(psr_reconstructor *r, double t
 psr_status psr_reconstructor_get_solver_tolerance(const psr_reconstructor *r, double *out);
 
 /**
- * Sets the boundary condition: PSR_BOUNDARY_NEUMANN (0, the default) or PSR_BOUNDARY_FREE (1).
- * PoissonRecon --bType.
+ * Sets the boundary condition: PSR_BOUNDARY_NEUMANN (0, the default), PSR_BOUNDARY_FREE (1)
+ * or PSR_BOUNDARY_DIRICHLET (2, for open scans). PoissonRecon --bType (3, 1 and 2).
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
  * (PSR_STATUS_INVALID_PARAMETER for any other value).

@@ -145,6 +145,7 @@ fn stencil27_with_slopes(p: DVec3, inv_h: f64) -> ([[f64; 3]; 3], [[f64; 3]; 3])
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Boundary;
 
     /// The corners of every cell of the finest depth, read off the cell's 27 nodes, give
     /// [`Indicator::value`] bit for bit wherever the shortcut applies, on a sparse tree (cells
@@ -159,7 +160,7 @@ mod tests {
                     .collect()
             })
             .collect();
-        let tree = Octree::build(cells, 2, true);
+        let tree = Octree::build(cells, 2, Boundary::Neumann);
         let coefficients: Vec<Vec<f64>> = tree
             .levels
             .iter()
@@ -201,5 +202,59 @@ mod tests {
             }
         }
         assert!(shortcut > 1000 && fallback > 0, "{shortcut} {fallback}");
+    }
+
+    /// With coefficients extended by the mirrors (node centres at i + ½, so node −1 − i is
+    /// node i's image across the face at 0), Dirichlet's odd extension makes χ vanish on every
+    /// face of the cube and Neumann's even one makes its normal derivative vanish there, for
+    /// arbitrary coefficients; inside, χ is not zero.
+    #[test]
+    fn mirrors_put_the_boundary_condition_on_the_faces() {
+        for boundary in [Boundary::Neumann, Boundary::Dirichlet] {
+            let tree = Octree::build(vec![Vec::new(); 4], 3, boundary);
+            let coefficients: Vec<Vec<f64>> = tree
+                .levels
+                .iter()
+                .enumerate()
+                .map(|(d, l)| {
+                    let mut x = vec![0.0; l.len()];
+                    if d == 3 {
+                        crate::system::update_on_core(l, &mut x, |i, _| {
+                            ((i * 7919) % 101) as f64 / 7.0 - 6.0
+                        });
+                    }
+                    x
+                })
+                .collect();
+            let chi = Indicator {
+                tree: &tree,
+                coefficients,
+            };
+            let mut worst = 0.0f64;
+            let mut inside = 0.0f64;
+            for k in 0..=40 {
+                for j in 0..=40 {
+                    let (u, v) = (k as f64 / 40.0, j as f64 / 40.0);
+                    for axis in 0..3 {
+                        for face in [0.0, 1.0] {
+                            let mut p = [u, v, u * v];
+                            p[axis] = face;
+                            let p = DVec3::from_array(p);
+                            let on_face = if boundary == Boundary::Dirichlet {
+                                chi.value(p)
+                            } else {
+                                chi.gradient(p)[axis]
+                            };
+                            worst = worst.max(on_face.abs());
+                        }
+                    }
+                    inside = inside.max(chi.value(DVec3::new(0.1 + 0.8 * u, 0.5, v)).abs());
+                }
+            }
+            assert!(
+                worst < 1e-9 && inside > 1.0,
+                "{boundary:?}: {worst} {inside}"
+            );
+        }
     }
 }

@@ -49,7 +49,9 @@
 //! towards larger χ, which is outside (V points along the outward normals). Beyond the cube
 //! everything is outside, and one layer of cells mirroring the leaves inside takes part, so
 //! where the surface meets the cube (sparse or open scans) it is closed by a cap lying on the
-//! cube's face: the mesh is always closed.
+//! cube's face: the mesh is always closed. With Dirichlet boundaries χ = 0 > γ on the faces
+//! (see [`crate::Boundary::Dirichlet`]): they are outside, the surface does not meet them and
+//! there is no cap.
 
 use crate::evaluate::Indicator;
 use crate::grid::{cell_of, KeyMap};

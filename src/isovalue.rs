@@ -34,12 +34,13 @@ pub(crate) fn weighted_mean(
 mod tests {
     use super::*;
     use crate::octree::Octree;
+    use crate::Boundary;
 
     /// With χ = 1 everywhere in the tree (coefficients 1 on a complete level reproduce the
     /// constant) γ is 1 whatever the weights; weights pick between two regions of χ.
     #[test]
     fn the_isovalue_is_the_weighted_mean_of_chi_at_the_samples() {
-        let tree = Octree::build(vec![Vec::new(); 4], 3, true);
+        let tree = Octree::build(vec![Vec::new(); 4], 3, Boundary::Neumann);
         let ones: Vec<Vec<f64>> = tree.levels.iter().map(|l| vec![0.0; l.len()]).collect();
         let mut coefficients = ones;
         let finest = coefficients.len() - 1;

@@ -21,6 +21,7 @@
 use crate::density::DepthSample;
 use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
 use crate::parallel::DistinctIndices;
+use crate::Boundary;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -46,13 +47,29 @@ pub struct Level {
     /// Indices of the core nodes, ascending (so distinct: the per-node loops write at them in
     /// parallel).
     pub core: DistinctIndices,
-    /// With Neumann boundaries: every halo node outside the cube, the node it mirrors (its
-    /// reflection across the cube's faces, inside the cube) and a bit per reflected axis.
+    /// With Neumann or Dirichlet boundaries: every halo node outside the cube, the node it
+    /// mirrors (its reflection across the cube's faces, inside the cube) and a bit per reflected
+    /// axis.
     pub mirrors: Vec<Mirror>,
+    /// The sign a value takes across one face: +1 (Neumann, and free, which has no mirrors),
+    /// −1 (Dirichlet). See [`Level::mirror_sign`].
+    pub face_sign: f64,
     index: BrickIndex,
 }
 
 impl Level {
+    /// The factor from an inside node's value to its mirror node's, for a mirror reflected
+    /// across the faces of the axes set in `flips`: [`Level::face_sign`] once per face (+1 for
+    /// Neumann; for Dirichlet −1 across one or three faces, +1 across two, the odd extension).
+    #[inline]
+    pub fn mirror_sign(&self, flips: u8) -> f64 {
+        if flips.count_ones() % 2 == 1 {
+            self.face_sign
+        } else {
+            1.0
+        }
+    }
+
     /// The brick index of K_d (for brick-by-brick traversals).
     pub fn bricks(&self) -> &BrickIndex {
         &self.index
@@ -277,22 +294,30 @@ pub fn reflect(c: Coord, n: i32) -> Option<(Coord, u8)> {
     (flips != 0).then_some((out, flips))
 }
 
-/// Neumann boundaries: sets every mirror node outside the cube to the value of the inside node it
-/// reflects, so free-space stencils act as the folded (even) basis (no-op with free boundaries).
+/// Neumann and Dirichlet boundaries: sets every mirror node outside the cube to the value of
+/// the inside node it reflects times [`Level::mirror_sign`], so free-space stencils act as the
+/// folded basis, even (Neumann) or odd (Dirichlet); no-op with free boundaries.
+///
+/// Node centres sit at i + ½ and faces at 0 and 2^d, so node −1 − i is node i's reflection:
+/// B_i − B_{−1−i} is odd about the face and χ built from odd-folded functions is 0 on it.
+/// Scalars on the nodes, whether coefficients or tested quantities ⟨∇B_o, V⟩, all extend so.
 pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
     for m in &level.mirrors {
-        x[m.outside as usize] = x[m.inside as usize];
+        x[m.outside as usize] = level.mirror_sign(m.flips) * x[m.inside as usize];
     }
 }
 
-/// [`fill_mirrors`] for a vector field: a component normal to a reflecting face changes sign.
+/// [`fill_mirrors`] for a vector field, which extends as the gradient of such a χ does: a
+/// component normal to a reflecting face changes sign relative to the scalar's sign (with
+/// Neumann the normal components flip; with Dirichlet the tangential ones).
 pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
     for m in &level.mirrors {
+        let scalar = level.mirror_sign(m.flips);
         for (axis, comp) in v.iter_mut().enumerate() {
             let sign = if m.flips & (1 << axis) != 0 {
-                -1.0
+                -scalar
             } else {
-                1.0
+                scalar
             };
             comp[m.outside as usize] = sign * comp[m.inside as usize];
         }
@@ -320,16 +345,22 @@ impl Octree {
     /// sphere mean distance −27% (unscreened −60%); bunny scans at depth 8: reference → mesh mean
     /// 4.70e-5 → 4.45e-5 m; for about 1.7× the unknowns.
     ///
-    /// With `neumann` the core stays inside the cube (a splat beyond a face lands on the mirrored
-    /// node inside), and every halo node outside it is linked to the inside node it mirrors;
-    /// otherwise the core may reach one node beyond the cube, where functions still overlap it.
-    pub fn build(sample_cells: Vec<Vec<Coord>>, full_depth: u32, neumann: bool) -> Octree {
+    /// With Neumann or Dirichlet boundaries the core stays inside the cube (a splat beyond a
+    /// face lands on the mirrored node inside), and every halo node outside it is linked to the
+    /// inside node it mirrors; with free boundaries the core may reach one node beyond the
+    /// cube, where functions still overlap it.
+    pub fn build(sample_cells: Vec<Vec<Coord>>, full_depth: u32, boundary: Boundary) -> Octree {
+        let mirror_sign = boundary.mirror_sign();
         let max_depth = sample_cells.len() as u32 - 1;
         // Core sets as sorted packed keys, finest first so parents can be added on the way up.
         let mut cores: Vec<Vec<u64>> = vec![Vec::new(); sample_cells.len()];
         for d in (0..=max_depth).rev() {
             let n = 1i32 << d;
-            let (lo, hi) = if neumann { (0, n - 1) } else { (-1, n) };
+            let (lo, hi) = if mirror_sign.is_some() {
+                (0, n - 1)
+            } else {
+                (-1, n)
+            };
             let clip = |keys: Vec<u64>| -> Vec<u64> {
                 keys.into_iter()
                     .filter(|&k| unpack(k).iter().all(|v| (lo..=hi).contains(v)))
@@ -371,7 +402,7 @@ impl Octree {
         let mut levels: Vec<Level> = cores
             .into_par_iter()
             .enumerate()
-            .map(|(d, core)| Level::with_halo(d as u32, &core, neumann))
+            .map(|(d, core)| Level::with_halo(d as u32, &core, mirror_sign))
             .collect();
         for d in 1..levels.len() {
             let (coarse, fine) = levels.split_at_mut(d);
@@ -397,7 +428,7 @@ impl Octree {
         at_depth: &[Vec<DepthSample>],
         positions: &[DVec3],
         full_depth: u32,
-        neumann: bool,
+        boundary: Boundary,
     ) -> Octree {
         let sample_cells: Vec<Vec<Coord>> = at_depth
             .iter()
@@ -409,7 +440,7 @@ impl Octree {
                     .collect()
             })
             .collect();
-        Octree::build(sample_cells, full_depth, neumann)
+        Octree::build(sample_cells, full_depth, boundary)
     }
 
     pub fn max_depth(&self) -> u32 {
@@ -456,7 +487,7 @@ impl Level {
     /// nodes, NEAR the core widened by one. The widening runs on bit rows of 8×8×8 bricks
     /// ([`BrickRows`]), and the bricks sorted by key list the nodes in Morton order (a brick's
     /// positions are its keys' low nine bits): no per-node sort and no per-node look-up.
-    fn with_halo(depth: u32, core: &[u64], neumann: bool) -> Level {
+    fn with_halo(depth: u32, core: &[u64], mirror_sign: Option<f64>) -> Level {
         let core_rows = BrickRows::from_packed(core);
         let near_rows = core_rows.widened();
         let halo_rows = near_rows.widened();
@@ -507,7 +538,7 @@ impl Level {
                     k += 1;
                 }
             }
-            if neumann {
+            if mirror_sign.is_some() {
                 // A brick's nodes outside the cube mirror nodes inside; in the same halo,
                 // since the reflection of a halo node is within two nodes of the same core nodes.
                 for i in first..k {
@@ -537,6 +568,7 @@ impl Level {
             flags,
             core: DistinctIndices::new(core),
             mirrors,
+            face_sign: mirror_sign.unwrap_or(1.0),
             index,
         }
     }
@@ -1075,10 +1107,10 @@ mod tests {
 
     /// K_d, NEAR and the mirrors that the brick rows give are the core widened by two and by
     /// one node as [`dilate`] widens packed keys, with each node outside the cube mirrored, on
-    /// sparse trees whose cores reach the cube's faces, with and without Neumann mirrors.
+    /// sparse trees whose cores reach the cube's faces, with and without mirrors.
     #[test]
     fn brick_row_widening_matches_packed_dilation() {
-        for neumann in [false, true] {
+        for boundary in [Boundary::Free, Boundary::Neumann, Boundary::Dirichlet] {
             let sample_cells: Vec<Vec<Coord>> = (0..=6)
                 .map(|d| {
                     let n = 1 << d;
@@ -1087,7 +1119,7 @@ mod tests {
                         .collect()
                 })
                 .collect();
-            let tree = Octree::build(sample_cells, 2, neumann);
+            let tree = Octree::build(sample_cells, 2, boundary);
             for level in &tree.levels {
                 let mut core: Vec<u64> = level.core.iter().map(|&i| pack(level.coord(i))).collect();
                 core.sort_unstable();
@@ -1112,7 +1144,8 @@ mod tests {
                 let mirrored: Vec<u32> = (0..level.len() as u32)
                     .filter(|&i| reflect(level.coord(i), n).is_some())
                     .collect();
-                if neumann {
+                if let Some(sign) = boundary.mirror_sign() {
+                    assert_eq!(level.face_sign, sign);
                     let outside: Vec<u32> = level.mirrors.iter().map(|m| m.outside).collect();
                     assert_eq!(outside, mirrored);
                     for m in &level.mirrors {
@@ -1129,7 +1162,7 @@ mod tests {
     #[test]
     fn tree_is_proper_with_halo_and_links() {
         let sample_cells = vec![vec![], vec![], vec![], vec![[5, 2, 7]]];
-        let tree = Octree::build(sample_cells, 1, true);
+        let tree = Octree::build(sample_cells, 1, Boundary::Neumann);
         let finest = &tree.levels[3];
         // The nodes covering cell (5, 2, 7) are [4, 6] × [1, 3] × [6, 8]; widened by one and
         // clipped to the 8³ cube the core is [3, 7] × [0, 4] × [5, 7]; the halo is that box
@@ -1199,10 +1232,10 @@ mod tests {
                 }
             }
         }
-        let grid = Octree::build(vec![Vec::new(); 7], 6, false);
+        let grid = Octree::build(vec![Vec::new(); 7], 6, Boundary::Free);
         let mut cells = vec![Vec::new(); 7];
         cells[6] = shell;
-        let sparse = Octree::build(cells, 2, true);
+        let sparse = Octree::build(cells, 2, Boundary::Neumann);
         for level in [&grid.levels[6], &sparse.levels[6]] {
             let mut cursor = BrickCursor::default();
             let mut missing = 0;

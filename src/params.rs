@@ -20,6 +20,45 @@ pub enum Boundary {
     /// ∂χ/∂n = 0 on the cube's faces: node functions are reflected at the faces (the even,
     /// folded basis). PoissonRecon's and Open3D's default; the most accurate near the faces.
     Neumann,
+    /// χ = 0 on the cube's faces: node functions are reflected at the faces with a change of
+    /// sign (the odd, folded basis), so every function of the space vanishes on the faces. Zero
+    /// is χ's value outside the surface, so the cube's faces are outside: where a scan is open
+    /// (a terrain, a room, a tunnel, a scan seen from one side), the surface closes on itself
+    /// inside the cube, curving in from the open rim, instead of running out to the cube's
+    /// faces and closing with a cap lying on them as [`Boundary::Neumann`] does. Use it for
+    /// open scans whose rims come near the cube; on closed, well-sampled surfaces away from
+    /// the faces it gives nearly the same mesh as Neumann. Costs the same as Neumann.
+    /// PoissonRecon `--bType 2`; Open3D and PCL have no equivalent.
+    Dirichlet,
+}
+
+impl Boundary {
+    /// The sign a node value takes in its mirror image across one face of the cube: +1 for
+    /// [`Boundary::Neumann`] (even reflection), −1 for [`Boundary::Dirichlet`] (odd); `None`
+    /// for [`Boundary::Free`], which has no mirror nodes. One code path serves both mirrored
+    /// kinds: a node beyond k faces takes (sign)^k times its image's value.
+    pub(crate) fn mirror_sign(self) -> Option<f64> {
+        match self {
+            Boundary::Free => None,
+            Boundary::Neumann => Some(1.0),
+            Boundary::Dirichlet => Some(-1.0),
+        }
+    }
+
+    /// The value the screening term pulls χ to at the samples when it is not 0. χ jumps by 1
+    /// across the surface, from inside to outside (∇χ = V points along the outward normals).
+    /// Free and Neumann boundaries leave χ's constant to the screening, which pulls χ to 0 at
+    /// the samples: outside is then about +½. Dirichlet fixes χ = 0 on the cube's faces, which
+    /// must read as outside, so the samples are pulled to −½ (PoissonRecon pulls them to ½
+    /// with the opposite sign convention): outside 0, inside −1, and the faces lie half a jump
+    /// away from the isovalue rather than on it. `None` (no right-hand side to add, the same
+    /// arithmetic as before Dirichlet existed) for free and Neumann.
+    pub(crate) fn screening_target(self) -> Option<f64> {
+        match self {
+            Boundary::Free | Boundary::Neumann => None,
+            Boundary::Dirichlet => Some(-0.5),
+        }
+    }
 }
 
 /// How a sample's weighted normal is spread over the nodes of its depth (§4.2).
@@ -116,7 +155,8 @@ pub struct Params {
     /// Splatting weights. Default [`Splatting::BSpline`]; [`Splatting::Trilinear`] is the paper's.
     pub splatting: Splatting,
     /// Boundary condition at the bounding cube. Default [`Boundary::Neumann`] (PoissonRecon
-    /// `--bType 3`, Open3D's only choice).
+    /// `--bType 3`, Open3D's only choice); [`Boundary::Dirichlet`] (`--bType 2`) for open scans,
+    /// [`Boundary::Free`] (`--bType 1`) the 2006 paper's.
     pub boundary: Boundary,
     /// Where the vertices go. Default [`VertexPlacement::Fitted`];
     /// [`VertexPlacement::OnIsosurface`] keeps them on the level set.

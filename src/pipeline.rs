@@ -15,7 +15,7 @@ use crate::points::{PointSet, Samples, UnitCubeMap};
 use crate::solve::{self, System};
 use crate::splat::splat_level;
 use crate::system::{self, divergence, fill_mirrors};
-use crate::{Boundary, Error, Params, Result, VertexPlacement};
+use crate::{Error, Params, Result, VertexPlacement};
 use std::time::Instant;
 
 /// The stages of a reconstruction, in order, as reported to progress callbacks.
@@ -170,13 +170,12 @@ pub(crate) fn run(
         params.depth,
         params.effective_full_depth(),
     );
-    let neumann = params.boundary == Boundary::Neumann;
     let tree = pool.install(|| {
         Octree::around_samples(
             &at_depth,
             &samples.positions,
             params.effective_full_depth(),
-            neumann,
+            params.boundary,
         )
     });
     let finest = tree.max_depth() as usize;

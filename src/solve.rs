@@ -123,6 +123,9 @@ pub(crate) fn cascade(
             rhs.par_iter_mut()
                 .zip(level.core.par_iter().zip(&coarse_div))
                 .for_each(|(a, (&c, div))| *a = rho_here[c as usize] + div - *a);
+            if let Some(target) = params.boundary.screening_target() {
+                op.add_screening_target(target, &mut rhs);
+            }
             rhs
         });
         drop(rho_here);
@@ -308,6 +311,7 @@ fn conjugate_gradients(
 mod tests {
     use super::*;
     use crate::grid::{cell_of, morton_nested};
+    use crate::Boundary;
 
     fn pool(threads: usize) -> rayon::ThreadPool {
         rayon::ThreadPoolBuilder::new()
@@ -319,7 +323,7 @@ mod tests {
     /// Solves A x = A x_true on a complete 16³ level with free boundaries (A positive
     /// definite) and a screening term, from x = 0.
     fn solve_known_system(threads: usize) -> (Vec<f64>, Vec<f64>, CgOutcome) {
-        let tree = Octree::build(vec![Vec::new(); 5], 4, false);
+        let tree = Octree::build(vec![Vec::new(); 5], 4, Boundary::Free);
         let level = &tree.levels[4];
         // Proxies in a band of cells, so the screening varies from node to node.
         let mut positions: Vec<DVec3> = (0..4000)
@@ -381,7 +385,7 @@ mod tests {
     /// Proves: a callback that says stop ends the solve at once, reporting it.
     #[test]
     fn conjugate_gradients_stops_when_asked() {
-        let tree = Octree::build(vec![Vec::new(); 4], 3, false);
+        let tree = Octree::build(vec![Vec::new(); 4], 3, Boundary::Free);
         let level = &tree.levels[3];
         let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);

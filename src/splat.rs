@@ -11,16 +11,18 @@
 //! 27 cells around it give it, with those samples in a fixed order, so nodes are independent
 //! (parallel, no atomics) and the result is the same for any number of threads.
 //!
-//! With Neumann boundaries a weight that would go to a node just outside the cube goes to the
-//! node it mirrors inside: along each axis, the first and last node also collect the weight of
-//! their reflection.
+//! With Neumann or Dirichlet boundaries a weight that would go to a node just outside the cube
+//! goes to the node it mirrors inside: along each axis, the first and last node also collect the
+//! weight of their reflection. The fold keeps each sample's whole mass inside the cube and has no
+//! sign (the same for both kinds): V's values beyond the faces then follow from the inside ones
+//! with the boundary's signs ([`fill_mirrors_field`]).
 
 use crate::density::DepthSample;
 use crate::grid::cell_of;
 use crate::octree::{brick_local, fill_mirrors_field, BrickCursor, Level};
 use crate::parallel::scatter_by_chunk;
 use crate::points::Samples;
-use crate::{Boundary, Params, Splatting};
+use crate::{Params, Splatting};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -39,7 +41,7 @@ pub(crate) fn splat_level(
         &samples.normals,
         at_depth,
         params.splatting,
-        params.boundary == Boundary::Neumann,
+        params.boundary.mirror_sign().is_some(),
     );
     fill_mirrors_field(level, &mut v);
     v
@@ -53,7 +55,7 @@ fn splat_depth(
     normals: &[[f32; 3]],
     at_depth: &[DepthSample],
     splatting: Splatting,
-    neumann: bool,
+    fold: bool,
 ) -> [Vec<f64>; 3] {
     let inv_h = (level.depth as f64).exp2();
     let n = 1i32 << level.depth;
@@ -120,7 +122,7 @@ fn splat_depth(
                     let mut weight = 1.0;
                     for axis in 0..3 {
                         weight *=
-                            axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, neumann);
+                            axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, fold);
                     }
                     let normal = DVec3::from_array(normals[s.sample as usize].map(f64::from));
                     sum += normal * (s.mass * weight);
@@ -181,12 +183,12 @@ impl SampleCells<'_> {
 }
 
 /// Along one axis: the weight node `i` receives from a sample at `t` (in node widths) in cell
-/// `c`, folding in the weight of its mirror image when `neumann` and `i` is the first or last
-/// of the `n` nodes inside the cube.
+/// `c`, folding in the weight of its mirror image when `fold` (mirrored boundaries) and `i` is
+/// the first or last of the `n` nodes inside the cube.
 #[inline]
-fn axis_weight(splatting: Splatting, t: f64, c: i32, i: i32, n: i32, neumann: bool) -> f64 {
+fn axis_weight(splatting: Splatting, t: f64, c: i32, i: i32, n: i32, fold: bool) -> f64 {
     let direct = node_weight(splatting, t, c, i);
-    if !neumann {
+    if !fold {
         direct
     } else if i == 0 {
         direct + node_weight(splatting, t, c, -1)
@@ -222,7 +224,7 @@ mod tests {
             for k in 0..=80 {
                 let t = k as f64 / 10.0 * 0.999; // inside [0, 8)
                 let c = t.floor() as i32;
-                // Inside the cube with Neumann folding, or over all nodes without.
+                // Inside the cube with mirror folding, or over all nodes without.
                 let folded: f64 = (0..n)
                     .map(|i| axis_weight(splatting, t, c, i, n, true))
                     .sum();

@@ -1520,7 +1520,8 @@ fn two_handles_on_two_threads_match_sequential_runs() {
 }
 
 /// Proves: the boundary, splatting and vertex placement choices are set and read back as
-/// integers, default to Neumann, B-spline and fitted, and any other integer is refused with
+/// integers (boundary: Neumann 0, free 1, Dirichlet 2), default to Neumann, B-spline and
+/// fitted, and any other integer is refused with
 /// INVALID_PARAMETER naming the parameter, leaving the value as it was.
 #[test]
 fn boundary_splatting_and_vertex_placement_choices_round_trip_and_reject_unknown_values() {
@@ -1551,6 +1552,25 @@ fn boundary_splatting_and_vertex_placement_choices_round_trip_and_reject_unknown
         );
         assert_eq!(psr_reconstructor_get_boundary(r, &mut v), psr_status::Ok);
         assert_eq!(v, psr_boundary::Free as i32);
+        // Dirichlet (added after the others, so its number is new and theirs unchanged).
+        assert_eq!(
+            (
+                psr_boundary::Neumann as i32,
+                psr_boundary::Free as i32,
+                psr_boundary::Dirichlet as i32
+            ),
+            (0, 1, 2)
+        );
+        assert_eq!(
+            psr_reconstructor_set_boundary(r, psr_boundary::Dirichlet as i32),
+            psr_status::Ok
+        );
+        assert_eq!(psr_reconstructor_get_boundary(r, &mut v), psr_status::Ok);
+        assert_eq!(v, psr_boundary::Dirichlet as i32);
+        assert_eq!(
+            psr_reconstructor_set_boundary(r, psr_boundary::Free as i32),
+            psr_status::Ok
+        );
         assert_eq!(
             psr_reconstructor_set_splatting(r, psr_splatting::Trilinear as i32),
             psr_status::Ok
@@ -1562,8 +1582,10 @@ fn boundary_splatting_and_vertex_placement_choices_round_trip_and_reject_unknown
             assert_eq!(status, psr_status::InvalidParameter, "{name}");
             assert!(last_error(r).contains(name), "{}", last_error(r));
         };
-        for bad in [-1, 2, i32::MAX] {
+        for bad in [-1, 3, i32::MAX] {
             refused(psr_reconstructor_set_boundary(r, bad), "boundary");
+        }
+        for bad in [-1, 2, i32::MAX] {
             refused(psr_reconstructor_set_splatting(r, bad), "splatting");
             refused(
                 psr_reconstructor_set_vertex_placement(r, bad),

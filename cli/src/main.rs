@@ -3,7 +3,7 @@
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8 | --width W] [--full-depth 5] [--kernel-depth N]
 //!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
-//!     [--tolerance 1e-2] [--boundary neumann|free] [--splatting bspline|trilinear]
+//!     [--tolerance 1e-2] [--boundary neumann|free|dirichlet] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
 //!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
 //!     [--no-density] [--no-attributes] [--vertex-normals] [--min-component-samples 8]
@@ -131,9 +131,11 @@ struct Args {
     #[arg(long, value_name = "T", default_value_t = Params::default().solver_tolerance)]
     tolerance: f64,
 
-    /// Boundary condition at the bounding cube: neumann (PoissonRecon's and Open3D's default) or
-    /// free (the 2006 paper). PoissonRecon: --bType (3 = neumann, 1 = free; its 2, Dirichlet, has
-    /// no counterpart).
+    /// Boundary condition at the bounding cube: neumann (PoissonRecon's and Open3D's default), free
+    /// (the 2006 paper) or dirichlet (chi = 0 on the cube: for open scans such as terrain, rooms or
+    /// tunnels, whose surface then closes inside the cube instead of running out to the cube's
+    /// faces and being capped there). PoissonRecon: --bType (3 = neumann, 1 = free, 2 =
+    /// dirichlet).
     #[arg(long, value_enum, default_value_t = BoundaryArg::Neumann)]
     boundary: BoundaryArg,
 
@@ -381,6 +383,7 @@ impl Args {
             .with_boundary(match self.boundary {
                 BoundaryArg::Neumann => Boundary::Neumann,
                 BoundaryArg::Free => Boundary::Free,
+                BoundaryArg::Dirichlet => Boundary::Dirichlet,
             })
             .with_splatting(match self.splatting {
                 SplattingArg::Bspline => Splatting::BSpline,
@@ -452,6 +455,7 @@ enum OrientationArg {
 enum BoundaryArg {
     Neumann,
     Free,
+    Dirichlet,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]

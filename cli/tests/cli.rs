@@ -208,6 +208,28 @@ fn help_entries() -> Vec<(String, String)> {
     entries
 }
 
+/// `--boundary`'s help gives each kind its PoissonRecon `--bType` number, as PoissonRecon's
+/// source numbers them (`BoundaryType` + 1: free 1, Dirichlet 2, Neumann 3), and the parser
+/// takes each kind by name.
+#[test]
+fn boundary_help_gives_each_kind_its_btype_number() {
+    let entries = help_entries();
+    let (_, text) = entries
+        .iter()
+        .find(|(name, _)| name == "--boundary")
+        .expect("--boundary in --help");
+    for kind in ["3 = neumann", "1 = free", "2 = dirichlet"] {
+        assert!(
+            text.contains(kind),
+            "--boundary's help lacks {kind}: {text}"
+        );
+    }
+    assert!(
+        text.contains("possible values: neumann, free, dirichlet"),
+        "{text}"
+    );
+}
+
 #[test]
 fn help_gives_every_option_its_poissonrecon_equivalent() {
     let entries = help_entries();

@@ -460,6 +460,11 @@ pub enum psr_boundary {
     Neumann = 0,
     /// The 2006 paper: node functions simply end beyond the cube (PoissonRecon --bType 1).
     Free = 1,
+    /// chi = 0 on the cube's faces, which are then outside the surface: an open scan (terrain,
+    /// room, tunnel) closes on itself inside the cube instead of running out to the faces and
+    /// being capped there as with Neumann (PoissonRecon --bType 2; no Open3D or PCL
+    /// equivalent). Costs the same as Neumann.
+    Dirichlet = 2,
 }
 
 /// Splatting weights, for psr_reconstructor_set_splatting.
@@ -524,8 +529,8 @@ unsafe fn set_choice<T: Copy>(
     unsafe { guard(function, r, body) }
 }
 
-/// Sets the boundary condition: PSR_BOUNDARY_NEUMANN (0, the default) or PSR_BOUNDARY_FREE (1).
-/// PoissonRecon --bType.
+/// Sets the boundary condition: PSR_BOUNDARY_NEUMANN (0, the default), PSR_BOUNDARY_FREE (1)
+/// or PSR_BOUNDARY_DIRICHLET (2, for open scans). PoissonRecon --bType (3, 1 and 2).
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
 /// (PSR_STATUS_INVALID_PARAMETER for any other value).
@@ -543,9 +548,13 @@ pub unsafe extern "C" fn psr_reconstructor_set_boundary(
             "psr_reconstructor_set_boundary",
             r,
             "boundary",
-            "PSR_BOUNDARY_NEUMANN (0) or PSR_BOUNDARY_FREE (1)",
+            "PSR_BOUNDARY_NEUMANN (0), PSR_BOUNDARY_FREE (1) or PSR_BOUNDARY_DIRICHLET (2)",
             boundary,
-            &[crate::Boundary::Neumann, crate::Boundary::Free],
+            &[
+                crate::Boundary::Neumann,
+                crate::Boundary::Free,
+                crate::Boundary::Dirichlet,
+            ],
             |p, b| p.boundary = b,
         )
     }
@@ -568,6 +577,7 @@ pub unsafe extern "C" fn psr_reconstructor_get_boundary(
             match p.boundary {
                 crate::Boundary::Neumann => psr_boundary::Neumann as i32,
                 crate::Boundary::Free => psr_boundary::Free as i32,
+                crate::Boundary::Dirichlet => psr_boundary::Dirichlet as i32,
             }
         })
     }

@@ -78,11 +78,64 @@ impl<'a> DepthOperator<'a> {
             |_, scratch, cb, core_nodes, ()| {
                 let acc = &mut scratch.screened;
                 acc.fill(0.0);
-                cells.accumulate(level, cb, &bricks.around[cb], acc, |cell, contribution| {
-                    for (slot, q) in cell.slots().zip(cell.proxy_range()) {
-                        tensor_accumulate(&proxies.stencil(q), chi[slot], contribution);
-                    }
-                });
+                let face_sign = level.face_sign;
+                cells.accumulate(
+                    level,
+                    cb,
+                    &bricks.around[cb],
+                    face_sign,
+                    acc,
+                    |cell, contribution| {
+                        for (slot, q) in cell.slots().zip(cell.proxy_range()) {
+                            tensor_accumulate(&proxies.stencil(q), chi[slot], contribution);
+                        }
+                    },
+                );
+                for (o, [x, y, z]) in core_nodes {
+                    *o += scale * acc[padded(x, y, z)];
+                }
+            },
+        );
+    }
+
+    /// Adds α·Σ_q W_q t φ_o(q) to `out[c]` at every core node c (in core order), φ_o the
+    /// node's folded function: the right-hand side that turns the screening term
+    /// α·Σ_q W_q χ(q)² into α·Σ_q W_q (χ(q) − t)², pulling χ to `target` t at the samples
+    /// instead of to 0. Nothing without screening. Summed as [`DepthOperator::apply`]'s
+    /// screening sweep sums, with W_q t in place of W_q χ(q), into `out` itself (no vector
+    /// beside it).
+    pub fn add_screening_target(&mut self, target: f64, out: &mut [f64]) {
+        let level = self.level;
+        let proxies = self.proxies;
+        let bricks = &self.bricks;
+        let Some(cells) = &self.screening_cells else {
+            return;
+        };
+        let scale = self.screening;
+        bricks.for_each_brick::<0, ()>(
+            |_, _, _| {},
+            out,
+            vec![(); bricks.len()],
+            |_, scratch, cb, core_nodes, ()| {
+                let acc = &mut scratch.screened;
+                acc.fill(0.0);
+                let face_sign = level.face_sign;
+                cells.accumulate(
+                    level,
+                    cb,
+                    &bricks.around[cb],
+                    face_sign,
+                    acc,
+                    |cell, contribution| {
+                        for q in cell.proxy_range() {
+                            tensor_accumulate(
+                                &proxies.stencil(q),
+                                proxies.weight[q] * target,
+                                contribution,
+                            );
+                        }
+                    },
+                );
                 for (o, [x, y, z]) in core_nodes {
                     *o += scale * acc[padded(x, y, z)];
                 }
@@ -131,6 +184,7 @@ impl<'a> DepthOperator<'a> {
                     level,
                     cb,
                     &self.bricks.around[cb],
+                    1.0,
                     acc,
                     |cell, contribution| {
                         for q in cell.proxy_range() {

@@ -1,6 +1,6 @@
 //! Right-hand sides: ⟨∇B_o, V⟩, the divergence of the splatted vector field V tested against
-//! each node function, brick by brick; and vectors kept on the core with their Neumann mirrors
-//! filled.
+//! each node function, brick by brick; and vectors kept on the core with their mirrors
+//! (Neumann, Dirichlet) filled.
 
 use super::bricks::CoreBricks;
 use super::transfer::{restrict_into, ProlongedField};

@@ -248,10 +248,12 @@ pub(super) struct ScreeningCell {
 
 impl ScreeningCells {
     /// Adds a cell's block contribution (cell at window coordinates `w`) to the brick at
-    /// `origin`, a block node beyond the cube going to the inside node it mirrors.
+    /// `origin`, a block node beyond the cube going to the inside node it mirrors, times
+    /// `face_sign` per face crossed (the transpose of [`fill_mirrors`](super::fill_mirrors)).
     fn add_reflected(
         origin: [i32; 3],
         n: i32,
+        face_sign: f64,
         w: [usize; 3],
         contribution: &[f64; 27],
         acc: &mut [f64; PADDED],
@@ -259,17 +261,20 @@ impl ScreeningCells {
         for (k, c) in contribution.iter().enumerate() {
             // The block node's brick-local coordinates.
             let mut node = [k % 3, k / 3 % 3, k / 9].map(|d| d as i32);
+            let mut sign = 1.0;
             for a in 0..3 {
                 node[a] += w[a] as i32 - 3;
                 let g = origin[a] + node[a];
                 if g < 0 {
                     node[a] = -1 - g - origin[a];
+                    sign *= face_sign;
                 } else if g >= n {
                     node[a] = 2 * n - 1 - g - origin[a];
+                    sign *= face_sign;
                 }
             }
             if node.iter().all(|&v| (0..8).contains(&v)) {
-                acc[padded(node[0] as usize, node[1] as usize, node[2] as usize)] += *c;
+                acc[padded(node[0] as usize, node[1] as usize, node[2] as usize)] += sign * *c;
             }
         }
     }
@@ -389,13 +394,18 @@ impl ScreeningCells {
     /// 3×3×3 node block (x fastest) to `contribution`, which is added to `acc` (the brick's
     /// positions padded by two nodes, see [`padded`]): whole blocks, without bounds to test per
     /// cell; the padding takes the block nodes beyond the brick, which other bricks compute.
-    /// With Neumann boundaries a block node beyond the cube is the mirror image of one inside,
-    /// whose folded function collects it instead.
+    /// With Neumann or Dirichlet boundaries a block node beyond the cube is the mirror image of
+    /// one inside, whose folded function collects it instead, times `face_sign` per face
+    /// crossed: [`Level::face_sign`] for the operator (Pᵀ S P, P the signed extension, so the
+    /// system stays symmetric), 1 for the diagonal's sums of squares (the Jacobi
+    /// preconditioner only needs a positive approximation of the diagonal; Neumann's is the
+    /// same).
     pub(super) fn accumulate(
         &self,
         level: &Level,
         cb: usize,
         around: &[u32; 27],
+        face_sign: f64,
         acc: &mut [f64; PADDED],
         mut contribute: impl FnMut(&ScreeningCell, &mut [f64; 27]),
     ) {
@@ -410,7 +420,7 @@ impl ScreeningCells {
             let mut contribution = [0.0; 27];
             contribute(cell, &mut contribution);
             if reflects {
-                Self::add_reflected(origin, n, w, &contribution, acc);
+                Self::add_reflected(origin, n, face_sign, w, &contribution, acc);
                 continue;
             }
             // Block node d of a cell at window coordinate w (local + 2) is at local w − 3 + d,

@@ -7,12 +7,13 @@ use super::transfer::{prolonged_at, refinement_parents, restrict_into};
 use super::*;
 use crate::bspline::tables;
 use crate::octree::{Level, Octree, NONE};
+use crate::Boundary;
 use glam::DVec3;
 
 /// A complete 16³ grid with free boundaries: its halo reaches two nodes beyond the cube, so
 /// every core node sees its whole 5³ neighbourhood.
 fn grid() -> Octree {
-    Octree::build(vec![Vec::new(); 5], 4, false)
+    Octree::build(vec![Vec::new(); 5], 4, Boundary::Free)
 }
 
 /// Coefficients on K of the polynomial f in node units (t = p/h = i + ½ at node centres).
@@ -70,9 +71,12 @@ fn divergence_of_a_linear_field_is_its_constant_divergence() {
     }
 }
 
+/// Every boundary kind, the mirrored ones (Neumann, Dirichlet) sharing one code path.
+const BOUNDARIES: [Boundary; 3] = [Boundary::Free, Boundary::Neumann, Boundary::Dirichlet];
+
 /// A complete 16³ tree and a sparse one (only part of the cube refined, down to depth 5),
-/// with Neumann or free boundaries.
-fn complete_and_sparse_trees(neumann: bool) -> [Octree; 2] {
+/// with the given boundaries.
+fn complete_and_sparse_trees(boundary: Boundary) -> [Octree; 2] {
     let sparse: Vec<Vec<[i32; 3]>> = (0..=5)
         .map(|d| {
             let n = 1 << d;
@@ -82,8 +86,8 @@ fn complete_and_sparse_trees(neumann: bool) -> [Octree; 2] {
         })
         .collect();
     [
-        Octree::build(vec![Vec::new(); 5], 4, neumann),
-        Octree::build(sparse, 2, neumann),
+        Octree::build(vec![Vec::new(); 5], 4, boundary),
+        Octree::build(sparse, 2, boundary),
     ]
 }
 
@@ -94,8 +98,8 @@ fn complete_and_sparse_trees(neumann: bool) -> [Octree; 2] {
 /// the cube refined) as well as complete ones.
 #[test]
 fn brick_prolongations_match_node_by_node_prolongation() {
-    for neumann in [false, true] {
-        for tree in complete_and_sparse_trees(neumann) {
+    for boundary in BOUNDARIES {
+        for tree in complete_and_sparse_trees(boundary) {
             for d in 1..tree.levels.len() {
                 let (coarse, fine) = (&tree.levels[d - 1], &tree.levels[d]);
                 let field: [Vec<f64>; 3] = std::array::from_fn(|a| {
@@ -120,7 +124,7 @@ fn brick_prolongations_match_node_by_node_prolongation() {
                         assert_eq!(
                             a.to_bits(),
                             b.to_bits(),
-                            "{what}, depth {d}, neumann {neumann}: {a} vs {b}"
+                            "{what}, depth {d}, {boundary:?}: {a} vs {b}"
                         );
                     }
                 };
@@ -215,8 +219,8 @@ fn vector_windows_match_the_node_by_node_gather() {
     if !std::arch::is_x86_feature_detected!("avx512f") {
         eprintln!("no AVX-512 on this CPU: checking the portable gather against itself");
     }
-    for neumann in [false, true] {
-        for tree in complete_and_sparse_trees(neumann) {
+    for boundary in BOUNDARIES {
+        for tree in complete_and_sparse_trees(boundary) {
             for level in &tree.levels {
                 let input: Vec<f64> = (0..level.len()).map(|i| (i % 97) as f64 + 0.5).collect();
                 let bricks = CoreBricks::new(level);
@@ -334,36 +338,87 @@ fn proxy_stencil_is_the_bspline_at_the_proxy() {
     }
 }
 
+/// Proxies in cells inside the cube within one node of the core (as the pipeline keeps them),
+/// one to three per cell, at the faces too; some of those cells lie in bricks without core
+/// nodes.
+fn proxies_near_the_core(level: &Level) -> Proxies {
+    let n = 1i32 << level.depth;
+    let mut proxies = Proxies::default();
+    let near: Vec<u32> = (0..level.len() as u32)
+        .filter(|&i| level.flags[i as usize] & crate::octree::NEAR != 0)
+        .collect();
+    for (k, &c) in near.iter().enumerate() {
+        let coord = level.coord(c);
+        if coord.iter().any(|&v| v < 0 || v >= n) || k % 3 == 1 {
+            continue;
+        }
+        for j in 0..1 + k % 3 {
+            let f = |a: usize| ((k * 7 + j * 5 + a * 3) % 10) as f32 / 10.0 + 0.05;
+            proxies.cell.push(c);
+            proxies.weight.push(0.5 + (k % 5) as f64);
+            proxies.offset.push([f(0), f(1), f(2)]);
+        }
+    }
+    assert!(!proxies.is_empty());
+    proxies
+}
+
+/// The operator the solver's conjugate gradients need: A = L + αS applied to vectors that live
+/// on the core with their mirrors filled (x = P x_core, P the extension by ± the mirrored
+/// value) is symmetric positive definite on the core, for every boundary kind. With Dirichlet
+/// the mirrors take −value across one face; the Laplacian's free-space stencils on the
+/// odd-extended x equal the Galerkin matrix of the odd-folded basis on the cube, and screening
+/// is Pᵀ S P; both symmetric.
+#[test]
+fn the_operator_is_symmetric_positive_definite_for_every_boundary() {
+    for boundary in BOUNDARIES {
+        for tree in complete_and_sparse_trees(boundary) {
+            let level = &tree.levels[tree.levels.len() - 1];
+            let proxies = proxies_near_the_core(level);
+            let on_core = |seed: usize| {
+                let mut x = vec![0.0; level.len()];
+                update_on_core(level, &mut x, |i, _| {
+                    ((i * (7 + seed) + 3 * seed) % 23) as f64 / 23.0 - 0.45
+                });
+                x
+            };
+            let core_dot = |x: &[f64], core_values: &[f64]| -> f64 {
+                level
+                    .core
+                    .iter()
+                    .zip(core_values)
+                    .map(|(&c, v)| x[c as usize] * v)
+                    .sum()
+            };
+            for alpha in [0.0, 3.5] {
+                let mut op = DepthOperator::new(level, &proxies, alpha);
+                let (x, y) = (on_core(1), on_core(2));
+                let (mut ax, mut ay) = (vec![0.0; level.core.len()], vec![0.0; level.core.len()]);
+                op.apply(&x, &mut ax);
+                op.apply(&y, &mut ay);
+                let (yax, xay) = (core_dot(&y, &ax), core_dot(&x, &ay));
+                assert!(
+                    (yax - xay).abs() < 1e-12 * yax.abs().max(1.0),
+                    "{boundary:?} α {alpha}: yᵀAx {yax} vs xᵀAy {xay}"
+                );
+                let xax = core_dot(&x, &ax);
+                assert!(xax > 0.0, "{boundary:?} α {alpha}: xᵀAx {xax}");
+            }
+        }
+    }
+}
+
 /// The screening term applied brick by brick (and the diagonal) against a node-by-node
 /// reference: every proxy reads χ from the 3×3×3 nodes around its cell and gives back to
-/// them, mirror nodes folding into the inside nodes they reflect; free and Neumann
-/// boundaries, proxies in the middle, at the faces, corners and across brick edges.
+/// them, mirror nodes folding into the inside nodes they reflect (with Dirichlet's signs);
+/// free, Neumann and Dirichlet boundaries, proxies in the middle, at the faces, corners and
+/// across brick edges. Likewise the screening target's right-hand side.
 #[test]
 fn brick_screening_matches_the_node_by_node_sum() {
-    for neumann in [false, true] {
-        for tree in complete_and_sparse_trees(neumann) {
+    for boundary in BOUNDARIES {
+        for tree in complete_and_sparse_trees(boundary) {
             let level = &tree.levels[tree.levels.len() - 1];
-            let n = 1i32 << level.depth;
-            // Proxies in cells inside the cube within one node of the core (as the pipeline
-            // keeps them), one to three per cell; some of those cells lie in bricks without
-            // core nodes.
-            let mut proxies = Proxies::default();
-            let near: Vec<u32> = (0..level.len() as u32)
-                .filter(|&i| level.flags[i as usize] & crate::octree::NEAR != 0)
-                .collect();
-            for (k, &c) in near.iter().enumerate() {
-                let coord = level.coord(c);
-                if coord.iter().any(|&v| v < 0 || v >= n) || k % 3 == 1 {
-                    continue;
-                }
-                for j in 0..1 + k % 3 {
-                    let f = |a: usize| ((k * 7 + j * 5 + a * 3) % 10) as f32 / 10.0 + 0.05;
-                    proxies.cell.push(c);
-                    proxies.weight.push(0.5 + (k % 5) as f64);
-                    proxies.offset.push([f(0), f(1), f(2)]);
-                }
-            }
-            assert!(!proxies.is_empty());
+            let proxies = proxies_near_the_core(level);
             let bricks = CoreBricks::new(level);
             let cells = ScreeningCells::new(level, &proxies, &bricks);
             if level.core.len() < level.len() / 2 {
@@ -384,6 +439,8 @@ fn brick_screening_matches_the_node_by_node_sum() {
             DepthOperator::new(level, &proxies, 0.0).apply(&x, &mut laplacian);
             let mut screened = vec![0.0; level.len()];
             let mut squares = vec![0.0; level.len()];
+            let target = -0.5;
+            let mut targeted = vec![0.0; level.len()];
             for q in 0..proxies.len() {
                 let block = level.block27(proxies.cell[q]);
                 let st = &proxies.stencil(q);
@@ -395,27 +452,38 @@ fn brick_screening_matches_the_node_by_node_sum() {
                 for s in 0..27 {
                     if block[s] != NONE {
                         screened[block[s] as usize] += proxies.weight[q] * chi * b(s);
+                        targeted[block[s] as usize] += proxies.weight[q] * target * b(s);
                         squares[block[s] as usize] += proxies.weight[q] * b(s) * b(s);
                     }
                 }
             }
+            // Pᵀ: a mirror node's sum goes to the node it reflects with the boundary's sign
+            // (the diagonal's squares unsigned, see `ScreeningCells::accumulate`).
             for m in &level.mirrors {
-                screened[m.inside as usize] += screened[m.outside as usize];
+                screened[m.inside as usize] +=
+                    level.mirror_sign(m.flips) * screened[m.outside as usize];
+                targeted[m.inside as usize] +=
+                    level.mirror_sign(m.flips) * targeted[m.outside as usize];
                 squares[m.inside as usize] += squares[m.outside as usize];
             }
             let mut op = DepthOperator::new(level, &proxies, alpha);
             let diagonal = op.diagonal();
             let lap_diagonal = DepthOperator::new(level, &proxies, 0.0).diagonal();
+            // The screening target's right-hand side: the same sums with W_q t for W_q χ(q).
+            let mut target_rhs = vec![0.0; level.core.len()];
+            op.add_screening_target(target, &mut target_rhs);
             for (k, &c) in level.core.iter().enumerate() {
                 let want = laplacian[k] + alpha * screened[c as usize];
                 assert!(
                     (got[k] - want).abs() < 1e-12 * want.abs().max(1.0),
-                    "neumann {neumann}, node {:?}: {} vs {want}",
+                    "{boundary:?}, node {:?}: {} vs {want}",
                     level.coord(c),
                     got[k]
                 );
                 let want = lap_diagonal[k] + alpha * squares[c as usize];
                 assert!((diagonal[k] - want).abs() < 1e-12 * want.abs().max(1.0));
+                let want = alpha * targeted[c as usize];
+                assert!((target_rhs[k] - want).abs() < 1e-12 * want.abs().max(1.0));
             }
         }
     }
@@ -427,7 +495,12 @@ fn neumann_mirrors_make_constants_harmonic_up_to_the_faces() {
     // gradient everywhere in the cube, so L·1 vanishes at every node, the face nodes too;
     // with free boundaries the node functions simply stop and the face nodes feel it.
     for neumann in [true, false] {
-        let tree = Octree::build(vec![Vec::new(); 4], 3, neumann);
+        let boundary = if neumann {
+            Boundary::Neumann
+        } else {
+            Boundary::Free
+        };
+        let tree = Octree::build(vec![Vec::new(); 4], 3, boundary);
         let level = &tree.levels[3];
         let proxies = Proxies::default();
         let mut op = DepthOperator::new(level, &proxies, 0.0);

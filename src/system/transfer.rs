@@ -26,16 +26,18 @@ impl ProlongedField<'_> {
     pub fn at(&self, i: u32) -> [f64; 3] {
         let scales = [self.scale; 3];
         if !self.fine.mirrors.is_empty() {
-            // Neumann: a node outside the cube mirrors its reflection inside, if in K_d.
+            // Neumann or Dirichlet: a node outside the cube mirrors its reflection inside, if in
+            // K_d, with the signs of [`fill_mirrors_field`](super::fill_mirrors_field).
             let n = 1i32 << self.fine.depth;
             if let Some((inside, flips)) = reflect(self.fine.coord(i), n) {
                 if let Some(j) = self.fine.find(inside) {
                     let v = prolonged_at(self.coarse, self.fine, self.field, scales, j);
+                    let scalar = self.fine.mirror_sign(flips);
                     return std::array::from_fn(|axis| {
                         if flips & (1 << axis) != 0 {
-                            -v[axis]
+                            -scalar * v[axis]
                         } else {
-                            v[axis]
+                            scalar * v[axis]
                         }
                     });
                 }
@@ -81,7 +83,7 @@ impl CoreBricks {
     /// coordinates origin/2 − 2 .. origin/2 + 6, gathered once into an 8×8×8 array from the
     /// eight coarse bricks that cover them. Each window node then sums its eight parents in
     /// the order and with the weights of [`refinement_parents`]. Nodes beyond the cube (mirrors,
-    /// with Neumann boundaries) take the node-by-node path.
+    /// with Neumann or Dirichlet boundaries) take the node-by-node path.
     pub(super) fn gather_prolonged(
         &self,
         field: &ProlongedField<'_>,
@@ -107,7 +109,7 @@ impl CoreBricks {
         }
 
         // The fine window: the prolongation where K_d has a node, zero elsewhere (beyond the
-        // cube, with Neumann mirrors, a node's value is its mirror image's).
+        // cube, with mirrors, a node's value is its mirror image's, signed).
         let mut present = [0u16; WINDOW * WINDOW];
         self.for_each_window_group(fine, cb, |_, corners, [x, y, z]| {
             for (k, row) in [

@@ -415,6 +415,36 @@ static void test_mesh(void) {
     psr_mesh_free(m);
 }
 
+/* The boundary kinds by their header names: each set and read back, any other value refused
+ * (the setting unchanged), and a sphere solved with Dirichlet (chi = 0 on the cube's faces)
+ * into a mesh. */
+static void test_boundaries(void) {
+    const int32_t kinds[3] = {PSR_BOUNDARY_NEUMANN, PSR_BOUNDARY_FREE, PSR_BOUNDARY_DIRICHLET};
+    psr_reconstructor *r = new_with_sphere(1000, 5);
+    psr_mesh *m = NULL;
+    int32_t v = -7;
+    int k;
+
+    section("boundary kinds: Neumann, free, Dirichlet");
+    CHECK(PSR_BOUNDARY_NEUMANN == 0 && PSR_BOUNDARY_FREE == 1 && PSR_BOUNDARY_DIRICHLET == 2);
+    CHECK_STATUS(psr_reconstructor_get_boundary(r, &v), PSR_STATUS_OK);
+    CHECK(v == PSR_BOUNDARY_NEUMANN);
+    for (k = 0; k < 3; k++) {
+        CHECK_STATUS(psr_reconstructor_set_boundary(r, kinds[k]), PSR_STATUS_OK);
+        CHECK_STATUS(psr_reconstructor_get_boundary(r, &v), PSR_STATUS_OK);
+        CHECK(v == kinds[k]);
+    }
+    CHECK_STATUS(psr_reconstructor_set_boundary(r, 3), PSR_STATUS_INVALID_PARAMETER);
+    CHECK(contains(psr_reconstructor_last_error(r), "PSR_BOUNDARY_DIRICHLET"));
+    CHECK_STATUS(psr_reconstructor_set_boundary(r, -1), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_reconstructor_get_boundary(r, &v), PSR_STATUS_OK);
+    CHECK(v == PSR_BOUNDARY_DIRICHLET);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    CHECK(m != NULL && psr_mesh_vertex_count(m) > 100 && psr_mesh_triangle_count(m) > 100);
+    psr_mesh_free(m);
+    psr_reconstructor_free(r);
+}
+
 /* Points without normals: counted, refused when bad, and reconstructed with estimated
  * normals into a mesh whose triangles face outward (positive signed volume). */
 static void test_positions_without_normals(void) {
@@ -1004,6 +1034,7 @@ int main(void) {
     test_order_and_parameters();
     test_bad_batches();
     test_mesh();
+    test_boundaries();
     test_positions_without_normals();
     test_sensors();
     test_point_arrays();
