@@ -513,11 +513,9 @@ const NONUNIFORM_SPARSE_CAP_BOUND: f64 = 7.12e-5;
 
 /// Proves: a sparsely but evenly sampled sphere, 200 points (about 7 depth-6 cells apart),
 /// still gives a closed topological sphere of one component with the default parameters, at
-/// depth 6 and at depth 8, where the samples are about 28 cells apart. (Early builds failed
-/// here: χ near the bounding cube came close to the isovalue and the mesh had extra open sheets
-/// running into the cube's faces; the test has run, and passed, in every build since the
-/// extraction closed the surface along the faces and the density read sparse samples at
-/// coarser depths.)
+/// depth 6 and at depth 8, where the samples are about 28 cells apart. (An early build failed
+/// here, with χ near the bounding cube close to the isovalue and extra open sheets running into
+/// the cube's faces; the test is not ignored and passes.)
 #[test]
 fn sparse_sphere_is_closed() {
     let (positions, normals) = sample_sphere(200, 1.0, [0.0; 3], 9);
