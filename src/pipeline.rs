@@ -7,6 +7,7 @@ use crate::attributes;
 use crate::density::{self, DensityField};
 use crate::evaluate::Indicator;
 use crate::extract;
+use crate::implicit::ImplicitFunction;
 use crate::isovalue;
 use crate::mesh::{self, Mesh, Stats};
 use crate::octree::Octree;
@@ -124,13 +125,15 @@ impl Clock<'_, '_> {
 }
 
 /// Reconstructs `points` with `params`, the parallel sections in `pool`, reporting each stage
-/// to `progress` on the calling thread (which may cancel).
+/// to `progress` on the calling thread (which may cancel); with `keep_implicit`, also returns
+/// the solved χ (which the pipeline otherwise drops on return).
 pub(crate) fn run(
     points: &PointSet,
     params: &Params,
     pool: &rayon::ThreadPool,
     mut progress: Progress<'_>,
-) -> Result<Mesh> {
+    keep_implicit: bool,
+) -> Result<(Mesh, Option<ImplicitFunction>)> {
     let mut clock = Clock {
         progress: &mut progress,
         started: Instant::now(),
@@ -234,10 +237,7 @@ pub(crate) fn run(
     clock.done(Stage::Solve)?;
 
     // 7. Isovalue: the area-weighted mean of χ at the samples (§4.5).
-    let chi = Indicator {
-        tree: &tree,
-        coefficients,
-    };
+    let chi = Indicator { tree, coefficients };
     let isovalue = pool.install(|| {
         isovalue::weighted_mean(
             &chi,
@@ -295,5 +295,6 @@ pub(crate) fn run(
     mesh.normals = normals.unwrap_or_default();
     clock.done(Stage::Mesh)?;
     mesh.stats = clock.stats;
-    Ok(mesh)
+    let implicit = keep_implicit.then(|| ImplicitFunction::new(chi, isovalue, map, params.threads));
+    Ok((mesh, implicit))
 }
