@@ -190,51 +190,43 @@ impl ImplicitFunction {
     /// [`MAX_GRID_RESOLUTION`], or whose grid cannot be allocated; (name "box") for a box with
     /// a non-finite corner or with `min > max` on an axis; [`Error::ThreadsUnavailable`].
     pub fn sample_box(&self, min: [f64; 3], max: [f64; 3], resolution: usize) -> Result<Vec<f32>> {
-        if resolution == 0 || resolution > MAX_GRID_RESOLUTION {
-            return Err(Error::InvalidParameter {
-                name: "resolution",
-                value: resolution.to_string(),
-                expected: "1..=4096 (samples per axis)",
-            });
-        }
-        if !(0..3).all(|a| min[a].is_finite() && max[a].is_finite() && min[a] <= max[a]) {
-            return Err(Error::InvalidParameter {
-                name: "box",
-                value: format!("{min:?}..{max:?}"),
-                expected: "finite corners with min <= max on every axis",
-            });
-        }
-        // resolution <= 4096, so resolution³ fits in 64 bits; it may not fit in memory.
-        let count = resolution
-            .checked_pow(3)
-            .filter(|&c| c.checked_mul(4).is_some_and(|b| b <= isize::MAX as usize));
+        let count = grid_size(min, max, resolution)?;
         let mut values: Vec<f32> = Vec::new();
-        if count.is_none_or(|c| values.try_reserve_exact(c).is_err()) {
-            return Err(Error::InvalidParameter {
-                name: "resolution",
-                value: resolution.to_string(),
-                expected: "a grid of resolution³ floats that fits in memory",
-            });
+        if values.try_reserve_exact(count).is_err() {
+            return Err(too_large(resolution));
         }
-        values.resize(count.unwrap_or(0), 0.0);
-        let row = resolution;
-        let fill = |(index, out): (usize, &mut [f32])| {
+        values.resize(count, 0.0);
+        self.fill_box(min, max, resolution, &mut values)?;
+        Ok(values)
+    }
+
+    /// [`ImplicitFunction::sample_box`] into `out`, which holds `grid_size(min, max,
+    /// resolution)?` values: all of them are written, or none (the one failure,
+    /// [`Error::ThreadsUnavailable`], comes before any write).
+    pub(crate) fn fill_box(
+        &self,
+        min: [f64; 3],
+        max: [f64; 3],
+        resolution: usize,
+        out: &mut [f32],
+    ) -> Result<()> {
+        let fill = |(index, row): (usize, &mut [f32])| {
             // One (i, j) row of `resolution` values along z.
             let (i, j) = (index / resolution, index % resolution);
-            for (k, v) in out.iter_mut().enumerate() {
+            for (k, v) in row.iter_mut().enumerate() {
                 let p = Self::grid_point(min, max, resolution, [i, j, k]);
                 *v = self.value(p) as f32;
             }
         };
-        if values.len() < PARALLEL_BATCH {
-            values.chunks_mut(row).enumerate().for_each(fill);
+        if out.len() < PARALLEL_BATCH {
+            out.chunks_mut(resolution).enumerate().for_each(fill);
         } else {
             let workers = Workers::start(self.threads)?;
             workers
                 .pool()
-                .install(|| values.par_chunks_mut(row).enumerate().for_each(fill));
+                .install(|| out.par_chunks_mut(resolution).enumerate().for_each(fill));
         }
-        Ok(values)
+        Ok(())
     }
 
     /// `f` at every point, in parallel for large batches.
@@ -254,6 +246,38 @@ impl ImplicitFunction {
                 .map(|&p| f(p))
                 .collect()
         }))
+    }
+}
+
+/// The number of values of a `resolution`³ grid over the box from `min` to `max`, after the
+/// checks [`ImplicitFunction::sample_box`] documents (all but the allocation's).
+pub(crate) fn grid_size(min: [f64; 3], max: [f64; 3], resolution: usize) -> Result<usize> {
+    if resolution == 0 || resolution > MAX_GRID_RESOLUTION {
+        return Err(Error::InvalidParameter {
+            name: "resolution",
+            value: resolution.to_string(),
+            expected: "1..=4096 (samples per axis)",
+        });
+    }
+    if !(0..3).all(|a| min[a].is_finite() && max[a].is_finite() && min[a] <= max[a]) {
+        return Err(Error::InvalidParameter {
+            name: "box",
+            value: format!("{min:?}..{max:?}"),
+            expected: "finite corners with min <= max on every axis",
+        });
+    }
+    // resolution <= 4096, so resolution³ < 2^36; on a 32-bit target it may still overflow.
+    resolution
+        .checked_pow(3)
+        .filter(|&c| c.checked_mul(4).is_some_and(|b| b <= isize::MAX as usize))
+        .ok_or_else(|| too_large(resolution))
+}
+
+fn too_large(resolution: usize) -> Error {
+    Error::InvalidParameter {
+        name: "resolution",
+        value: resolution.to_string(),
+        expected: "a grid of resolution³ floats that fits in memory",
     }
 }
 
