@@ -265,8 +265,8 @@ pub unsafe extern "C" fn psr_implicit_gradient(
 /// Samples χ on a resolution³ grid over the bounding cube (psr_implicit_cube), at the centres
 /// of its cells, as PoissonRecon's --grid does: the value of cell (i, j, k) (x, y, z indices)
 /// is χ at origin + (i + 0.5, j + 0.5, k + 0.5) × size / resolution and goes to
-/// out[(i * resolution + j) * resolution + k]: z fastest, NumPy's C order for an array indexed
-/// [x][y][z]. Each value is what psr_implicit_evaluate gives at that point (computed in double
+/// out[(i * resolution + j) * resolution + k]: z fastest, NumPy's C order for an array of
+/// shape (resolution, resolution, resolution) indexed (i, j, k). Each value is what psr_implicit_evaluate gives at that point (computed in double
 /// precision, rounded to float once). capacity_floats is the number of floats out can hold:
 /// at least resolution³. Runs on worker threads started for the call, like
 /// psr_implicit_evaluate.
