@@ -814,7 +814,8 @@ fn write_grid(
     if !args.quiet {
         let (origin, size) = implicit.cube();
         eprintln!(
-            "psr: grid {n}x{n}x{n} of chi [x][y][z] (z fastest) written to {} in {:.2}s: cell              centres over the cube at ({}, {}, {}) of size {size} (cell {}), isovalue {}",
+            "psr: grid {n}x{n}x{n} of chi [x][y][z] (z fastest) written to {} in {:.2}s: cell \
+             centres over the cube at ({}, {}, {}) of size {size} (cell {}), isovalue {}",
             path.display(),
             start.elapsed().as_secs_f64(),
             origin[0],

@@ -130,7 +130,10 @@ pub(super) unsafe fn solve_on(
             return Err(Failure::new(
                 psr_status::InvalidArgument,
                 format!(
-                    "{function}: r holds points with colours or channels                          (psr_reconstructor_add_point_arrays) and points without normals                          (psr_reconstructor_add_positions), which carry none: give every point                          the same attributes, or clear the points and add them again"
+                    "{function}: r holds points with colours or channels \
+                     (psr_reconstructor_add_point_arrays) and points without normals \
+                     (psr_reconstructor_add_positions), which carry none: give every point \
+                     the same attributes, or clear the points and add them again"
                 ),
             ));
         }
