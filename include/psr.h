@@ -25,6 +25,10 @@
  *     accept NULL.
  *   - A mesh is independent of the reconstructor (or the mesh, for psr_mesh_trim) that made
  *     it: either may be freed first.
+ *   - A third handle, psr_implicit, is the solved indicator function kept by
+ *     psr_reconstructor_solve_implicit (with the mesh): evaluate it and its gradient at points,
+ *     sample it on a grid. One psr_implicit_free each (NULL accepted); independent of the
+ *     reconstructor and the mesh.
  *   - psr_reconstructor_add_points, psr_reconstructor_add_point_arrays,
  *     psr_reconstructor_add_positions and its _seen_from and _with_sensors variants copy their
  *     input (positions, normals, weights, colours, channels and their names, sensors): free
@@ -56,7 +60,9 @@
  *     be used from two threads at once. Different handles may be used concurrently on different
  *     threads, and give the same meshes as when run one after the other.
  *   - A psr_mesh is never modified after creation: its const functions may be called from
- *     several threads at once.
+ *     several threads at once. So is a psr_implicit: psr_implicit_evaluate, _gradient and
+ *     _sample_grid may run on one handle from many threads at once (each call starts its own
+ *     worker threads for a large batch, as many as the solve had).
  *   - psr_reconstructor_solve runs on the calling thread and starts its own worker threads for
  *     the duration of the call (psr_reconstructor_set_threads; 0 = one per core). It never uses
  *     a thread pool of the host application, and the mesh does not depend on the thread count.
@@ -354,6 +360,14 @@ typedef enum {
      */
     PSR_TRIM_THRESHOLD_DEPTH = 3,
 } psr_trim_threshold;
+
+/**
+ * The solved indicator function χ of one reconstruction, with its isovalue and bounding cube.
+ * Created by psr_reconstructor_solve_implicit, destroyed by psr_implicit_free; independent of
+ * the reconstructor and the mesh. Never modified: its functions may be called from several
+ * threads at once. Opaque to C.
+ */
+typedef struct psr_implicit psr_implicit;
 
 /**
  * A reconstructed triangle mesh. Created by psr_reconstructor_solve (or psr_mesh_trim, from
@@ -1581,6 +1595,111 @@ size_t psr_mesh_solve_count(const psr_mesh *m);
  * bytes are writable.
  */
 psr_status psr_mesh_solve_stats(const psr_mesh *m, size_t index, psr_depth_solve *out);
+
+/**
+ * psr_reconstructor_solve, also keeping the solved indicator function χ: writes a new
+ * psr_implicit to *out_implicit (free it with psr_implicit_free) and, unless out_mesh is NULL,
+ * the mesh to *out_mesh (free it with psr_mesh_free; the same mesh psr_reconstructor_solve
+ * gives). The psr_implicit keeps the octree and its coefficients: about the octree's memory
+ * until it is freed.
+ *
+ * r and out_implicit must not be NULL; out_mesh may be. Returns the statuses of
+ * psr_reconstructor_solve. On failure neither out-parameter is written.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out_mesh` is NULL or valid for writing one pointer, and so is
+ * `out_implicit`.
+ */
+psr_status psr_reconstructor_solve_implicit(psr_reconstructor *r, psr_mesh **out_mesh, psr_implicit **out_implicit);
+
+/**
+ * Destroys an implicit function. f may be NULL (nothing happens).
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit, not used again afterwards (by any thread).
+ */
+void psr_implicit_free(psr_implicit *f);
+
+/**
+ * The isovalue γ the mesh was extracted at (psr_mesh_isovalue of the mesh from the same
+ * solve): the surface is where χ = γ. NaN if f is NULL.
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit.
+ */
+double psr_implicit_isovalue(const psr_implicit *f);
+
+/**
+ * Writes the bounding cube χ was solved in, in input coordinates: its minimum corner to
+ * origin[0..3] and its edge length to *size (the points' bounding box enlarged by
+ * psr_reconstructor_set_scale's factor). psr_implicit_sample_grid samples this cube.
+ *
+ * f, origin and size must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT or
+ * PSR_STATUS_INTERNAL_ERROR; nothing is written on failure.
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit; `origin` is NULL or valid for writes of 3 doubles;
+ * `size` is NULL or valid for writes of one.
+ */
+psr_status psr_implicit_cube(const psr_implicit *f, double *origin, double *size);
+
+/**
+ * Evaluates χ at count points: points holds 3 floats (x, y, z) per point in the input's
+ * coordinates, values receives one float per point. The surface is where χ equals
+ * psr_implicit_isovalue(f); χ − isovalue is negative inside and positive outside. Outside the
+ * bounding cube (psr_implicit_cube) χ is continued constantly along the cube's normals (the
+ * value at the nearest point of the cube). Large batches run on worker threads started for the
+ * call (as many as psr_reconstructor_set_threads gave the solve); the values do not depend on
+ * their number.
+ *
+ * f must not be NULL; points and values may be NULL only when count is 0. Returns
+ * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (3 × count floats
+ * overflow), PSR_STATUS_NON_FINITE_POSITION (a NaN or infinite coordinate; nothing is written),
+ * PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR. values is written only on
+ * success.
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit; `points` is NULL or valid for reads of 3 × count floats;
+ * `values` is NULL or valid for writes of count floats and does not overlap `points`.
+ */
+psr_status psr_implicit_evaluate(const psr_implicit *f, const float *points, size_t count, float *values);
+
+/**
+ * Evaluates ∇χ at count points (see psr_implicit_evaluate): gradients receives 3 floats per
+ * point, the derivatives per input unit along x, y, z. ∇χ points outward (the mesh's vertex
+ * normals are ∇χ/|∇χ|); outside the bounding cube its components along the axes on which the
+ * point lies outside are 0.
+ *
+ * f must not be NULL; points and gradients may be NULL only when count is 0. Returns the
+ * statuses of psr_implicit_evaluate; gradients is written only on success.
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit; `points` is NULL or valid for reads of 3 × count floats;
+ * `gradients` is NULL or valid for writes of 3 × count floats and does not overlap `points`.
+ */
+psr_status psr_implicit_gradient(const psr_implicit *f, const float *points, size_t count, float *gradients);
+
+/**
+ * Samples χ on a resolution³ grid over the bounding cube (psr_implicit_cube), at the centres
+ * of its cells, as PoissonRecon's --grid does: the value of cell (i, j, k) (x, y, z indices)
+ * is χ at origin + (i + 0.5, j + 0.5, k + 0.5) × size / resolution and goes to
+ * out[(i * resolution + j) * resolution + k]: z fastest, NumPy's C order for an array of
+ * shape (resolution, resolution, resolution) indexed (i, j, k). Each value is what psr_implicit_evaluate gives at that point (computed in double
+ * precision, rounded to float once). capacity_floats is the number of floats out can hold:
+ * at least resolution³. Runs on worker threads started for the call, like
+ * psr_implicit_evaluate.
+ *
+ * f must not be NULL, nor out. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_PARAMETER (resolution 0 or above 4096, or resolution³ floats too many for
+ * the address space), PSR_STATUS_BUFFER_TOO_SMALL (nothing is written),
+ * PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR. out is written only on
+ * success.
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit; `out` is NULL or valid for writes of capacity_floats
+ * floats.
+ */
+psr_status psr_implicit_sample_grid(const psr_implicit *f, size_t resolution, float *out, size_t capacity_floats);
 
 #ifdef __cplusplus
 }  // extern "C"

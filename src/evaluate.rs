@@ -11,9 +11,10 @@ use crate::grid::cell_of;
 use crate::octree::{Octree, NEAR, NONE};
 use glam::DVec3;
 
-/// The solved indicator function.
-pub struct Indicator<'t> {
-    pub tree: &'t Octree,
+/// The solved indicator function: it owns the octree its coefficients live on, so that it can
+/// outlive the reconstruction (`crate::ImplicitFunction`).
+pub struct Indicator {
+    pub tree: Octree,
     /// z_d on K_d for every depth.
     pub coefficients: Vec<Vec<f64>>,
 }
@@ -27,7 +28,7 @@ pub struct Block {
     nodes: [u32; 27],
 }
 
-impl Indicator<'_> {
+impl Indicator {
     /// χ(p) for a point in unit-cube coordinates (0 far outside the tree).
     pub fn value(&self, p: DVec3) -> f64 {
         self.block(p).map_or(0.0, |b| self.value_in(&b, p))
@@ -170,12 +171,9 @@ mod tests {
                     .collect()
             })
             .collect();
-        let chi = Indicator {
-            tree: &tree,
-            coefficients,
-        };
-        let depth = tree.levels.len() - 1;
-        let level = &tree.levels[depth];
+        let chi = Indicator { tree, coefficients };
+        let depth = chi.tree.levels.len() - 1;
+        let level = &chi.tree.levels[depth];
         let h = 1.0 / (1u32 << depth) as f64;
         let (mut shortcut, mut fallback) = (0, 0);
         for i in 0..level.len() as u32 {

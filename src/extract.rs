@@ -545,7 +545,7 @@ fn face_centre(points: &[Point]) -> Point {
 /// the samples at `positions`, its vertices fitted to the surface ([`fit_to_surface`]) unless
 /// `on_isosurface`; with the normals at the vertices when fitted or `with_normals`.
 pub(crate) fn extract_around_samples(
-    chi: &Indicator<'_>,
+    chi: &Indicator,
     isovalue: f64,
     positions: &[DVec3],
     on_isosurface: bool,
@@ -581,14 +581,14 @@ const WAVE_BATCH: usize = 16384;
 /// Extracts {χ = γ} on the leaves of `chi`'s tree, following the surface from the leaves
 /// containing the finest-depth cells in `seeds` (any order, duplicates allowed).
 pub fn extract(
-    chi: &Indicator<'_>,
+    chi: &Indicator,
     isovalue: f64,
     seeds: Vec<[i64; 3]>,
     with_normals: bool,
 ) -> RawMesh {
     let finest = chi.tree.max_depth();
     let leaves = Leaves {
-        tree: chi.tree,
+        tree: &chi.tree,
         finest,
     };
     let n = 1i64 << finest;
@@ -935,7 +935,7 @@ fn leaves_around(leaf: &Leaf, block: &Block, c: &Crossing, finest: u32) -> [Opti
 /// finest grid the vertex and the midpoint share their cell at every depth, so χ at both comes
 /// from the same nodes, found once.
 fn edge_vertex(
-    chi: &Indicator<'_>,
+    chi: &Indicator,
     isovalue: f64,
     h: f64,
     c: &Crossing,

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 /// is evaluated in parallel; the sums run in sample order, so γ does not depend on the thread
 /// count.
 pub(crate) fn weighted_mean(
-    chi: &Indicator<'_>,
+    chi: &Indicator,
     positions: &[DVec3],
     areas: &[f64],
     confidence: &[f64],
@@ -45,10 +45,7 @@ mod tests {
         let mut coefficients = ones;
         let finest = coefficients.len() - 1;
         coefficients[finest].iter_mut().for_each(|c| *c = 1.0);
-        let chi = Indicator {
-            tree: &tree,
-            coefficients,
-        };
+        let chi = Indicator { tree, coefficients };
         let positions = [DVec3::new(0.3, 0.4, 0.5), DVec3::new(0.6, 0.6, 0.6)];
         let one = weighted_mean(&chi, &positions, &[1.0, 3.0], &[1.0, 1.0]);
         assert!((one - 1.0).abs() < 1e-12, "{one}");

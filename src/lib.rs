@@ -17,6 +17,8 @@
 //! (the mesh cut back to where its samples are, by their density), the normal estimation for
 //! clouds without normals, the C API in [`ffi`], the PLY reader and writer in [`ply`], the OBJ
 //! writer in [`obj`] and PoissonRecon's raw point files (ASCII, `.bnpts`) in [`npts`].
+//! [`reconstruct_with_implicit`] also keeps the solved implicit function, to evaluate at any
+//! point or sample on a grid ([`ImplicitFunction`]).
 //! Points may carry colours and named channels onto the mesh ([`PointSet::with_colors`],
 //! [`PointSet::with_channel`], [`Mesh::colors`]).
 
@@ -35,6 +37,7 @@ mod evaluate;
 mod extract;
 pub mod ffi;
 mod grid;
+mod implicit;
 mod isovalue;
 mod mesh;
 mod normals;
@@ -53,6 +56,7 @@ mod trim;
 
 pub use attributes::{Channel, Colors};
 pub use error::{Error, Result};
+pub use implicit::{ImplicitFunction, MAX_GRID_RESOLUTION};
 pub use mesh::{DepthSolve, Mesh, Stats, TrimReport};
 pub use normals::{
     estimate_normals, estimate_normals_with_progress, orient_normals, orient_normals_with_progress,
@@ -68,6 +72,28 @@ pub fn reconstruct(points: &PointSet, params: &Params) -> Result<Mesh> {
     reconstruct_with_progress(points, params, &mut |_, _| true)
 }
 
+/// [`reconstruct`], also keeping the solved indicator function χ (with its isovalue and the
+/// bounding cube) to evaluate at any point or sample on a grid: see [`ImplicitFunction`].
+/// The mesh is the same as [`reconstruct`]'s, bit for bit; keeping χ costs about the octree's
+/// memory for as long as the [`ImplicitFunction`] lives.
+pub fn reconstruct_with_implicit(
+    points: &PointSet,
+    params: &Params,
+) -> Result<(Mesh, ImplicitFunction)> {
+    reconstruct_with_implicit_and_progress(points, params, &mut |_, _| true)
+}
+
+/// [`reconstruct_with_implicit`] with a progress callback, as [`reconstruct_with_progress`].
+pub fn reconstruct_with_implicit_and_progress(
+    points: &PointSet,
+    params: &Params,
+    progress: Progress<'_>,
+) -> Result<(Mesh, ImplicitFunction)> {
+    let (mesh, implicit) = run(points, params, progress, true)?;
+    let implicit = implicit.ok_or_else(|| Error::Internal("χ was not kept".to_string()))?;
+    Ok((mesh, implicit))
+}
+
 /// [`reconstruct`] with a progress callback that may cancel (then the result is
 /// `Err(Error::Cancelled)`).
 pub fn reconstruct_with_progress(
@@ -75,25 +101,35 @@ pub fn reconstruct_with_progress(
     params: &Params,
     progress: Progress<'_>,
 ) -> Result<Mesh> {
+    run(points, params, progress, false).map(|(mesh, _)| mesh)
+}
+
+/// The reconstruction behind the public functions: χ is kept only when asked for.
+fn run(
+    points: &PointSet,
+    params: &Params,
+    progress: Progress<'_>,
+    keep_implicit: bool,
+) -> Result<(Mesh, Option<ImplicitFunction>)> {
     params.validate()?;
     if points.is_empty() {
         return Err(Error::EmptyInput);
     }
     let workers = Workers::start(params.threads)?;
-    pipeline::run(points, params, workers.pool(), progress)
+    pipeline::run(points, params, workers.pool(), progress, keep_implicit)
 }
 
 /// A reconstruction's own worker threads. Dropping it, on return and while a panic unwinds
 /// alike, ends the pool and joins every thread (pthread_join, not just finished), so no psr
 /// code runs after the reconstruction returns and a host may unload the library at once.
-struct Workers {
+pub(crate) struct Workers {
     pool: Option<rayon::ThreadPool>,
     threads: Vec<std::thread::JoinHandle<()>>,
 }
 
 impl Workers {
     /// Starts `threads` worker threads (0 = one per core) named `psr-worker-N`.
-    fn start(threads: usize) -> Result<Workers> {
+    pub(crate) fn start(threads: usize) -> Result<Workers> {
         let threads = if threads == 0 {
             std::thread::available_parallelism()
                 .map(|n| n.get())
@@ -128,7 +164,7 @@ impl Workers {
     }
 
     /// The pool (present from `start` until `drop`).
-    fn pool(&self) -> &rayon::ThreadPool {
+    pub(crate) fn pool(&self) -> &rayon::ThreadPool {
         self.pool.as_ref().expect("set by Workers::start")
     }
 }

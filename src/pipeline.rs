@@ -8,6 +8,7 @@ use crate::components;
 use crate::density::{self, DensityField};
 use crate::evaluate::Indicator;
 use crate::extract;
+use crate::implicit::ImplicitFunction;
 use crate::isovalue;
 use crate::mesh::{self, Mesh, Stats};
 use crate::octree::Octree;
@@ -125,13 +126,15 @@ impl Clock<'_, '_> {
 }
 
 /// Reconstructs `points` with `params`, the parallel sections in `pool`, reporting each stage
-/// to `progress` on the calling thread (which may cancel).
+/// to `progress` on the calling thread (which may cancel); with `keep_implicit`, also returns
+/// the solved χ (which the pipeline otherwise drops on return).
 pub(crate) fn run(
     points: &PointSet,
     params: &Params,
     pool: &rayon::ThreadPool,
     mut progress: Progress<'_>,
-) -> Result<Mesh> {
+    keep_implicit: bool,
+) -> Result<(Mesh, Option<ImplicitFunction>)> {
     let mut clock = Clock {
         progress: &mut progress,
         started: Instant::now(),
@@ -234,10 +237,7 @@ pub(crate) fn run(
     clock.done(Stage::Solve)?;
 
     // 7. Isovalue: the area-weighted mean of χ at the samples (§4.5).
-    let chi = Indicator {
-        tree: &tree,
-        coefficients,
-    };
+    let chi = Indicator { tree, coefficients };
     let isovalue = pool.install(|| {
         isovalue::weighted_mean(
             &chi,
@@ -253,7 +253,7 @@ pub(crate) fn run(
     let on_isosurface = params.vertex_placement == VertexPlacement::OnIsosurface;
     // Attributes and vertex normals need ∇χ at the vertices, which fitting computes anyway.
     let with_normals = carries_attributes || params.vertex_normals;
-    let raw = pool.install(|| {
+    let mut raw = pool.install(|| {
         extract::extract_around_samples(
             &chi,
             isovalue,
@@ -263,13 +263,14 @@ pub(crate) fn run(
         )
     });
     // The level set's closed pieces that too few samples support (bubbles) are left out.
-    let mut raw = raw;
-    let removed = components::drop_unsupported(
-        &mut raw,
-        &tree,
-        &samples.positions,
-        params.min_component_samples,
-    );
+    let removed = pool.install(|| {
+        components::drop_unsupported(
+            &mut raw,
+            &chi.tree,
+            &samples.positions,
+            params.min_component_samples,
+        )
+    });
     clock.stats.unsupported_components = removed.components;
     clock.stats.unsupported_triangles = removed.triangles;
     clock.done(Stage::Extract)?;
@@ -305,5 +306,6 @@ pub(crate) fn run(
     mesh.normals = normals.unwrap_or_default();
     clock.done(Stage::Mesh)?;
     mesh.stats = clock.stats;
-    Ok(mesh)
+    let implicit = keep_implicit.then(|| ImplicitFunction::new(chi, isovalue, map, params.threads));
+    Ok((mesh, implicit))
 }

@@ -3097,3 +3097,253 @@ fn colours_and_channels_reach_the_mesh_through_c() {
         psr_reconstructor_free(r);
     }
 }
+
+// ------------------------------------------------------------------------------------------------
+// The implicit function (psr_implicit)
+// ------------------------------------------------------------------------------------------------
+
+/// A reconstructor over a sphere at depth 5, solved keeping χ; the mesh too.
+fn solve_implicit() -> (*mut psr_reconstructor, *mut psr_mesh, *mut psr_implicit) {
+    let r = new_handle();
+    add_sphere(r, 2000);
+    assert_eq!(unsafe { psr_reconstructor_set_depth(r, 5) }, psr_status::Ok);
+    let (mut m, mut f) = (ptr::null_mut(), ptr::null_mut());
+    let status = unsafe { psr_reconstructor_solve_implicit(r, &mut m, &mut f) };
+    assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+    assert!(!m.is_null() && !f.is_null());
+    (r, m, f)
+}
+
+#[test]
+fn implicit_null_handles_arrays_and_outs_are_refused() {
+    unsafe {
+        psr_implicit_free(ptr::null_mut());
+        assert!(psr_implicit_isovalue(ptr::null()).is_nan());
+        let mut out = [7.0f32; 8];
+        let points = [0.0f32; 6];
+        let (mut origin, mut size) = ([0.0f64; 3], 0.0f64);
+        let null: *const psr_implicit = ptr::null();
+        assert_eq!(
+            psr_implicit_evaluate(null, points.as_ptr(), 2, out.as_mut_ptr()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_gradient(null, points.as_ptr(), 2, out.as_mut_ptr()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_sample_grid(null, 2, out.as_mut_ptr(), 8),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_cube(null, origin.as_mut_ptr(), &mut size),
+            psr_status::NullArgument
+        );
+        assert_eq!(out, [7.0; 8]);
+
+        // The solve: r and out_implicit may not be NULL; out_mesh may.
+        let r = new_handle();
+        add_sphere(r, 500);
+        let mut f = ptr::null_mut();
+        assert_eq!(
+            psr_reconstructor_solve_implicit(ptr::null_mut(), ptr::null_mut(), &mut f),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_solve_implicit(r, ptr::null_mut(), ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert!(last_error(r).contains("out_implicit"), "{}", last_error(r));
+        assert_eq!(psr_reconstructor_set_depth(r, 4), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_solve_implicit(r, ptr::null_mut(), &mut f),
+            psr_status::Ok,
+            "{}",
+            last_error(r)
+        );
+        assert!(!f.is_null());
+        // Every pointer of a live handle's functions.
+        assert_eq!(
+            psr_implicit_evaluate(f, ptr::null(), 2, out.as_mut_ptr()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_evaluate(f, points.as_ptr(), 2, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_gradient(f, ptr::null(), 2, out.as_mut_ptr()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_gradient(f, points.as_ptr(), 2, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_sample_grid(f, 2, ptr::null_mut(), 8),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_cube(f, ptr::null_mut(), &mut size),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_cube(f, origin.as_mut_ptr(), ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert_eq!(size, 0.0);
+        // Count 0: NULL arrays are fine and nothing is written.
+        assert_eq!(
+            psr_implicit_evaluate(f, ptr::null(), 0, ptr::null_mut()),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_implicit_gradient(f, ptr::null(), 0, ptr::null_mut()),
+            psr_status::Ok
+        );
+        // Counts whose byte length overflows, refused before any read.
+        assert_eq!(
+            psr_implicit_evaluate(f, sentinel_ptr(), usize::MAX / 3 + 1, sentinel_ptr()),
+            psr_status::InvalidArgument
+        );
+        assert_eq!(
+            psr_implicit_gradient(f, sentinel_ptr(), usize::MAX / 8, sentinel_ptr()),
+            psr_status::InvalidArgument
+        );
+        assert_eq!(out, [7.0; 8]);
+        psr_implicit_free(f);
+        psr_reconstructor_free(r);
+    }
+}
+
+#[test]
+fn implicit_evaluation_grid_and_errors_through_the_c_api() {
+    let (r, m, f) = solve_implicit();
+    unsafe {
+        assert_eq!(psr_implicit_isovalue(f), psr_mesh_isovalue(m));
+        let (mut origin, mut size) = ([0.0f64; 3], 0.0f64);
+        assert_eq!(
+            psr_implicit_cube(f, origin.as_mut_ptr(), &mut size),
+            psr_status::Ok
+        );
+        assert!(size > 2.0 && size < 2.5, "{size}");
+        // The grid is evaluation at the cells' centres, z fastest.
+        let n = 8usize;
+        let mut grid = vec![0.0f32; n * n * n];
+        assert_eq!(
+            psr_implicit_sample_grid(f, n, grid.as_mut_ptr(), grid.len()),
+            psr_status::Ok
+        );
+        let mut points = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    for (a, index) in [i, j, k].into_iter().enumerate() {
+                        points.push((origin[a] + (index as f64 + 0.5) * size / n as f64) as f32);
+                    }
+                }
+            }
+        }
+        let mut values = vec![0.0f32; n * n * n];
+        assert_eq!(
+            psr_implicit_evaluate(f, points.as_ptr(), n * n * n, values.as_mut_ptr()),
+            psr_status::Ok
+        );
+        let gamma = psr_implicit_isovalue(f) as f32;
+        for (at, (g, v)) in grid.iter().zip(&values).enumerate() {
+            // The C points are the grid's rounded to float: equal up to that rounding.
+            assert!((g - v).abs() < 1e-4 * gamma.abs().max(1.0), "{at}: {g} {v}");
+        }
+        // The centre of the sphere is inside (χ − γ < 0), and ∇χ points outward there.
+        let inside = [0.1f32, -0.2, 0.3];
+        let on = [1.1f32, -0.2, 0.3];
+        let mut value = [0.0f32];
+        assert_eq!(
+            psr_implicit_evaluate(f, inside.as_ptr(), 1, value.as_mut_ptr()),
+            psr_status::Ok
+        );
+        assert!(value[0] < gamma, "{} {gamma}", value[0]);
+        let mut gradient = [0.0f32; 3];
+        assert_eq!(
+            psr_implicit_gradient(f, on.as_ptr(), 1, gradient.as_mut_ptr()),
+            psr_status::Ok
+        );
+        assert!(
+            gradient[0] > 0.0 && gradient[0] > 10.0 * gradient[1].abs(),
+            "{gradient:?}"
+        );
+        // A NaN coordinate: refused, nothing written.
+        let bad = [0.0f32, 0.0, 0.0, 0.0, f32::NAN, 0.0];
+        let mut two = [9.0f32; 6];
+        assert_eq!(
+            psr_implicit_evaluate(f, bad.as_ptr(), 2, two.as_mut_ptr()),
+            psr_status::NonFinitePosition
+        );
+        assert_eq!(
+            psr_implicit_gradient(f, bad.as_ptr(), 2, two.as_mut_ptr()),
+            psr_status::NonFinitePosition
+        );
+        assert_eq!(two, [9.0; 6]);
+        // Resolutions: 0 and absurd ones are parameters out of range; a short buffer is
+        // refused and left untouched.
+        let mut small = [5.0f32; 8];
+        for resolution in [0, 4097, usize::MAX] {
+            assert_eq!(
+                psr_implicit_sample_grid(f, resolution, small.as_mut_ptr(), small.len()),
+                psr_status::InvalidParameter,
+                "{resolution}"
+            );
+        }
+        assert_eq!(
+            psr_implicit_sample_grid(f, 3, small.as_mut_ptr(), small.len()),
+            psr_status::BufferTooSmall
+        );
+        assert_eq!(small, [5.0; 8]);
+        assert_eq!(
+            psr_implicit_sample_grid(f, 2, small.as_mut_ptr(), small.len()),
+            psr_status::Ok
+        );
+        // The handle outlives the reconstructor and the mesh.
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+        assert_eq!(
+            psr_implicit_evaluate(f, inside.as_ptr(), 1, value.as_mut_ptr()),
+            psr_status::Ok
+        );
+        psr_implicit_free(f);
+    }
+}
+
+#[test]
+fn one_implicit_handle_is_evaluated_from_many_threads_at_once() {
+    let (r, m, f) = solve_implicit();
+    unsafe {
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+    }
+    let points: Vec<f32> = (0..3 * 5000)
+        .map(|i| ((i * 37) % 200) as f32 / 100.0 - 1.0)
+        .collect();
+    let mut expected = vec![0.0f32; 5000];
+    assert_eq!(
+        unsafe { psr_implicit_evaluate(f, points.as_ptr(), 5000, expected.as_mut_ptr()) },
+        psr_status::Ok
+    );
+    let shared = f as usize;
+    std::thread::scope(|s| {
+        for _ in 0..4 {
+            s.spawn(|| {
+                let f = shared as *const psr_implicit;
+                let mut values = vec![0.0f32; 5000];
+                for _ in 0..3 {
+                    let status = unsafe {
+                        psr_implicit_evaluate(f, points.as_ptr(), 5000, values.as_mut_ptr())
+                    };
+                    assert_eq!(status, psr_status::Ok);
+                    assert_eq!(values, expected);
+                }
+            });
+        }
+    });
+    unsafe { psr_implicit_free(f) };
+}

@@ -9,6 +9,7 @@
 //!     [--no-density] [--no-attributes] [--vertex-normals] [--min-component-samples 8]
 //!     [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
 //!     [--min-piece-area F] [--min-piece-triangles N] [--colors] [--ascii] [--quiet] [--verbose]
+//!     [--grid FILE.npy|FILE.raw [--grid-resolution N]]
 //! ```
 //!
 //! The input's colours and every other vertex property (but the ones psr interprets) are
@@ -264,6 +265,21 @@ struct Args {
     #[arg(long, value_name = "N", default_value_t = Params::default().min_component_samples)]
     min_component_samples: u32,
 
+    /// Also write the solved implicit function χ sampled on a regular N×N×N grid over the
+    /// bounding cube, at the centres of its cells, as little-endian float32: .npy, a NumPy
+    /// array of shape (N, N, N) indexed [x][y][z] (z fastest; numpy.load reads it), or .raw,
+    /// the same values with no header. The surface is where χ equals the isovalue; χ minus
+    /// it is negative inside. The cube (origin, size), the cell width and the isovalue are
+    /// printed (not --quiet). PoissonRecon: --grid (which writes the resolution and a transform
+    /// before the values).
+    #[arg(long, value_name = "FILE", value_parser = OsStringValueParser::new().try_map(grid_path))]
+    grid: Option<PathBuf>,
+
+    /// Samples per axis of --grid (1..=4096) [default: 2^depth, at most 512]. PoissonRecon:
+    /// none (its grid has 2^depth samples per axis).
+    #[arg(long, value_name = "N", requires = "grid")]
+    grid_resolution: Option<usize>,
+
     /// Print nothing but errors. PoissonRecon: none (it is quiet unless --verbose).
     #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
@@ -351,6 +367,32 @@ fn input_format(path: &Path) -> Result<InputFormat, String> {
 fn output_format(path: &Path) -> Result<OutputFormat, String> {
     format_of(path, &OUTPUT_EXTENSIONS, "psr writes meshes to")
 }
+
+/// The formats `--grid` writes, by extension.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum GridFormat {
+    /// NumPy's .npy, format version 1.0: a header giving dtype `<f4` and shape (N, N, N).
+    Npy,
+    /// The values alone.
+    Raw,
+}
+
+/// The extensions `--grid` accepts (any case).
+const GRID_EXTENSIONS: [(&str, GridFormat); 2] =
+    [("npy", GridFormat::Npy), ("raw", GridFormat::Raw)];
+
+fn grid_format(path: &Path) -> Result<GridFormat, String> {
+    format_of(path, &GRID_EXTENSIONS, "psr writes grids to")
+}
+
+/// The value of `--grid`: a file whose name says a format psr writes grids in.
+fn grid_path(name: OsString) -> Result<PathBuf, String> {
+    let path = PathBuf::from(name);
+    grid_format(&path).map(|_| path)
+}
+
+/// The largest default --grid-resolution (512³ float32 are 512 MiB).
+const DEFAULT_GRID_RESOLUTION_CAP: u32 = 512;
 
 /// The value of `--in`: a file whose name says a format psr reads.
 fn input_path(name: OsString) -> Result<PathBuf, String> {
@@ -598,6 +640,17 @@ fn run(args: &Args) -> Result<(), Failure> {
         })?;
     }
     check_output_dir(&args.output)?;
+    if let Some(grid) = &args.grid {
+        check_output_dir(grid)?;
+        if let Some(n) = args.grid_resolution {
+            if n == 0 || n > psr::MAX_GRID_RESOLUTION {
+                return Err(Failure::Usage(format!(
+                    "--grid-resolution {n} is out of range: give 1..={}",
+                    psr::MAX_GRID_RESOLUTION
+                )));
+            }
+        }
+    }
 
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
     let mut progress = ProgressLine::default();
@@ -659,7 +712,7 @@ fn run(args: &Args) -> Result<(), Failure> {
 
     let mut peaks: Vec<(Stage, u64)> = Vec::new();
     let start = Instant::now();
-    let result = psr::reconstruct_with_progress(&points, &params, &mut |stage, fraction| {
+    let mut on_progress = |stage: Stage, fraction: f32| {
         if show_progress {
             progress.update(stage, fraction);
         }
@@ -672,10 +725,20 @@ fn run(args: &Args) -> Result<(), Failure> {
             }
         }
         true
-    });
+    };
+    let result = if args.grid.is_some() {
+        psr::reconstruct_with_implicit_and_progress(&points, &params, &mut on_progress)
+            .map(|(mesh, implicit)| (mesh, Some(implicit)))
+    } else {
+        psr::reconstruct_with_progress(&points, &params, &mut on_progress).map(|m| (m, None))
+    };
     progress.clear();
-    let mut mesh = result.map_err(|e| Failure::Run(format!("reconstruction failed: {e}")))?;
+    let (mut mesh, implicit) =
+        result.map_err(|e| Failure::Run(format!("reconstruction failed: {e}")))?;
     let reconstruct_seconds = start.elapsed().as_secs_f64();
+    if let (Some(path), Some(implicit)) = (&args.grid, implicit) {
+        write_grid(args, path, &implicit, mesh.stats.depth)?;
+    }
     if let Some(trimming) = &trimming {
         mesh = psr::trim(&mesh, trimming)
             .map_err(|e| Failure::Run(format!("trimming failed: {e}")))?;
@@ -734,6 +797,64 @@ fn read_input(args: &Args) -> Result<ply::PlyPoints, Failure> {
             Ok(cloud)
         }
     }
+}
+
+/// Samples χ on the --grid and writes it in the format its name says.
+fn write_grid(
+    args: &Args,
+    path: &Path,
+    implicit: &psr::ImplicitFunction,
+    depth: u32,
+) -> Result<(), Failure> {
+    let n = args
+        .grid_resolution
+        .unwrap_or(1usize << depth.min(DEFAULT_GRID_RESOLUTION_CAP.ilog2()));
+    let start = Instant::now();
+    let values = implicit
+        .sample_grid(n)
+        .map_err(|e| Failure::Run(format!("--grid: {e} (option --grid-resolution)")))?;
+    let format = grid_format(path).map_err(Failure::Usage)?;
+    let mut bytes = match format {
+        GridFormat::Npy => npy_header(n),
+        GridFormat::Raw => Vec::new(),
+    };
+    bytes.reserve(4 * values.len());
+    for v in &values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, &bytes)
+        .map_err(|e| Failure::Run(format!("{}: cannot write the grid: {e}", path.display())))?;
+    if !args.quiet {
+        let (origin, size) = implicit.cube();
+        eprintln!(
+            "psr: grid {n}x{n}x{n} of chi [x][y][z] (z fastest) written to {} in {:.2}s: cell \
+             centres over the cube at ({}, {}, {}) of size {size} (cell {}), isovalue {}",
+            path.display(),
+            start.elapsed().as_secs_f64(),
+            origin[0],
+            origin[1],
+            origin[2],
+            size / n as f64,
+            implicit.isovalue()
+        );
+    }
+    Ok(())
+}
+
+/// The header of a NumPy .npy file (format version 1.0) holding a C-order float32 array of
+/// shape (n, n, n): magic, version, header length, then the header dictionary padded with
+/// spaces and ended by a newline so that the data starts at a multiple of 64 bytes.
+fn npy_header(n: usize) -> Vec<u8> {
+    let dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({n}, {n}, {n}), }}");
+    let unpadded = 10 + dict.len() + 1;
+    let padding = (64 - unpadded % 64) % 64;
+    let header_len = u16::try_from(dict.len() + padding + 1).expect("a header under 200 bytes");
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&header_len.to_le_bytes());
+    bytes.extend_from_slice(dict.as_bytes());
+    bytes.extend(std::iter::repeat_n(b' ', padding));
+    bytes.push(b'\n');
+    bytes
 }
 
 /// Writes the mesh in the format the output's name says.

@@ -279,6 +279,8 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--min-component-samples", "none"),
         ("--quiet", "none"),
         ("--verbose", "--verbose"),
+        ("--grid", "--grid"),
+        ("--grid-resolution", "none"),
     ];
     for (ours, theirs) in expected {
         let (_, text) = entries
@@ -946,5 +948,93 @@ fn obj_output_holds_the_ply_mesh() {
         .collect();
     assert_eq!(indices.iter().min(), Some(&1), "1-based");
     assert_eq!(indices.iter().max(), Some(&(vertices.len() as u64)));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: --grid writes χ on a grid as a NumPy .npy (version 1.0 header, little-endian float32,
+/// shape (N, N, N), data aligned to 64 bytes) whose values are the library's
+/// `ImplicitFunction::sample_grid` bit for bit, and as .raw the same values without a header;
+/// --grid-resolution out of range and other extensions are usage errors.
+#[test]
+fn grid_writes_chi_as_npy_and_raw() {
+    let dir = scratch("grid");
+    let kitten = kitten();
+    let mesh = dir.join("mesh.ply");
+    let npy = dir.join("chi.npy");
+    let out = psr_on(
+        &kitten,
+        &mesh,
+        &[
+            "--depth",
+            "4",
+            "--grid",
+            npy.to_str().unwrap(),
+            "--grid-resolution",
+            "10",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("grid 10x10x10"), "{}", stderr(&out));
+    let bytes = std::fs::read(&npy).unwrap();
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let start = 10 + header_len;
+    assert_eq!(start % 64, 0);
+    let header = std::str::from_utf8(&bytes[10..start]).unwrap();
+    assert!(header.ends_with('\n'), "{header:?}");
+    assert!(
+        header.starts_with("{'descr': '<f4', 'fortran_order': False, 'shape': (10, 10, 10), }"),
+        "{header:?}"
+    );
+    assert_eq!(bytes.len() - start, 4 * 1000);
+    let values: Vec<f32> = bytes[start..]
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    // The library's grid for the same points and parameters, bit for bit.
+    let cloud = psr::ply::read_point_cloud(&kitten).unwrap();
+    let points = psr::PointSet::from_slices(&cloud.positions, &cloud.normals).unwrap();
+    let params = psr::Params::default().with_depth(4);
+    let (_, chi) = psr::reconstruct_with_implicit(&points, &params).unwrap();
+    let expected = chi.sample_grid(10).unwrap();
+    assert!(values
+        .iter()
+        .zip(&expected)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    // Inside and outside: χ − γ changes sign on the grid.
+    let gamma = chi.isovalue() as f32;
+    assert!(values.iter().any(|&v| v < gamma) && values.iter().any(|&v| v > gamma));
+
+    // .raw: the same values, no header; the default resolution is 2^depth.
+    let raw = dir.join("chi.RAW");
+    let out = psr_on(
+        &kitten,
+        &mesh,
+        &["--depth", "4", "--grid", raw.to_str().unwrap()],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(std::fs::read(&raw).unwrap().len(), 4 * 16 * 16 * 16);
+
+    for (args, needle) in [
+        (
+            vec!["--grid", "chi.txt"],
+            "psr writes grids to .npy or .raw files",
+        ),
+        (
+            vec!["--grid", npy.to_str().unwrap(), "--grid-resolution", "0"],
+            "--grid-resolution",
+        ),
+        (
+            vec!["--grid", npy.to_str().unwrap(), "--grid-resolution", "5000"],
+            "--grid-resolution",
+        ),
+        (vec!["--grid-resolution", "8"], "--grid"),
+    ] {
+        let mut all = vec!["--depth", "4"];
+        all.extend(args.iter().copied());
+        let out = psr_on(&kitten, &dir.join("bad.ply"), &all);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

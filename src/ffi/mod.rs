@@ -48,6 +48,9 @@
 //! - `stats.rs`: the mesh's figures (the Rust `Stats`): psr_mesh_depth, _finest_depth,
 //!   _node_counts, _solve_count and _solve_stats with `psr_depth_solve` (an out-struct that
 //!   begins with its own size), _unsupported_components.
+//! - `implicit.rs`: the `psr_implicit` handle, the solved χ kept by
+//!   psr_reconstructor_solve_implicit: psr_implicit_evaluate, _gradient, _sample_grid,
+//!   _isovalue, _cube and _free.
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -85,12 +88,19 @@ mod trim;
 mod attributes;
 // The mesh's figures: depths, nodes per depth, the solves (psr_depth_solve).
 mod stats;
+// The solved implicit function χ: evaluated, differentiated, sampled on a grid.
+mod implicit;
 
 pub use self::attributes::{
     psr_mesh_channel, psr_mesh_channel_count, psr_mesh_channel_name, psr_mesh_color_components,
     psr_mesh_colors, psr_mesh_copy_channel, psr_mesh_copy_colors, psr_mesh_copy_normals,
     psr_mesh_normals, psr_point_arrays, psr_point_arrays_init, psr_reconstructor_add_point_arrays,
     psr_reconstructor_get_vertex_normals, psr_reconstructor_set_vertex_normals,
+};
+pub use self::implicit::{
+    psr_implicit, psr_implicit_cube, psr_implicit_evaluate, psr_implicit_free,
+    psr_implicit_gradient, psr_implicit_isovalue, psr_implicit_sample_grid,
+    psr_reconstructor_solve_implicit,
 };
 pub use self::mesh::{
     psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_triangles,
@@ -159,5 +169,6 @@ mod tests {
     fn handles_are_send() {
         assert_send::<psr_reconstructor>();
         assert_send::<psr_mesh>();
+        assert_send::<psr_implicit>();
     }
 }

@@ -9,7 +9,8 @@
  * matching sequential runs, and trimming: psr_trim_options from this header, from an older
  * (smaller) and a newer (larger) one, bad sizes and values, and the trimmed mesh outliving its
  * source; the target width, and the mesh's figures (depths, nodes per depth, psr_depth_solve
- * from this header and from a newer one, bad sizes and indices).
+ * from this header and from a newer one, bad sizes and indices); the implicit function
+ * (psr_implicit: evaluation, gradient, grid, bad arguments).
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -1028,6 +1029,94 @@ static void test_point_arrays(void) {
     free(normals);
 }
 
+/* The implicit function: kept by psr_reconstructor_solve_implicit, evaluated from C, sampled
+ * on a grid that agrees with evaluation at the cells' centres (z fastest), NULL arguments,
+ * count 0, NaN queries, bad resolutions and short buffers; the handle outlives the
+ * reconstructor and the mesh. */
+static void test_implicit(void) {
+    psr_reconstructor *r = new_with_sphere(2000, 5);
+    psr_mesh *m = NULL;
+    psr_implicit *f = NULL;
+    double origin[3] = {0, 0, 0}, size = 0.0;
+    float grid[4 * 4 * 4], values[4 * 4 * 4], points[3 * 4 * 4 * 4], gradient[3] = {0, 0, 0};
+    float centre[3] = {0.25f, 0.25f, 0.25f}, on[3] = {1.25f, 0.25f, 0.25f};
+    float nan_point[3] = {0.0f, 0.0f, 0.0f}, small[8], value = 0.0f;
+    size_t i, j, k, n = 4;
+    int agree = 1, untouched = 1;
+    section("implicit function");
+    nan_point[1] = (float)NAN;
+    psr_implicit_free(NULL);
+    CHECK(isnan(psr_implicit_isovalue(NULL)));
+    CHECK_STATUS(psr_reconstructor_solve_implicit(NULL, &m, &f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve_implicit(r, &m, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(m == NULL);
+    CHECK_STATUS(psr_reconstructor_solve_implicit(r, &m, &f), PSR_STATUS_OK);
+    CHECK(m != NULL && f != NULL);
+    if (f == NULL) {
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+        return;
+    }
+    CHECK(psr_implicit_isovalue(f) == psr_mesh_isovalue(m));
+    psr_mesh_free(m);
+    psr_reconstructor_free(r);
+
+    CHECK_STATUS(psr_implicit_cube(NULL, origin, &size), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_cube(f, NULL, &size), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_cube(f, origin, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_cube(f, origin, &size), PSR_STATUS_OK);
+    CHECK(size > 2.0 && size < 2.5);
+
+    CHECK_STATUS(psr_implicit_sample_grid(f, n, grid, n * n * n), PSR_STATUS_OK);
+    for (i = 0; i < n; i++)
+        for (j = 0; j < n; j++)
+            for (k = 0; k < n; k++) {
+                size_t at = (i * n + j) * n + k, ijk[3];
+                int a;
+                ijk[0] = i;
+                ijk[1] = j;
+                ijk[2] = k;
+                for (a = 0; a < 3; a++)
+                    points[3 * at + a] =
+                        (float)(origin[a] + ((double)ijk[a] + 0.5) * size / (double)n);
+            }
+    CHECK_STATUS(psr_implicit_evaluate(f, points, n * n * n, values), PSR_STATUS_OK);
+    for (i = 0; i < n * n * n; i++) agree &= fabsf(grid[i] - values[i]) < 1e-4f;
+    CHECK(agree);
+    CHECK_STATUS(psr_implicit_evaluate(f, centre, 1, &value), PSR_STATUS_OK);
+    CHECK(value < psr_implicit_isovalue(f));
+    CHECK_STATUS(psr_implicit_gradient(f, on, 1, gradient), PSR_STATUS_OK);
+    CHECK(gradient[0] > 0.0f && gradient[0] > 10.0f * fabsf(gradient[1]));
+
+    CHECK_STATUS(psr_implicit_evaluate(NULL, centre, 1, &value), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_evaluate(f, NULL, 1, &value), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_evaluate(f, centre, 1, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_evaluate(f, NULL, 0, NULL), PSR_STATUS_OK);
+    CHECK_STATUS(psr_implicit_gradient(NULL, centre, 1, gradient), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_gradient(f, NULL, 1, gradient), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_gradient(f, centre, 1, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_gradient(f, NULL, 0, NULL), PSR_STATUS_OK);
+    CHECK_STATUS(psr_implicit_evaluate(f, centre, (size_t)-1, &value),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    value = 42.0f;
+    CHECK_STATUS(psr_implicit_evaluate(f, nan_point, 1, &value), PSR_STATUS_NON_FINITE_POSITION);
+    CHECK_STATUS(psr_implicit_gradient(f, nan_point, 1, gradient),
+                 PSR_STATUS_NON_FINITE_POSITION);
+    CHECK(value == 42.0f);
+
+    for (i = 0; i < 8; i++) small[i] = 5.0f;
+    CHECK_STATUS(psr_implicit_sample_grid(NULL, 2, small, 8), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_sample_grid(f, 2, NULL, 8), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_implicit_sample_grid(f, 0, small, 8), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_implicit_sample_grid(f, 4097, small, 8), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_implicit_sample_grid(f, (size_t)-1, small, 8), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_implicit_sample_grid(f, 3, small, 8), PSR_STATUS_BUFFER_TOO_SMALL);
+    for (i = 0; i < 8; i++) untouched &= small[i] == 5.0f;
+    CHECK(untouched);
+    CHECK_STATUS(psr_implicit_sample_grid(f, 2, small, 8), PSR_STATUS_OK);
+    psr_implicit_free(f);
+}
+
 int main(void) {
     printf("psr %s C contract test\n", psr_version());
     test_null_arguments();
@@ -1043,6 +1132,7 @@ int main(void) {
     test_threads();
     test_trim();
     test_stats();
+    test_implicit();
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }
