@@ -998,6 +998,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
     });
     Ok(Mesh {
         positions,
+        origin: mesh.origin,
         triangles,
         densities,
         stats,
