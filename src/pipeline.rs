@@ -267,7 +267,7 @@ pub(crate) fn run(
             on_isosurface,
             with_normals,
         )
-    });
+    })?;
     clock.done(Stage::Extract)?;
 
     // 9. Mesh: back to input coordinates, with the sampling density at each vertex, and the

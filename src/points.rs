@@ -527,6 +527,15 @@ impl Samples {
         map: &UnitCubeMap,
         depth: u32,
     ) -> Result<Samples> {
+        // Samples are named by u32 indices from here on (the Morton order, the density's and the
+        // attributes' per-depth lists): checked once.
+        if points.len() > u32::MAX as usize {
+            return Err(Error::TooLarge {
+                what: "points",
+                count: points.len(),
+                limit: u32::MAX as usize,
+            });
+        }
         let inv_h = (depth as f64).exp2();
         let unit: Vec<DVec3> = match points.positions_f64() {
             Some(exact) => exact.par_iter().map(|&p| map.to_unit_f64(p)).collect(),
