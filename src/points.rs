@@ -139,15 +139,27 @@ impl PointSet {
         normals: &[[f32; 3]],
         transform: &[[f64; 4]; 4],
     ) -> Result<()> {
-        self.check_batch(positions.len(), normals.len(), None)?;
+        self.extend_transformed_weighted(positions, normals, None, transform)
+    }
+
+    /// [`PointSet::extend_transformed`] with optional per-point confidence weights (finite,
+    /// ≥ 0), as [`PointSet::extend_weighted`].
+    pub fn extend_transformed_weighted(
+        &mut self,
+        positions: &[[f64; 3]],
+        normals: &[[f32; 3]],
+        weights: Option<&[f32]>,
+        transform: &[[f64; 4]; 4],
+    ) -> Result<()> {
+        self.check_batch(positions.len(), normals.len(), weights)?;
         let affine = Affine::new(transform)?;
         // The inputs themselves first, so that a bad entry is named before the transform
         // could hide it (a huge coordinate scaled down, a NaN anywhere).
-        validate_batch(positions, normals, None)?;
+        validate_batch(positions, normals, weights)?;
         let moved: Vec<[f64; 3]> = positions.iter().map(|&p| affine.point(p)).collect();
         let turned: Vec<[f32; 3]> = normals.iter().map(|&n| affine.normal(n)).collect();
-        let unit_normals = validate_batch(&moved, &turned, None)?;
-        self.push_f64(&moved, unit_normals, None);
+        let unit_normals = validate_batch(&moved, &turned, weights)?;
+        self.push_f64(&moved, unit_normals, weights);
         Ok(())
     }
 
