@@ -951,9 +951,9 @@ psr_status psr_reconstructor_add_points_f64(psr_reconstructor *r, const double *
 
 /**
  * psr_reconstructor_add_points_f64 with an affine transform applied to the batch first:
- * transform is 16 doubles, a 4x4 matrix in row-major order (transform[4 * row + column]), so
- * position p becomes M p + t with M the upper-left 3x3 block and t = (transform[3],
- * transform[7], transform[11]); the last row must be exactly 0 0 0 1. Normals are transformed
+ * transform is 16 doubles, a 4x4 matrix in row-major order (element 4 * row + column), so
+ * position p becomes M p + t with M the upper-left 3x3 block and t its last column (elements
+ * 3, 7 and 11); the last row (elements 12 to 15) must be exactly 0 0 0 1. Normals are transformed
  * by M's inverse transpose and renormalised (they stay perpendicular to the surface under
  * non-uniform scales and shears, and outward under reflections). For registering scans, each
  * with its pose, and placing local coordinates in a georeferenced frame; PoissonRecon's

@@ -1850,8 +1850,8 @@ pub fn write_mesh_to_with(
         let normal = mesh.normals.get(i).into_iter().flatten();
         let density = mesh.densities.get(i);
         if double {
-            for a in 0..3 {
-                entry.double(mesh.origin[a] + p[a] as f64);
+            for (o, &c) in mesh.origin.iter().zip(p) {
+                entry.double(o + c as f64);
             }
             for &v in normal.chain(density) {
                 entry.float(v);

@@ -414,7 +414,8 @@ impl Affine {
             .iter()
             .map(|row| row.iter().map(|v| v * v).sum::<f64>().sqrt())
             .product();
-        if !(det.abs() > 1e-12 * rows) {
+        // Entries near f64's limit can overflow the products to ∞ and ∞ − ∞ to NaN: refused too.
+        if det.is_nan() || det.abs() <= 1e-12 * rows {
             return refuse(
                 "its 3×3 part is singular (it flattens space onto a plane, a line or a point)",
             );
@@ -660,7 +661,11 @@ mod tests {
         ];
         let affine = Affine::new(&shear).unwrap();
         // The plane x + y = 1 with normal (1, 1, 0)/√2; two tangents.
-        let n = affine.normal([0.7071068, 0.7071068, 0.0]);
+        let n = affine.normal([
+            std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+            0.0,
+        ]);
         for t in [[1.0, -1.0, 0.0], [0.0, 0.0, 1.0]] {
             let (a, b) = (affine.point([0.0; 3]), affine.point(t));
             let moved = [0, 1, 2].map(|k| b[k] - a[k]);

@@ -180,6 +180,9 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
     unsafe { guard(F, r, body) }
 }
 
+/// One batch's double positions and float normals.
+type F64Batch = (Vec<[f64; 3]>, Vec<[f32; 3]>);
+
 /// Reads the strided double positions and float normals of one batch, after checking them as
 /// psr_reconstructor_add_points checks its arrays.
 ///
@@ -193,7 +196,7 @@ unsafe fn gather_f64_batch(
     normals: *const f32,
     normal_stride_bytes: usize,
     count: usize,
-) -> Result<(Vec<[f64; 3]>, Vec<[f32; 3]>), Failure> {
+) -> Result<F64Batch, Failure> {
     check_array_of(
         function,
         "positions",
@@ -275,9 +278,9 @@ pub unsafe extern "C" fn psr_reconstructor_add_points_f64(
 }
 
 /// psr_reconstructor_add_points_f64 with an affine transform applied to the batch first:
-/// transform is 16 doubles, a 4x4 matrix in row-major order (transform[4 * row + column]), so
-/// position p becomes M p + t with M the upper-left 3x3 block and t = (transform[3],
-/// transform[7], transform[11]); the last row must be exactly 0 0 0 1. Normals are transformed
+/// transform is 16 doubles, a 4x4 matrix in row-major order (element 4 * row + column), so
+/// position p becomes M p + t with M the upper-left 3x3 block and t its last column (elements
+/// 3, 7 and 11); the last row (elements 12 to 15) must be exactly 0 0 0 1. Normals are transformed
 /// by M's inverse transpose and renormalised (they stay perpendicular to the surface under
 /// non-uniform scales and shears, and outward under reflections). For registering scans, each
 /// with its pose, and placing local coordinates in a georeferenced frame; PoissonRecon's
