@@ -203,6 +203,17 @@ typedef enum {
      * batch), or, at solve, every weight is 0.
      */
     PSR_STATUS_INVALID_WEIGHT = 14,
+    /**
+     * A transform given with points (psr_reconstructor_add_points_transformed) has a NaN or
+     * infinite entry, is not affine (last row not 0 0 0 1) or is singular (the message says
+     * which).
+     */
+    PSR_STATUS_INVALID_TRANSFORM = 15,
+    /**
+     * The mesh would have more vertices, or the input more points, than 32-bit indices can
+     * name (the message gives the count): reconstruct at a lower depth or in pieces.
+     */
+    PSR_STATUS_TOO_LARGE = 16,
 } psr_status;
 
 /**
@@ -965,6 +976,47 @@ psr_status psr_reconstructor_get_min_component_samples(const psr_reconstructor *
 psr_status psr_reconstructor_add_points(psr_reconstructor *r, const float *positions, size_t position_stride_bytes, const float *normals, size_t normal_stride_bytes, size_t count);
 
 /**
+ * psr_reconstructor_add_points with positions in double precision: 3 doubles per position
+ * (position_stride_bytes 0 = packed, 24 bytes, else at least 24), normals in float as there.
+ * The reconstructor keeps the doubles, fits the bounding cube to them and returns a mesh whose
+ * float positions are relative to a round origin near the points (psr_mesh_origin;
+ * psr_mesh_copy_positions_f64 gives the vertices in double, in the input's coordinates), so
+ * coordinates far from 0, such as georeferenced scans 10^6 m away, keep the precision of the
+ * object's own size. Coordinates must also be within float range (|c| < 3.4e38). Costs 24
+ * more bytes per point held, for every point of r, once any batch came in double.
+ *
+ * r must not be NULL; positions and normals may be NULL only when count is 0. Returns the
+ * statuses of psr_reconstructor_add_points (a stride below 24 for positions is
+ * PSR_STATUS_INVALID_ARGUMENT).
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `positions` and `normals` are NULL or valid for reads of the
+ * strided spans described above.
+ */
+psr_status psr_reconstructor_add_points_f64(psr_reconstructor *r, const double *positions, size_t position_stride_bytes, const float *normals, size_t normal_stride_bytes, size_t count);
+
+/**
+ * psr_reconstructor_add_points_f64 with an affine transform applied to the batch first:
+ * transform is 16 doubles, a 4x4 matrix in row-major order (element 4 * row + column), so
+ * position p becomes M p + t with M the upper-left 3x3 block and t its last column (elements
+ * 3, 7 and 11); the last row (elements 12 to 15) must be exactly 0 0 0 1. Normals are transformed
+ * by M's inverse transpose and renormalised (they stay perpendicular to the surface under
+ * non-uniform scales and shears, and outward under reflections). For registering scans, each
+ * with its pose, and placing local coordinates in a georeferenced frame; PoissonRecon's
+ * --xForm (a file of the same 16 numbers, row-major).
+ *
+ * r must not be NULL; transform must not be NULL, even when count is 0 (it is checked then
+ * too); positions and normals may be NULL only when count is 0. Returns the statuses of
+ * psr_reconstructor_add_points_f64, and PSR_STATUS_INVALID_TRANSFORM for a NaN or infinite
+ * entry, a last row other than 0 0 0 1, or a singular M (nothing from the batch is added).
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `positions` and `normals` are NULL or valid for reads of the
+ * strided spans described above; `transform` is NULL or valid for reads of 16 doubles.
+ */
+psr_status psr_reconstructor_add_points_transformed(psr_reconstructor *r, const double *positions, size_t position_stride_bytes, const float *normals, size_t normal_stride_bytes, size_t count, const double *transform);
+
+/**
  * Writes the number of points r holds to *out (with and without normals). r and out must not
  * be NULL. Returns
  * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_HANDLE_POISONED,
@@ -1057,8 +1109,10 @@ size_t psr_mesh_vertex_count(const psr_mesh *m);
 size_t psr_mesh_triangle_count(const psr_mesh *m);
 
 /**
- * The vertex positions of m, 3 floats (x, y, z) per vertex, in the input's coordinates, owned
- * by m: valid until psr_mesh_free(m), never to be freed or written. NULL if m is NULL or has no
+ * The vertex positions of m, 3 floats (x, y, z) per vertex, in the input's coordinates less
+ * psr_mesh_origin(m), which is (0, 0, 0) unless points were added in double
+ * (psr_reconstructor_add_points_f64, psr_reconstructor_add_points_transformed); owned by m:
+ * valid until psr_mesh_free(m), never to be freed or written. NULL if m is NULL or has no
  * vertices.
  *
  * # Safety
@@ -1108,6 +1162,37 @@ double psr_mesh_isovalue(const psr_mesh *m);
  * `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_floats` floats.
  */
 psr_status psr_mesh_copy_positions(const psr_mesh *m, float *dst, size_t capacity_floats);
+
+/**
+ * Writes to out[0..3] the point m's positions are relative to, in the input's coordinates:
+ * (0, 0, 0) unless points were added in double, else the centre of the reconstruction's
+ * bounding cube rounded to a multiple of the smallest power of two at least the cube's side
+ * (so a round number, and 0 for a cube near 0). A vertex is at origin + position; in float,
+ * positions relative to it keep float's relative precision (6e-8) of the object's size
+ * however far the object is from 0.
+ *
+ * m and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT or
+ * PSR_STATUS_INTERNAL_ERROR; out is written only on success.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or valid for writes of 3 doubles.
+ */
+psr_status psr_mesh_origin(const psr_mesh *m, double *out);
+
+/**
+ * Copies the vertex positions of m into dst in double, in the input's coordinates
+ * (psr_mesh_origin(m) + each float position, added in double): 3 * psr_mesh_vertex_count(m)
+ * doubles. capacity_doubles is the number of doubles dst can hold. For points added in double,
+ * the vertices as accurate as the reconstruction (not float's 6 cm steps at 10^6 m).
+ *
+ * m must not be NULL; dst may be NULL only when the mesh has no vertices. Returns
+ * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+ * PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_doubles` doubles.
+ */
+psr_status psr_mesh_copy_positions_f64(const psr_mesh *m, double *dst, size_t capacity_doubles);
 
 /**
  * Copies the triangles of m into dst: 3 * psr_mesh_triangle_count(m) vertex indices.

@@ -118,6 +118,23 @@ pub enum Error {
         /// what is wrong with it
         reason: &'static str,
     },
+    /// A transform given with a batch of points ([`crate::PointSet::extend_transformed`]) has
+    /// a NaN or infinite entry, is not affine (its last row is not `0 0 0 1`), or its 3×3 part
+    /// is singular.
+    InvalidTransform {
+        /// what is wrong with it
+        reason: &'static str,
+    },
+    /// A mesh has more vertices (or a point set more points) than 32-bit indices can name:
+    /// triangles index vertices with `u32`. Reconstruct at a lower depth, or in pieces.
+    TooLarge {
+        /// what there are too many of, e.g. "mesh vertices"
+        what: &'static str,
+        /// how many there are (or would be)
+        count: usize,
+        /// the most there may be
+        limit: usize,
+    },
     /// A bug in psr: please report it with the input that triggered it.
     Internal(String),
 }
@@ -187,6 +204,14 @@ impl fmt::Display for Error {
             Error::InvalidChannelName { name, reason } => {
                 write!(f, "channel name {name:?} {reason}: give each channel a distinct name without spaces")
             }
+            Error::InvalidTransform { reason } => write!(
+                f,
+                "the transform is refused: {reason}: give a finite, invertible affine 4x4 matrix, row-major, last row 0 0 0 1"
+            ),
+            Error::TooLarge { what, count, limit } => write!(
+                f,
+                "{count} {what} is more than {limit}, the most 32-bit indices can name: reconstruct at a lower depth or in pieces"
+            ),
             Error::Internal(msg) => write!(f, "internal error in psr (a bug, please report it): {msg}"),
         }
     }

@@ -53,6 +53,7 @@
 //! (see [`crate::Boundary::Dirichlet`]): they are outside, the surface does not meet them and
 //! there is no cap.
 
+use crate::error::{Error, Result};
 use crate::evaluate::Indicator;
 use crate::grid::{cell_of, KeyMap};
 use crate::octree::{Level, Octree, CORE, NONE, SPLIT};
@@ -550,17 +551,17 @@ pub(crate) fn extract_around_samples(
     positions: &[DVec3],
     on_isosurface: bool,
     with_normals: bool,
-) -> RawMesh {
+) -> Result<RawMesh> {
     let inv_h = (chi.tree.max_depth() as f64).exp2();
     let seeds: Vec<[i64; 3]> = positions
         .iter()
         .map(|&p| cell_of(p, inv_h).map(i64::from))
         .collect();
-    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface || with_normals);
+    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface || with_normals)?;
     if !on_isosurface {
         fit_to_surface(&mut mesh);
     }
-    mesh
+    Ok(mesh)
 }
 
 /// The leaf of `tree` that contains the point `p` (unit-cube coordinates), as its depth and its
@@ -579,13 +580,14 @@ pub(crate) fn leaf_at(tree: &Octree, p: DVec3) -> Option<(u32, [i64; 3])> {
 const WAVE_BATCH: usize = 16384;
 
 /// Extracts {χ = γ} on the leaves of `chi`'s tree, following the surface from the leaves
-/// containing the finest-depth cells in `seeds` (any order, duplicates allowed).
+/// containing the finest-depth cells in `seeds` (any order, duplicates allowed). Fails with
+/// [`Error::TooLarge`] when the mesh would need vertex ids past 2³¹.
 pub fn extract(
     chi: &Indicator,
     isovalue: f64,
     seeds: Vec<[i64; 3]>,
     with_normals: bool,
-) -> RawMesh {
+) -> Result<RawMesh> {
     let finest = chi.tree.max_depth();
     let leaves = Leaves {
         tree: &chi.tree,
@@ -695,6 +697,19 @@ pub fn extract(
             })
             .collect();
 
+        // Every crossing of this batch may make a vertex and every loop a centre vertex: their
+        // ids must stay below ADDED_CENTRE (and so fit in u32), checked here once for the
+        // batch so that the loops below convert with `as` (debug-asserted) at no cost.
+        let new_at_most: usize = crossed.iter().flatten().map(|lp| lp.len() + 1).sum();
+        let ids_needed = mesh.vertices.len() + new_at_most;
+        if ids_needed > ADDED_CENTRE as usize {
+            return Err(Error::TooLarge {
+                what: "mesh vertices",
+                count: ids_needed,
+                limit: ADDED_CENTRE as usize,
+            });
+        }
+
         // Number the vertices of newly crossed edges in trace order, and visit the leaves
         // around each of those edges. Every crossing's vertex id is kept, in the same order,
         // for the triangulation. This is one thread's work: the next batch of the wave (which
@@ -705,7 +720,9 @@ pub fn extract(
             let mut crossing_ids: Vec<u32> = Vec::new();
             for ((leaf, (block, _, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
                 for c in loops.iter().flatten() {
-                    let next_id = (mesh.vertices.len() + new_edges.len()) as u32;
+                    let next_id = mesh.vertices.len() + new_edges.len();
+                    debug_assert!(next_id < ADDED_CENTRE as usize, "checked for the batch");
+                    let next_id = next_id as u32;
                     let mut created = false;
                     let id = *vertex_of_edge.entry(c.key).or_insert_with(|| {
                         created = true;
@@ -764,6 +781,7 @@ pub fn extract(
             })
             .collect();
         for (triangles, centres) in fans {
+            debug_assert!(mesh.vertices.len() + centres.len() <= ADDED_CENTRE as usize);
             let base = mesh.vertices.len() as u32;
             if with_normals {
                 let inside = |v: &DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::ONE).all();
@@ -791,7 +809,7 @@ pub fn extract(
             done = 0;
         }
     }
-    mesh
+    Ok(mesh)
 }
 
 /// Moves every vertex along the surface normal so that the flat triangles straddle {χ = γ}
@@ -988,8 +1006,9 @@ fn quadratic_root(v0: f64, vm: f64, v1: f64) -> f64 {
 }
 
 /// Marks, in a leaf's triangles before they join the mesh, the k-th centre vertex that leaf
-/// adds (as `ADDED_CENTRE | k`); real vertex ids stay below it (a mesh of 2^31 vertices would
-/// need far more memory than any machine psr runs on).
+/// adds (as `ADDED_CENTRE | k`); real vertex ids stay below it: extraction checks, once per
+/// batch of leaves, that the batch's new vertices keep them there, and otherwise fails with
+/// [`Error::TooLarge`] (a mesh of 2^31 vertices needs about 200 GB here).
 const ADDED_CENTRE: u32 = 1 << 31;
 
 /// Triangulates one loop (vertex ids `ids`, each with the bit mask of the leaf's faces it lies
@@ -1040,6 +1059,8 @@ fn triangulate(
         }
         None => {
             let centre = ids.iter().map(|&i| vertices[i as usize]).sum::<DVec3>() / m as f64;
+            // A leaf's loops add a few centres at most; the batch's check bounds them anyway.
+            debug_assert!(centres.len() < ADDED_CENTRE as usize);
             let c = ADDED_CENTRE | centres.len() as u32;
             centres.push(centre);
             for k in 0..m {

@@ -6,6 +6,7 @@ use crate::density::DensityField;
 use crate::extract::RawMesh;
 use crate::points::UnitCubeMap;
 use crate::Stage;
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// How one depth's linear solve ended.
@@ -109,8 +110,19 @@ impl Stats {
 #[derive(Debug, Clone, Default, PartialEq)]
 #[non_exhaustive]
 pub struct Mesh {
-    /// Vertex positions.
+    /// Vertex positions, relative to [`Mesh::origin`]: a vertex is at `origin + position` in
+    /// input coordinates ([`Mesh::positions_f64`] adds them in `f64`). The origin is 0, so these
+    /// are the input coordinates themselves, unless the points were given in `f64`.
     pub positions: Vec<[f32; 3]>,
+    /// The point the positions are relative to, in input coordinates: `[0, 0, 0]` unless the
+    /// points were given in `f64` ([`crate::PointSet::extend_f64`],
+    /// [`crate::PointSet::extend_transformed`]). Then it is the centre of the reconstruction's
+    /// bounding cube rounded to a multiple of the smallest power of two at least the cube's
+    /// side `s` (0 when the cube is within `s`/2 of 0), so every vertex is within about 2`s` of
+    /// it and its `f32` position keeps `f32`'s relative precision of the object's size
+    /// (6·10⁻⁸ × 2`s`) however far the object is from 0 — 10⁶ m away, `f32` input coordinates
+    /// have a resolution of 6 cm. Each position was rounded once, from `f64`.
+    pub origin: [f64; 3],
     /// Counter-clockwise seen from outside: normals point out of the reconstructed solid.
     pub triangles: Vec<[u32; 3]>,
     /// Sampling density estimate at each vertex (kernel density of §4.5, in samples per
@@ -136,21 +148,42 @@ pub struct Mesh {
     pub channels: Vec<Channel>,
 }
 
-/// Stage 9: `raw`'s vertices mapped back to input coordinates by `map`, each with the
-/// sampling density there (`density`, for trimming); its figures are left for the caller.
+impl Mesh {
+    /// The vertices in input coordinates, in `f64`: [`Mesh::origin`] + each position.
+    pub fn positions_f64(&self) -> Vec<[f64; 3]> {
+        let o = self.origin;
+        self.positions
+            .iter()
+            .map(|p| [0, 1, 2].map(|a| o[a] + p[a] as f64))
+            .collect()
+    }
+}
+
+/// Stage 9: `raw`'s vertices mapped back to input coordinates by `map`, relative to `origin`
+/// when one is given (see [`Mesh::origin`]), each with the sampling density there (`density`,
+/// for trimming); its figures are left for the caller.
 pub(crate) fn in_input_coordinates(
     raw: RawMesh,
     map: &UnitCubeMap,
+    origin: Option<DVec3>,
     density: &DensityField,
 ) -> Mesh {
-    let positions: Vec<[f32; 3]> = raw
-        .vertices
-        .par_iter()
-        .map(|&v| {
-            let p = map.to_input(v);
-            [p.x as f32, p.y as f32, p.z as f32]
-        })
-        .collect();
+    let positions: Vec<[f32; 3]> = match origin {
+        // The f32 path: exactly as before origins existed.
+        None => raw
+            .vertices
+            .par_iter()
+            .map(|&v| {
+                let p = map.to_input(v);
+                [p.x as f32, p.y as f32, p.z as f32]
+            })
+            .collect(),
+        Some(origin) => raw
+            .vertices
+            .par_iter()
+            .map(|&v| (map.to_input(v) - origin).as_vec3().to_array())
+            .collect(),
+    };
     let densities: Vec<f32> = raw
         .vertices
         .par_iter()
@@ -158,6 +191,7 @@ pub(crate) fn in_input_coordinates(
         .collect();
     Mesh {
         positions,
+        origin: origin.map_or([0.0; 3], |o| o.to_array()),
         triangles: raw.triangles,
         densities,
         ..Mesh::default()
@@ -192,7 +226,6 @@ pub(crate) fn set_attributes(mesh: &mut Mesh, points: &PointAttributes, values: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DVec3;
 
     /// Proves: stage 9 maps every vertex back through the unit-cube map and gives it the
     /// density there, keeping the triangles as they are.
@@ -209,7 +242,25 @@ mod tests {
             triangles: vec![[0, 1, 0]],
             normals: Vec::new(),
         };
-        let mesh = in_input_coordinates(raw, &map, &density);
+        let raw_again = RawMesh {
+            vertices: vertices.clone(),
+            triangles: vec![[0, 1, 0]],
+            normals: Vec::new(),
+        };
+        let mesh = in_input_coordinates(raw_again, &map, None, &density);
+        let far = UnitCubeMap {
+            origin: map.origin + DVec3::new(1e6, -2e6, 3e5),
+            ..map
+        };
+        let shifted = in_input_coordinates(raw, &far, Some(far.nearby_origin()), &density);
+        assert_eq!(shifted.origin, [1e6 + 12.0, -2e6 + 20.0, 3e5 + 32.0]);
+        for (p, q) in shifted.positions_f64().iter().zip(&mesh.positions) {
+            let want = [1e6, -2e6, 3e5];
+            assert!(
+                (0..3).all(|a| (p[a] - want[a] - q[a] as f64).abs() < 1e-5),
+                "{p:?}"
+            );
+        }
         assert_eq!(mesh.triangles, vec![[0, 1, 0]]);
         for (k, v) in vertices.iter().enumerate() {
             let want = map.to_input(*v);

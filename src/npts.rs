@@ -354,6 +354,7 @@ mod tests {
         let uchar = |c: [u8; 3]| c.map(|v| (v as f64 / 255.0) as f32);
         PlyPoints {
             positions: vec![[0.5, -1.25, 3.0e-7], [1.0e6, 2.5, -0.1], [0.0, 0.0, 0.0]],
+            positions_f64: None,
             normals: if normals {
                 vec![
                     [0.0, 0.0, 1.0],

@@ -52,7 +52,14 @@ pub fn write_mesh_to(w: impl Write, mesh: &Mesh) -> io::Result<()> {
     let flat = colors.map_or(&[][..], |c| c.as_flattened());
     for (i, [x, y, z]) in mesh.positions.iter().enumerate() {
         line.clear();
-        let _ = write!(line, "v {x} {y} {z}");
+        if mesh.origin == [0.0; 3] {
+            let _ = write!(line, "v {x} {y} {z}");
+        } else {
+            // Relative to an origin (points given in f64): the sums in f64, as OBJ is text.
+            let o = mesh.origin;
+            let (x, y, z) = (o[0] + *x as f64, o[1] + *y as f64, o[2] + *z as f64);
+            let _ = write!(line, "v {x} {y} {z}");
+        }
         if components > 0 {
             let [r, g, b] = [0, 1, 2].map(|k| flat[i * components + k]);
             let _ = write!(line, " {r} {g} {b}");

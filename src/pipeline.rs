@@ -145,7 +145,13 @@ pub(crate) fn run(
     clock.report(Stage::Points, 0.0)?;
 
     // 1. Points: into the unit cube, in Morton order. A width chooses the depth from the cube.
-    let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
+    // Points given in f64 are fitted from their f64 values, and the mesh is given relative to a
+    // round origin near them (Mesh::origin); f32 points take exactly the path they always did.
+    let map = match points.positions_f64() {
+        Some(exact) => UnitCubeMap::fit_f64(exact, params.scale as f64),
+        None => UnitCubeMap::fit(points.positions(), params.scale as f64),
+    };
+    let origin = points.positions_f64().map(|_| map.nearby_origin());
     let params = &params.for_cube(map.size);
     clock.stats.depth = params.depth;
     let mut samples = pool.install(|| Samples::in_morton_order(points, &map, params.depth))?;
@@ -261,7 +267,7 @@ pub(crate) fn run(
             on_isosurface,
             with_normals,
         )
-    });
+    })?;
     // The level set's closed pieces that too few samples support (bubbles) are left out.
     let removed = pool.install(|| {
         components::drop_unsupported(
@@ -299,7 +305,7 @@ pub(crate) fn run(
     let normals = params.vertex_normals.then(|| {
         pool.install(|| attributes::vertex_normals(&raw.vertices, &raw.normals, &raw.triangles))
     });
-    let mut mesh = pool.install(|| mesh::in_input_coordinates(raw, &map, &field));
+    let mut mesh = pool.install(|| mesh::in_input_coordinates(raw, &map, origin, &field));
     if let Some(values) = attributes {
         mesh::set_attributes(&mut mesh, points.attributes(), &values);
     }

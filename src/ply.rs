@@ -37,8 +37,12 @@ use crate::{Channel, Colors, Mesh};
 #[derive(Debug, Clone, Default, PartialEq)]
 #[non_exhaustive]
 pub struct PlyPoints {
-    /// The `x y z` of each vertex.
+    /// The `x y z` of each vertex (rounded to `f32` when the file stores them as `double`).
     pub positions: Vec<[f32; 3]>,
+    /// The `x y z` of each vertex as the file stores them, when any of the three is a
+    /// `double` (georeferenced clouds): give them to [`crate::PointSet::extend_f64`] so that
+    /// nothing is lost to `f32`. `None` for `float` (or integer) coordinates.
+    pub positions_f64: Option<Vec<[f64; 3]>>,
     /// One normal per position, as stored (not normalised).
     pub normals: Vec<[f32; 3]>,
     /// The colours, when the vertex element has red, green and blue under one of the names of
@@ -1274,8 +1278,12 @@ fn read_vertex_points<R: BufRead>(
         .iter()
         .map(|_| Vec::with_capacity(cap))
         .collect();
+    let double = pos
+        .iter()
+        .any(|&p| matches!(vertex.props[p].ty, PropType::Scalar(Scalar::F64)));
     let mut out = PlyPoints {
         positions: Vec::with_capacity(cap),
+        positions_f64: double.then(|| Vec::with_capacity(cap)),
         normals: Vec::with_capacity(if nrm.is_some() { cap } else { 0 }),
         colors: None,
         color_type,
@@ -1289,6 +1297,9 @@ fn read_vertex_points<R: BufRead>(
     }
     body.read_element(vertex, &plan, |_, v, _| {
         out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
+        if let Some(exact) = &mut out.positions_f64 {
+            exact.push([v[0], v[1], v[2]]);
+        }
         if nrm.is_some() {
             out.normals.push([v[3] as f32, v[4] as f32, v[5] as f32]);
         }
@@ -1578,6 +1589,11 @@ pub struct WriteOptions {
     /// The encoding of the body (default [`PlyFormat::BinaryLittleEndian`], compact and what
     /// PoissonRecon writes on little-endian machines; [`PlyFormat::Ascii`] is its `--ascii`).
     pub format: PlyFormat,
+    /// Write `x y z` as `double`, [`Mesh::origin`] + each position added in `f64` (default
+    /// false). They are written so anyway when the mesh's origin is not 0 (its points were
+    /// given in `f64`), since `float` coordinates there would lose what the origin keeps.
+    /// PoissonRecon: `--double` (its build templated on `double`).
+    pub double_positions: bool,
 }
 
 impl Default for WriteOptions {
@@ -1585,6 +1601,7 @@ impl Default for WriteOptions {
         WriteOptions {
             color_type: ColorType::U8,
             format: PlyFormat::BinaryLittleEndian,
+            double_positions: false,
         }
     }
 }
@@ -1599,6 +1616,12 @@ impl WriteOptions {
     /// These options with [`WriteOptions::format`] set to `format`.
     pub fn with_format(mut self, format: PlyFormat) -> Self {
         self.format = format;
+        self
+    }
+
+    /// These options with [`WriteOptions::double_positions`] set to `double_positions`.
+    pub fn with_double_positions(mut self, double_positions: bool) -> Self {
+        self.double_positions = double_positions;
         self
     }
 }
@@ -1668,6 +1691,14 @@ impl Entry {
     }
 
     fn float(&mut self, v: f32) {
+        match self.format {
+            PlyFormat::Ascii => self.text(v),
+            PlyFormat::BinaryLittleEndian => self.buf.extend_from_slice(&v.to_le_bytes()),
+            PlyFormat::BinaryBigEndian => self.buf.extend_from_slice(&v.to_be_bytes()),
+        }
+    }
+
+    fn double(&mut self, v: f64) {
         match self.format {
             PlyFormat::Ascii => self.text(v),
             PlyFormat::BinaryLittleEndian => self.buf.extend_from_slice(&v.to_le_bytes()),
@@ -1782,9 +1813,11 @@ pub fn write_mesh_to_with(
     let with_normals = !mesh.normals.is_empty();
     let index_type = face_index_type(n as u64)
         .map_err(|message| io::Error::new(io::ErrorKind::InvalidInput, message))?;
+    let double = options.double_positions || mesh.origin != [0.0; 3];
+    let position_type = if double { "double" } else { "float" };
     let mut header = format!(
         "ply\nformat {} 1.0\ncomment written by psr {}\nelement vertex {n}\n\
-         property float x\nproperty float y\nproperty float z\n",
+         property {position_type} x\nproperty {position_type} y\nproperty {position_type} z\n",
         options.format.header_name(),
         env!("CARGO_PKG_VERSION")
     );
@@ -1816,8 +1849,17 @@ pub fn write_mesh_to_with(
     for (i, p) in mesh.positions.iter().enumerate() {
         let normal = mesh.normals.get(i).into_iter().flatten();
         let density = mesh.densities.get(i);
-        for &v in p.iter().chain(normal).chain(density) {
-            entry.float(v);
+        if double {
+            for (o, &c) in mesh.origin.iter().zip(p) {
+                entry.double(o + c as f64);
+            }
+            for &v in normal.chain(density) {
+                entry.float(v);
+            }
+        } else {
+            for &v in p.iter().chain(normal).chain(density) {
+                entry.float(v);
+            }
         }
         for &c in colors.map_or(&[][..], |c| &c[i * components..(i + 1) * components]) {
             entry.color(options.color_type, c);
@@ -1901,6 +1943,7 @@ mod tests {
         let uchar = |c: [u8; 3]| c.map(|v| (v as f64 / 255.0) as f32);
         PlyPoints {
             positions,
+            positions_f64: None,
             normals,
             colors: with_extras.then(|| {
                 Colors::Rgb(vec![

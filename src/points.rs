@@ -5,6 +5,12 @@
 //! bounding box of the positions, enlarged by `scale` about its centre, is mapped onto `[0,1]³`
 //! by a uniform scale, and the inverse map takes mesh vertices back to input coordinates.
 //!
+//! Positions may be given in `f64` ([`PointSet::extend_f64`], [`PointSet::extend_transformed`]):
+//! the set then keeps them as given beside their `f32` rounding, the unit cube is fitted to and
+//! the samples mapped from the `f64` values, so that a cloud far from the origin (georeferenced
+//! coordinates, 10⁶ m away) loses nothing to `f32`'s resolution there. A set given only `f32`
+//! positions stores nothing more and computes exactly what it did before.
+//!
 //! A set may also carry attributes, the same for every point: colours and named float channels
 //! (finite values; see [`crate::attributes`] for how they reach the mesh).
 
@@ -30,7 +36,11 @@ use rayon::prelude::*;
 /// ```
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PointSet {
+    /// The positions (rounded to `f32` when given in `f64`).
     positions: Vec<[f32; 3]>,
+    /// The positions as given, once any batch came in `f64`: every point's, the `f32` ones
+    /// widened exactly. `None` on the `f32` path, which then costs nothing more.
+    positions_f64: Option<Vec<[f64; 3]>>,
     normals: Vec<[f32; 3]>,
     /// Per-point confidence (PoissonRecon `--confidence`); `None` means all 1.
     weights: Option<Vec<f32>>,
@@ -66,31 +76,147 @@ impl PointSet {
         normals: &[[f32; 3]],
         weights: Option<&[f32]>,
     ) -> Result<()> {
-        if self.attributes.width() > 0 && !positions.is_empty() {
+        self.check_batch(positions.len(), normals.len(), weights)?;
+        let unit_normals = validate_batch(positions, normals, weights)?;
+        let old_len = self.positions.len();
+        self.positions.extend_from_slice(positions);
+        if let Some(exact) = &mut self.positions_f64 {
+            exact.extend(positions.iter().map(|p| p.map(f64::from)));
+        }
+        self.push_normals_and_weights(old_len, unit_normals, weights);
+        Ok(())
+    }
+
+    /// A set holding the given points, positions in `f64` (validated, normals normalised): see
+    /// [`PointSet::extend_f64`].
+    pub fn from_slices_f64(positions: &[[f64; 3]], normals: &[[f32; 3]]) -> Result<Self> {
+        let mut set = PointSet::new();
+        set.extend_f64(positions, normals)?;
+        Ok(set)
+    }
+
+    /// Appends a batch of points whose positions are `f64`, with unit confidence. The set keeps
+    /// the positions as given (and their `f32` rounding for [`PointSet::positions`]); the
+    /// reconstruction maps them into the unit cube from the `f64` values, and its mesh has
+    /// vertices relative to a [`crate::Mesh::origin`] near them, so that coordinates far from
+    /// 0 (a georeferenced scan 10⁶ m away) keep the precision of the object's own size.
+    /// Coordinates must be finite and within `f32`'s range (|c| < 3.4·10³⁸), else
+    /// [`Error::NonFinitePosition`]. Memory: 24 more bytes per point, for every point of the
+    /// set, once any batch came in `f64`.
+    pub fn extend_f64(&mut self, positions: &[[f64; 3]], normals: &[[f32; 3]]) -> Result<()> {
+        self.extend_weighted_f64(positions, normals, None)
+    }
+
+    /// [`PointSet::extend_f64`] with optional per-point confidence weights (finite, ≥ 0), as
+    /// [`PointSet::extend_weighted`].
+    pub fn extend_weighted_f64(
+        &mut self,
+        positions: &[[f64; 3]],
+        normals: &[[f32; 3]],
+        weights: Option<&[f32]>,
+    ) -> Result<()> {
+        self.check_batch(positions.len(), normals.len(), weights)?;
+        let unit_normals = validate_batch(positions, normals, weights)?;
+        self.push_f64(positions, unit_normals, weights);
+        Ok(())
+    }
+
+    /// Appends a batch of points placed by an affine `transform` (row-major 4×4: the position
+    /// `p` becomes `M·p + t` with `M = transform[0..3][0..3]` and `t` its last column), computed
+    /// in `f64`; normals are transformed by `M`'s inverse transpose and renormalised, so they
+    /// stay normal to the surface under shears and non-uniform scales (and outward under a
+    /// reflection). The result is kept like [`PointSet::extend_f64`]'s. For registering scans
+    /// (each with its pose) and placing local coordinates in a georeferenced frame;
+    /// PoissonRecon's `--xForm`.
+    ///
+    /// The transform must be finite, affine (last row exactly `0 0 0 1`) and invertible (`M`'s
+    /// determinant not 0 relative to its rows' lengths), else [`Error::InvalidTransform`];
+    /// positions or normals bad before or after it are reported as by [`PointSet::extend`].
+    /// On error nothing is appended.
+    pub fn extend_transformed(
+        &mut self,
+        positions: &[[f64; 3]],
+        normals: &[[f32; 3]],
+        transform: &[[f64; 4]; 4],
+    ) -> Result<()> {
+        self.extend_transformed_weighted(positions, normals, None, transform)
+    }
+
+    /// [`PointSet::extend_transformed`] with optional per-point confidence weights (finite,
+    /// ≥ 0), as [`PointSet::extend_weighted`].
+    pub fn extend_transformed_weighted(
+        &mut self,
+        positions: &[[f64; 3]],
+        normals: &[[f32; 3]],
+        weights: Option<&[f32]>,
+        transform: &[[f64; 4]; 4],
+    ) -> Result<()> {
+        self.check_batch(positions.len(), normals.len(), weights)?;
+        let affine = Affine::new(transform)?;
+        // The inputs themselves first, so that a bad entry is named before the transform
+        // could hide it (a huge coordinate scaled down, a NaN anywhere).
+        validate_batch(positions, normals, weights)?;
+        let moved: Vec<[f64; 3]> = positions.iter().map(|&p| affine.point(p)).collect();
+        let turned: Vec<[f32; 3]> = normals.iter().map(|&n| affine.normal(n)).collect();
+        let unit_normals = validate_batch(&moved, &turned, weights)?;
+        self.push_f64(&moved, unit_normals, weights);
+        Ok(())
+    }
+
+    /// The checks every batch shares: lengths agree, and the set carries no attributes (a set
+    /// with attributes takes new points through [`PointSet::append`] only).
+    fn check_batch(&self, len: usize, normals: usize, weights: Option<&[f32]>) -> Result<()> {
+        if self.attributes.width() > 0 && len > 0 {
             return Err(Error::AttributesDiffer {
                 set: self.attributes.describe(),
                 batch: PointAttributes::default().describe(),
             });
         }
-        if normals.len() != positions.len() {
+        if normals != len {
             return Err(Error::LengthMismatch {
                 what: "normals",
-                positions: positions.len(),
-                other: normals.len(),
+                positions: len,
+                other: normals,
             });
         }
         if let Some(w) = weights {
-            if w.len() != positions.len() {
+            if w.len() != len {
                 return Err(Error::LengthMismatch {
                     what: "weights",
-                    positions: positions.len(),
+                    positions: len,
                     other: w.len(),
                 });
             }
         }
-        let unit_normals = validate_batch(positions, normals, weights)?;
+        Ok(())
+    }
+
+    /// Appends a validated batch of `f64` positions, widening the set's positions to `f64`
+    /// first if they were all `f32` until now (exactly).
+    fn push_f64(
+        &mut self,
+        positions: &[[f64; 3]],
+        unit_normals: Vec<[f32; 3]>,
+        weights: Option<&[f32]>,
+    ) {
         let old_len = self.positions.len();
-        self.positions.extend_from_slice(positions);
+        let f32s = &self.positions;
+        let exact = self
+            .positions_f64
+            .get_or_insert_with(|| f32s.iter().map(|p| p.map(f64::from)).collect());
+        exact.extend_from_slice(positions);
+        self.positions
+            .extend(positions.iter().map(|p| p.map(|c| c as f32)));
+        self.push_normals_and_weights(old_len, unit_normals, weights);
+    }
+
+    /// Appends a validated batch's normals and weights to a set that had `old_len` points.
+    fn push_normals_and_weights(
+        &mut self,
+        old_len: usize,
+        unit_normals: Vec<[f32; 3]>,
+        weights: Option<&[f32]>,
+    ) {
         self.normals.extend(unit_normals);
         match (weights, &mut self.weights) {
             (Some(w), Some(existing)) => existing.extend_from_slice(w),
@@ -102,7 +228,6 @@ impl PointSet {
             (None, Some(existing)) => existing.resize(self.positions.len(), 1.0),
             (None, None) => {}
         }
-        Ok(())
     }
 
     /// These points with per-point colours, one per point (RGB or RGBA, finite, in any scale:
@@ -138,6 +263,17 @@ impl PointSet {
             });
         }
         let old_len = self.len();
+        match (other.positions_f64, &mut self.positions_f64) {
+            (Some(theirs), Some(ours)) => ours.extend(theirs),
+            (Some(theirs), None) => {
+                let mut all: Vec<[f64; 3]> =
+                    self.positions.iter().map(|p| p.map(f64::from)).collect();
+                all.extend(theirs);
+                self.positions_f64 = Some(all);
+            }
+            (None, Some(ours)) => ours.extend(other.positions.iter().map(|p| p.map(f64::from))),
+            (None, None) => {}
+        }
         self.positions.extend(other.positions);
         self.normals.extend(other.normals);
         match (other.weights, &mut self.weights) {
@@ -164,9 +300,17 @@ impl PointSet {
         self.positions.is_empty()
     }
 
-    /// The positions, in input coordinates.
+    /// The positions, in input coordinates (rounded to `f32` when they were given in `f64`:
+    /// see [`PointSet::positions_f64`]).
     pub fn positions(&self) -> &[[f32; 3]] {
         &self.positions
+    }
+
+    /// The positions in `f64`, as given, when any batch was given in `f64`
+    /// ([`PointSet::extend_f64`], [`PointSet::extend_transformed`]; `f32` batches widened
+    /// exactly); `None` when every position came in `f32`.
+    pub fn positions_f64(&self) -> Option<&[[f64; 3]]> {
+        self.positions_f64.as_deref()
     }
 
     /// The normals, normalised to unit length.
@@ -197,6 +341,7 @@ impl PointSet {
     /// Removes every point, with its weights, colours and channels.
     pub fn clear(&mut self) {
         self.positions.clear();
+        self.positions_f64 = None;
         self.normals.clear();
         self.weights = None;
         self.attributes = PointAttributes::default();
@@ -204,14 +349,16 @@ impl PointSet {
 }
 
 /// Checks one batch and returns its normals normalised.
-fn validate_batch(
-    positions: &[[f32; 3]],
+/// Positions are `f32` or `f64`; an `f64` coordinate must also be finite once rounded to `f32`
+/// (within its range), since the set keeps that rounding too.
+fn validate_batch<T: Copy + Into<f64>>(
+    positions: &[[T; 3]],
     normals: &[[f32; 3]],
     weights: Option<&[f32]>,
 ) -> Result<Vec<[f32; 3]>> {
     let mut unit = Vec::with_capacity(normals.len());
     for (index, (p, n)) in positions.iter().zip(normals).enumerate() {
-        if !p.iter().all(|c| c.is_finite()) {
+        if !p.iter().all(|&c| (c.into() as f32).is_finite()) {
             return Err(Error::NonFinitePosition { index });
         }
         if !n.iter().all(|c| c.is_finite()) {
@@ -233,6 +380,71 @@ fn validate_batch(
     Ok(unit)
 }
 
+/// A validated affine transform (see [`PointSet::extend_transformed`]): the 3×3 part, its
+/// translation, and the matrix that takes normals (the cofactors of the 3×3 part, signed by its
+/// determinant: its inverse transpose up to a positive factor, which renormalising removes).
+struct Affine {
+    m: [[f64; 3]; 3],
+    t: [f64; 3],
+    normal: [[f64; 3]; 3],
+}
+
+impl Affine {
+    fn new(transform: &[[f64; 4]; 4]) -> Result<Affine> {
+        let refuse = |reason: &'static str| Err(Error::InvalidTransform { reason });
+        if !transform.iter().flatten().all(|c| c.is_finite()) {
+            return refuse("it has a NaN or infinite entry");
+        }
+        if transform[3] != [0.0, 0.0, 0.0, 1.0] {
+            return refuse(
+                "its last row is not 0 0 0 1 (a projective transform, not an affine one)",
+            );
+        }
+        let m = [0, 1, 2].map(|r| [transform[r][0], transform[r][1], transform[r][2]]);
+        let t = [0, 1, 2].map(|r| transform[r][3]);
+        // Cofactor matrix C: C[r][c] = the (r, c) cofactor; M's inverse is Cᵀ / det.
+        let cof = |r: usize, c: usize| {
+            let (r0, r1) = ((r + 1) % 3, (r + 2) % 3);
+            let (c0, c1) = ((c + 1) % 3, (c + 2) % 3);
+            m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0]
+        };
+        let c = [0, 1, 2].map(|r| [0, 1, 2].map(|col| cof(r, col)));
+        let det = m[0][0] * c[0][0] + m[0][1] * c[0][1] + m[0][2] * c[0][2];
+        let rows: f64 = m
+            .iter()
+            .map(|row| row.iter().map(|v| v * v).sum::<f64>().sqrt())
+            .product();
+        // Entries near f64's limit can overflow the products to ∞ and ∞ − ∞ to NaN: refused too.
+        if det.is_nan() || det.abs() <= 1e-12 * rows {
+            return refuse(
+                "its 3×3 part is singular (it flattens space onto a plane, a line or a point)",
+            );
+        }
+        let sign = det.signum();
+        let normal = c.map(|row| row.map(|v| v * sign));
+        Ok(Affine { m, t, normal })
+    }
+
+    /// M·p + t.
+    fn point(&self, p: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2]
+            .map(|r| self.m[r][0] * p[0] + self.m[r][1] * p[1] + self.m[r][2] * p[2] + self.t[r])
+    }
+
+    /// M⁻ᵀ·n up to a positive factor (normalised later, with the other normals).
+    fn normal(&self, n: [f32; 3]) -> [f32; 3] {
+        let n = n.map(f64::from);
+        let v = [0, 1, 2].map(|r| {
+            self.normal[r][0] * n[0] + self.normal[r][1] * n[1] + self.normal[r][2] * n[2]
+        });
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        // Normalised here so that a large matrix does not overflow f32; a length of 0 (a zero
+        // normal in) stays 0 and is refused as one.
+        let s = if len > 0.0 { 1.0 / len } else { 0.0 };
+        v.map(|c| (c * s) as f32)
+    }
+}
+
 /// The similarity that maps input coordinates into the unit cube: `unit = (p − origin) / size`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UnitCubeMap {
@@ -247,10 +459,21 @@ impl UnitCubeMap {
     /// A degenerate box (one point, or all points on a plane or a line) still gets a cube: its
     /// size falls back to the longest side, then to a size relative to the coordinates.
     pub fn fit(positions: &[[f32; 3]], scale: f64) -> Self {
+        Self::fit_to(
+            positions.iter().map(|p| DVec3::from(p.map(f64::from))),
+            scale,
+        )
+    }
+
+    /// [`UnitCubeMap::fit`] for `f64` positions.
+    pub fn fit_f64(positions: &[[f64; 3]], scale: f64) -> Self {
+        Self::fit_to(positions.iter().map(|&p| DVec3::from(p)), scale)
+    }
+
+    fn fit_to(positions: impl Iterator<Item = DVec3>, scale: f64) -> Self {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for p in positions {
-            let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        for v in positions {
             lo = lo.min(v);
             hi = hi.max(v);
         }
@@ -273,9 +496,25 @@ impl UnitCubeMap {
         (DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) - self.origin) / self.size
     }
 
+    /// [`UnitCubeMap::to_unit`] for an `f64` position.
+    pub fn to_unit_f64(self, p: [f64; 3]) -> DVec3 {
+        (DVec3::from(p) - self.origin) / self.size
+    }
+
     /// Unit cube → input coordinates.
     pub fn to_input(self, q: DVec3) -> DVec3 {
         q * self.size + self.origin
+    }
+
+    /// A point near the cube for `f32` coordinates to be relative to (see
+    /// [`crate::Mesh::origin`]): its centre rounded to a multiple of the smallest power of two
+    /// at least its size `s`, so within `s` of every point of the cube (a vertex relative to it
+    /// keeps `f32`'s relative precision, 6·10⁻⁸, of about 2`s`), a round number, and 0 when the
+    /// cube is within `s`/2 of 0 anyway.
+    pub fn nearby_origin(self) -> DVec3 {
+        let grid = self.size.log2().ceil().exp2();
+        let centre = self.origin + DVec3::splat(self.size * 0.5);
+        (centre / grid).round() * grid
     }
 }
 
@@ -301,12 +540,24 @@ impl Samples {
         map: &UnitCubeMap,
         depth: u32,
     ) -> Result<Samples> {
+        // Samples are named by u32 indices from here on (the Morton order, the density's and the
+        // attributes' per-depth lists): checked once.
+        if points.len() > u32::MAX as usize {
+            return Err(Error::TooLarge {
+                what: "points",
+                count: points.len(),
+                limit: u32::MAX as usize,
+            });
+        }
         let inv_h = (depth as f64).exp2();
-        let unit: Vec<DVec3> = points
-            .positions()
-            .par_iter()
-            .map(|&p| map.to_unit(p))
-            .collect();
+        let unit: Vec<DVec3> = match points.positions_f64() {
+            Some(exact) => exact.par_iter().map(|&p| map.to_unit_f64(p)).collect(),
+            None => points
+                .positions()
+                .par_iter()
+                .map(|&p| map.to_unit(p))
+                .collect(),
+        };
         let mut order: Vec<(u64, u32)> = unit
             .par_iter()
             .enumerate()
@@ -345,8 +596,14 @@ impl Samples {
         if samples.confidence.iter().all(|&c| c == 0.0) {
             return Err(Error::NoPositiveWeight);
         }
-        let first = points.positions()[0];
-        if points.positions().iter().all(|p| *p == first) {
+        let coincide = match points.positions_f64() {
+            Some(exact) => exact.iter().all(|p| *p == exact[0]),
+            None => points
+                .positions()
+                .iter()
+                .all(|p| *p == points.positions()[0]),
+        };
+        if coincide {
             return Err(Error::DegenerateInput {
                 points: points.len(),
             });
@@ -390,6 +647,62 @@ mod tests {
         assert!((c - DVec3::splat(0.5)).length() < 1e-12);
         let back = map.to_input(map.to_unit(pts[1]));
         assert!((back - DVec3::new(3.0, 2.5, 3.5)).length() < 1e-12);
+    }
+
+    /// Proves: a transformed normal stays perpendicular to the transformed surface under a
+    /// shear and a non-uniform scale (the inverse transpose), and outward under a reflection.
+    #[test]
+    fn transformed_normals_stay_normal_and_outward() {
+        let shear = [
+            [2.0, 1.0, 0.0, 5.0],
+            [0.0, 1.0, 0.0, -3.0],
+            [0.0, 0.0, 0.5, 1e6],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        let affine = Affine::new(&shear).unwrap();
+        // The plane x + y = 1 with normal (1, 1, 0)/√2; two tangents.
+        let n = affine.normal([
+            std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+            0.0,
+        ]);
+        for t in [[1.0, -1.0, 0.0], [0.0, 0.0, 1.0]] {
+            let (a, b) = (affine.point([0.0; 3]), affine.point(t));
+            let moved = [0, 1, 2].map(|k| b[k] - a[k]);
+            let dot: f64 = (0..3).map(|k| moved[k] * n[k] as f64).sum();
+            assert!(dot.abs() < 1e-6, "{dot}");
+        }
+        assert_eq!(affine.point([1.0, 1.0, 1.0]), [8.0, -2.0, 1e6 + 0.5]);
+        let mirror = [
+            [-1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        let affine = Affine::new(&mirror).unwrap();
+        assert_eq!(affine.point([1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0]);
+        assert_eq!(affine.normal([1.0, 0.0, 0.0]), [-1.0, 0.0, 0.0]);
+    }
+
+    /// Proves: f32 and f64 batches mix in one set, the f32 ones widened exactly, and a set
+    /// given only f32 keeps no f64 copy.
+    #[test]
+    fn f32_and_f64_batches_mix() {
+        let mut set = PointSet::from_slices(&[[0.5, 0.0, 0.0]], &[[1.0, 0.0, 0.0]]).unwrap();
+        assert!(set.positions_f64().is_none());
+        set.extend_f64(&[[1e6 + 0.125, 0.0, 0.1]], &[[1.0, 0.0, 0.0]])
+            .unwrap();
+        set.extend(&[[2.0, 0.0, 0.0]], &[[1.0, 0.0, 0.0]]).unwrap();
+        assert_eq!(
+            set.positions_f64().unwrap(),
+            &[[0.5, 0.0, 0.0], [1e6 + 0.125, 0.0, 0.1], [2.0, 0.0, 0.0]]
+        );
+        assert_eq!(set.positions()[1], [1e6 + 0.125, 0.0, 0.1f64 as f32]);
+        let mut other = PointSet::from_slices(&[[3.0, 0.0, 0.0]], &[[1.0, 0.0, 0.0]]).unwrap();
+        other.append(set.clone()).unwrap();
+        assert_eq!(other.positions_f64().unwrap().len(), 4);
+        set.clear();
+        assert!(set.positions_f64().is_none());
     }
 
     #[test]

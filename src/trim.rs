@@ -247,7 +247,8 @@ impl Trimming {
 /// [`Threshold::Automatic`] on a mesh without [`crate::Stats::sample_density_quantiles`];
 /// [`Error::LengthMismatch`] when `mesh.densities` does not have one entry per vertex;
 /// [`Error::InvalidMesh`] for a triangle naming a vertex that does not exist or a density that
-/// is not finite; [`Error::ThreadsUnavailable`].
+/// is not finite; [`Error::TooLarge`] when the mesh, or the cut, has more vertices than `u32`
+/// indices name; [`Error::ThreadsUnavailable`].
 ///
 /// ```no_run
 /// # let points = psr::PointSet::from_slices(&[[0.0, 0.0, 0.0]], &[[0.0, 0.0, 1.0]]).unwrap();
@@ -270,6 +271,14 @@ pub fn trim(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
 /// The checks [`trim`] makes of its mesh.
 fn check_mesh(mesh: &Mesh) -> Result<()> {
     let n = mesh.positions.len();
+    // Triangles name vertices with u32; the cut numbers them with u32 too.
+    if n > u32::MAX as usize {
+        return Err(Error::TooLarge {
+            what: "mesh vertices",
+            count: n,
+            limit: u32::MAX as usize,
+        });
+    }
     if mesh.densities.len() != n {
         return Err(Error::LengthMismatch {
             what: "densities",
@@ -525,7 +534,14 @@ impl Crossings<'_> {
         match self.place[k] {
             AT_IN => self.ends(k).0,
             AT_OUT => self.ends(k).1,
-            _ => (self.mesh.positions.len() + k) as u32,
+            _ => {
+                let id = self.mesh.positions.len() + k;
+                debug_assert!(
+                    id < u32::MAX as usize,
+                    "checked when the crossings were made"
+                );
+                id as u32
+            }
         }
     }
 
@@ -753,11 +769,15 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
         .collect();
     keys.par_sort_unstable();
     keys.dedup();
+    // Every vertex id of the cut (old vertices, then one per crossing) fits in u32 below
+    // u32::MAX (the renumbering's UNUSED): checked once here, so `point` and the renumbering
+    // convert with `as` (debug-asserted).
     if n + keys.len() > u32::MAX as usize {
-        return Err(Error::InvalidMesh(format!(
-            "the cut would give {} vertices, more than 32-bit indices address",
-            n + keys.len()
-        )));
+        return Err(Error::TooLarge {
+            what: "vertices after the cut",
+            count: n + keys.len(),
+            limit: u32::MAX as usize,
+        });
     }
     let s: Vec<f64> = keys
         .par_iter()
@@ -913,6 +933,8 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
     let mut kept = Vec::new();
     for (v, slot) in index.iter_mut().enumerate() {
         if *slot != UNUSED {
+            // v < vertices ≤ u32::MAX, checked with the crossings.
+            debug_assert!(v < u32::MAX as usize);
             *slot = kept.len() as u32;
             kept.push(v as u32);
         }
@@ -998,6 +1020,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
     });
     Ok(Mesh {
         positions,
+        origin: mesh.origin,
         triangles,
         densities,
         stats,

@@ -247,6 +247,24 @@ struct Args {
     #[arg(long)]
     colors: bool,
 
+    /// Apply this affine transform to the input points before reconstructing: a text file of 16
+    /// numbers (whitespace or commas between them), a 4x4 matrix in row-major order, last row
+    /// 0 0 0 1; positions become M p + t in double precision, normals M's inverse transpose
+    /// times n, renormalised. Normals are estimated or re-oriented (--normals, --viewpoint,
+    /// sensors) in the file's own frame, before the transform. The output is then written with
+    /// double x y z when the transformed points are far from 0. PoissonRecon: --xForm (the same
+    /// 16 numbers).
+    #[arg(long, value_name = "FILE")]
+    transform: Option<PathBuf>,
+
+    /// Write a .ply output's x y z as double. Without it they are double when the input's x y z
+    /// were (a PLY with double coordinates: psr then reads and reconstructs them in double, and
+    /// the mesh keeps their precision, however far from 0), and float otherwise; an .obj output
+    /// is text, written at full precision either way. PoissonRecon: --double (its build on
+    /// double-precision reals; float x y z otherwise, whatever the input).
+    #[arg(long)]
+    double: bool,
+
     /// Write a .ply output as ASCII PLY (larger and slower than binary; for reading by eye or
     /// by tools without binary PLY). An .obj output is text anyway. PoissonRecon: --ascii.
     #[arg(long)]
@@ -678,10 +696,43 @@ fn run(args: &Args) -> Result<(), Failure> {
         None
     };
     let in_input = |e: psr::Error| Failure::Run(format!("{}: {e}", args.input.display()));
+    let transform = match &args.transform {
+        Some(path) => Some(read_transform(path)?),
+        None => None,
+    };
+    let double_input = cloud.positions_f64.is_some();
     let mut points = PointSet::new();
-    points
-        .extend_weighted(&cloud.positions, &cloud.normals, weights)
-        .map_err(in_input)?;
+    match (&transform, &cloud.positions_f64) {
+        (Some(t), exact) => {
+            let widened;
+            let positions = match exact {
+                Some(exact) => exact,
+                None => {
+                    widened = cloud
+                        .positions
+                        .iter()
+                        .map(|p| p.map(f64::from))
+                        .collect::<Vec<_>>();
+                    &widened
+                }
+            };
+            points
+                .extend_transformed_weighted(positions, &cloud.normals, weights, t)
+                .map_err(|e| match e {
+                    psr::Error::InvalidTransform { .. } => Failure::Usage(format!(
+                        "--transform {}: {e}",
+                        args.transform.as_deref().unwrap_or(Path::new("")).display()
+                    )),
+                    e => in_input(e),
+                })?
+        }
+        (None, Some(exact)) => points
+            .extend_weighted_f64(exact, &cloud.normals, weights)
+            .map_err(in_input)?,
+        (None, None) => points
+            .extend_weighted(&cloud.positions, &cloud.normals, weights)
+            .map_err(in_input)?,
+    }
     let color_type = cloud.color_type;
     if !args.no_attributes {
         if let Some(colors) = cloud.colors.take() {
@@ -748,7 +799,7 @@ fn run(args: &Args) -> Result<(), Failure> {
         mesh.densities = Vec::new();
     }
     let start = Instant::now();
-    write_output(args, &mesh, color_type)?;
+    write_output(args, &mesh, color_type, double_input)?;
     let write_seconds = start.elapsed().as_secs_f64();
 
     if args.verbose {
@@ -858,11 +909,39 @@ fn npy_header(n: usize) -> Vec<u8> {
 }
 
 /// Writes the mesh in the format the output's name says.
-fn write_output(args: &Args, mesh: &Mesh, color_type: ply::ColorType) -> Result<(), Failure> {
+/// Reads `--transform`'s file: 16 numbers, a row-major 4×4 matrix.
+fn read_transform(path: &Path) -> Result<[[f64; 4]; 4], Failure> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Failure::Usage(format!("--transform {}: {e}", path.display())))?;
+    let numbers: Vec<f64> = text
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|w| !w.is_empty())
+        .map(|w| w.parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| {
+            Failure::Usage(format!("--transform {}: not a number: {e}", path.display()))
+        })?;
+    if numbers.len() != 16 {
+        return Err(Failure::Usage(format!(
+            "--transform {}: {} numbers, expected 16 (a 4x4 matrix, row-major)",
+            path.display(),
+            numbers.len()
+        )));
+    }
+    Ok([0, 1, 2, 3].map(|r| [0, 1, 2, 3].map(|c| numbers[4 * r + c])))
+}
+
+fn write_output(
+    args: &Args,
+    mesh: &Mesh,
+    color_type: ply::ColorType,
+    double_input: bool,
+) -> Result<(), Failure> {
     let format = output_format(&args.output).map_err(Failure::Usage)?;
     let written = match format {
         OutputFormat::Ply => {
             let options = ply::WriteOptions::default()
+                .with_double_positions(args.double || double_input)
                 .with_color_type(color_type)
                 .with_format(if args.ascii {
                     ply::PlyFormat::Ascii

@@ -274,6 +274,8 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--min-piece-triangles", "none"),
         ("--no-attributes", "none"),
         ("--colors", "--colors"),
+        ("--transform", "--xForm"),
+        ("--double", "--double"),
         ("--ascii", "--ascii"),
         ("--vertex-normals", "--normals"),
         ("--min-component-samples", "none"),
@@ -1036,5 +1038,124 @@ fn grid_writes_chi_as_npy_and_raw() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
         assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
     }
+
+/// Writes the kitten's points as binary PLY with `double` x y z, each shifted by `shift`.
+fn kitten_in_double(path: &Path, shift: [f64; 3]) {
+    let cloud = psr::ply::read_points(&kitten()).unwrap();
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty double x\n\
+         property double y\nproperty double z\nproperty float nx\nproperty float ny\n\
+         property float nz\nend_header\n",
+        cloud.positions.len()
+    )
+    .into_bytes();
+    for (p, n) in cloud.positions.iter().zip(&cloud.normals) {
+        for a in 0..3 {
+            bytes.extend_from_slice(&(p[a] as f64 + shift[a]).to_le_bytes());
+        }
+        for c in n {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// The vertices of a binary mesh PLY that psr wrote with `double` x y z (then a float density).
+fn double_vertices(path: &Path) -> Vec<[f64; 3]> {
+    let bytes = std::fs::read(path).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]).into_owned();
+    assert!(header.contains("property double x"), "{header}");
+    assert!(header.contains("property float value"), "{header}");
+    let n: usize = header
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    (0..n)
+        .map(|i| {
+            let at = end + i * 28;
+            [0, 1, 2].map(|a| {
+                let b = &bytes[at + 8 * a..at + 8 * a + 8];
+                f64::from_le_bytes(b.try_into().unwrap())
+            })
+        })
+        .collect()
+}
+
+/// Proves: a PLY with double x y z 10^6 away is read and reconstructed in double and written
+/// with double x y z, giving the mesh of the same points near 0 shifted (1e-6 of the diagonal,
+/// vertices on the isosurface); --transform with that shift as a translation gives it too from
+/// the float file; a singular or malformed transform is a usage error.
+#[test]
+fn double_inputs_and_transforms_keep_far_coordinates() {
+    let dir = scratch("double");
+    let shift = [1e6, -2e6, 3e5];
+    let (near, far) = (dir.join("near.ply"), dir.join("far.ply"));
+    kitten_in_double(&near, [0.0; 3]);
+    kitten_in_double(&far, shift);
+    let flags = ["--depth", "7", "--vertices", "on-isosurface", "-q"];
+    let run = |input: &Path, output: &Path, extra: &[&str]| {
+        let mut all = flags.to_vec();
+        all.extend_from_slice(extra);
+        let out = psr_on(input, output, &all);
+        assert!(out.status.success(), "{}", stderr(&out));
+        double_vertices(output)
+    };
+    let want = run(&near, &dir.join("near_mesh.ply"), &[]);
+    let lo = want
+        .iter()
+        .fold([f64::INFINITY; 3], |m, p| [0, 1, 2].map(|a| m[a].min(p[a])));
+    let hi = want.iter().fold([f64::NEG_INFINITY; 3], |m, p| {
+        [0, 1, 2].map(|a| m[a].max(p[a]))
+    });
+    let diagonal = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+    let transform = dir.join("shift.txt");
+    std::fs::write(&transform, "1 0 0 1e6\n0 1 0 -2e6\n0 0 1 3e5\n0 0 0 1\n").unwrap();
+    let transform_arg = transform.to_str().unwrap();
+    for (label, got) in [
+        ("double input", run(&far, &dir.join("far_mesh.ply"), &[])),
+        (
+            "--transform",
+            run(
+                &kitten(),
+                &dir.join("moved_mesh.ply"),
+                &["--transform", transform_arg],
+            ),
+        ),
+    ] {
+        assert_eq!(got.len(), want.len(), "{label}");
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(p, q)| {
+                (0..3)
+                    .map(|a| (p[a] - shift[a] - q[a]).abs())
+                    .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6 * diagonal, "{label}: {worst} of {diagonal}");
+    }
+    std::fs::write(&transform, "1 0 0 0\n0 0 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
+    let out = psr_on(
+        &kitten(),
+        &dir.join("x.ply"),
+        &["--transform", transform_arg],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("singular"), "{}", stderr(&out));
+    std::fs::write(&transform, "1 0 0 0 1 0").unwrap();
+    let out = psr_on(
+        &kitten(),
+        &dir.join("x.ply"),
+        &["--transform", transform_arg],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("expected 16"), "{}", stderr(&out));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -73,8 +73,10 @@ pub unsafe extern "C" fn psr_mesh_triangle_count(m: *const psr_mesh) -> usize {
     })
 }
 
-/// The vertex positions of m, 3 floats (x, y, z) per vertex, in the input's coordinates, owned
-/// by m: valid until psr_mesh_free(m), never to be freed or written. NULL if m is NULL or has no
+/// The vertex positions of m, 3 floats (x, y, z) per vertex, in the input's coordinates less
+/// psr_mesh_origin(m), which is (0, 0, 0) unless points were added in double
+/// (psr_reconstructor_add_points_f64, psr_reconstructor_add_points_transformed); owned by m:
+/// valid until psr_mesh_free(m), never to be freed or written. NULL if m is NULL or has no
 /// vertices.
 ///
 /// # Safety
@@ -249,6 +251,84 @@ pub unsafe extern "C" fn psr_mesh_copy_positions(
     // SAFETY: `m` is NULL or a live mesh and `dst` is NULL or valid for writes of the given
     // capacity (this function's contract).
     unsafe { copy_out(&POSITIONS, m, dst, capacity_floats) }
+}
+
+/// Writes to out[0..3] the point m's positions are relative to, in the input's coordinates:
+/// (0, 0, 0) unless points were added in double, else the centre of the reconstruction's
+/// bounding cube rounded to a multiple of the smallest power of two at least the cube's side
+/// (so a round number, and 0 for a cube near 0). A vertex is at origin + position; in float,
+/// positions relative to it keep float's relative precision (6e-8) of the object's size
+/// however far the object is from 0.
+///
+/// m and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT or
+/// PSR_STATUS_INTERNAL_ERROR; out is written only on success.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `out` is NULL or valid for writes of 3 doubles.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_origin(m: *const psr_mesh, out: *mut f64) -> psr_status {
+    const F: &str = "psr_mesh_origin";
+    guard_no_handle(F, || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        let m = unsafe { m.as_ref() }.ok_or_else(|| Failure::null(F, "m"))?;
+        if out.is_null() {
+            return Err(Failure::null(F, "out"));
+        }
+        // SAFETY: `out` is not NULL, so valid for writes of 3 doubles (this function's
+        // contract); written unaligned, as C promises no more than double's alignment.
+        unsafe { out.cast::<[f64; 3]>().write_unaligned(m.mesh.origin) };
+        Ok(())
+    })
+}
+
+/// Copies the vertex positions of m into dst in double, in the input's coordinates
+/// (psr_mesh_origin(m) + each float position, added in double): 3 * psr_mesh_vertex_count(m)
+/// doubles. capacity_doubles is the number of doubles dst can hold. For points added in double,
+/// the vertices as accurate as the reconstruction (not float's 6 cm steps at 10^6 m).
+///
+/// m must not be NULL; dst may be NULL only when the mesh has no vertices. Returns
+/// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_BUFFER_TOO_SMALL (nothing is written) or
+/// PSR_STATUS_INTERNAL_ERROR.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `dst` is NULL or valid for writes of `capacity_doubles` doubles.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_copy_positions_f64(
+    m: *const psr_mesh,
+    dst: *mut f64,
+    capacity_doubles: usize,
+) -> psr_status {
+    const F: &str = "psr_mesh_copy_positions_f64";
+    guard_no_handle(F, || {
+        // SAFETY: `m` is NULL or a live mesh (this function's contract); meshes never change, so
+        // a shared reference is sound even with other threads reading it.
+        let m = unsafe { m.as_ref() }.ok_or_else(|| Failure::null(F, "m"))?;
+        let values = 3 * m.mesh.positions.len();
+        if values == 0 {
+            return Ok(());
+        }
+        if dst.is_null() {
+            return Err(Failure::null(
+                F,
+                &format!("dst (with {values} values to copy)"),
+            ));
+        }
+        if capacity_doubles < values {
+            return Err(Failure::new(
+                psr_status::BufferTooSmall,
+                format!(
+                    "{F}: capacity_doubles is {capacity_doubles}, less than the {values} values \
+                     to copy; nothing was written"
+                ),
+            ));
+        }
+        let exact = m.mesh.positions_f64();
+        // SAFETY: `dst` is not NULL, so valid for writes of capacity_doubles >= values doubles
+        // (this function's contract); `exact` is this call's own vector.
+        unsafe { ptr::copy_nonoverlapping(exact.as_flattened().as_ptr(), dst, values) };
+        Ok(())
+    })
 }
 
 /// Copies the triangles of m into dst: 3 * psr_mesh_triangle_count(m) vertex indices.

@@ -32,7 +32,8 @@
 //!   _last_error.
 //! - `params.rs`: the parameter setters and getters; `psr_boundary`, `psr_splatting`,
 //!   `psr_vertex_placement`.
-//! - `points.rs`: psr_reconstructor_add_points, _point_count and _clear_points.
+//! - `points.rs`: psr_reconstructor_add_points (and its _f64 and _transformed forms), _point_count
+//!   and _clear_points.
 //! - `solve.rs`: psr_reconstructor_set_progress_callback, psr_reconstructor_solve and the
 //!   panic test hooks.
 //! - `mesh.rs`: the `psr_mesh` handle: counts, borrowed views, copy-outs, psr_mesh_free.
@@ -103,9 +104,9 @@ pub use self::implicit::{
     psr_reconstructor_solve_implicit,
 };
 pub use self::mesh::{
-    psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_triangles,
-    psr_mesh_densities, psr_mesh_free, psr_mesh_isovalue, psr_mesh_positions,
-    psr_mesh_triangle_count, psr_mesh_triangles, psr_mesh_vertex_count,
+    psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_positions_f64,
+    psr_mesh_copy_triangles, psr_mesh_densities, psr_mesh_free, psr_mesh_isovalue, psr_mesh_origin,
+    psr_mesh_positions, psr_mesh_triangle_count, psr_mesh_triangles, psr_mesh_vertex_count,
 };
 pub use self::normals::{
     psr_orientation, psr_reconstructor_add_positions, psr_reconstructor_add_positions_seen_from,
@@ -130,7 +131,9 @@ pub use self::params::{
     psr_reconstructor_set_width, psr_splatting, psr_vertex_placement,
 };
 pub use self::points::{
-    psr_reconstructor_add_points, psr_reconstructor_clear_points, psr_reconstructor_point_count,
+    psr_reconstructor_add_points, psr_reconstructor_add_points_f64,
+    psr_reconstructor_add_points_transformed, psr_reconstructor_clear_points,
+    psr_reconstructor_point_count,
 };
 pub use self::reconstructor::{
     psr_reconstructor, psr_reconstructor_free, psr_reconstructor_last_error, psr_reconstructor_new,

@@ -1,28 +1,42 @@
 //! Points: psr_reconstructor_add_points (strided, checked whole before anything is appended),
-//! psr_reconstructor_point_count and psr_reconstructor_clear_points.
+//! its double-precision and transformed forms (psr_reconstructor_add_points_f64,
+//! psr_reconstructor_add_points_transformed), psr_reconstructor_point_count and
+//! psr_reconstructor_clear_points.
 
 use super::panic_boundary::{guard, handle_mut, handle_ref, write_out};
 use super::reconstructor::psr_reconstructor;
 use super::status::{psr_status, Failure, Outcome};
 
-/// Size of one position or normal: 3 floats.
-const VEC3_BYTES: usize = 3 * std::mem::size_of::<f32>();
-
 /// Copies `count` 3-float vectors starting `stride` bytes apart (0 = packed).
 ///
 /// # Safety
-/// `base`, `stride` and `count` have passed [`check_array`] (so `base` is not NULL and the span
-/// fits in `isize`), and `base` is valid for reads of that whole span: `count` vectors of 12
-/// bytes, `stride` bytes apart.
+/// As for [`gather_vec3_of`].
 pub(super) unsafe fn gather_vec3(base: *const f32, stride: usize, count: usize) -> Vec<[f32; 3]> {
-    let stride = if stride == 0 { VEC3_BYTES } else { stride };
+    // SAFETY: forwarded from this function's contract.
+    unsafe { gather_vec3_of(base, stride, count) }
+}
+
+/// Copies `count` vectors of 3 `T` (float or double) starting `stride` bytes apart (0 =
+/// packed).
+///
+/// # Safety
+/// `base`, `stride` and `count` have passed [`check_array_of`] (so `base` is not NULL and the
+/// span fits in `isize`), and `base` is valid for reads of that whole span: `count` vectors of
+/// 3 `T`, `stride` bytes apart.
+pub(super) unsafe fn gather_vec3_of<T: Copy>(
+    base: *const T,
+    stride: usize,
+    count: usize,
+) -> Vec<[T; 3]> {
+    let element = 3 * std::mem::size_of::<T>();
+    let stride = if stride == 0 { element } else { stride };
     let bytes = base.cast::<u8>();
     (0..count)
         .map(|i| {
-            // SAFETY: i < count, so the 12 bytes at base + i * stride lie inside the span,
+            // SAFETY: i < count, so the vector at base + i * stride lies inside the span,
             // which is readable and fits in isize (this function's contract); the reads are
             // unaligned, so interleaved vertex formats with odd strides are accepted.
-            unsafe { bytes.add(i * stride).cast::<[f32; 3]>().read_unaligned() }
+            unsafe { bytes.add(i * stride).cast::<[T; 3]>().read_unaligned() }
         })
         .collect()
 }
@@ -37,7 +51,7 @@ pub(super) fn batch_failure(function: &str, error: crate::Error) -> Failure {
     failure
 }
 
-/// Checks one strided array argument; `stride` 0 means packed.
+/// Checks one strided array argument of 3-float vectors; `stride` 0 means packed.
 pub(super) fn check_array(
     function: &str,
     name: &str,
@@ -46,23 +60,42 @@ pub(super) fn check_array(
     stride: usize,
     count: usize,
 ) -> Outcome {
+    check_array_of(function, name, stride_name, base, stride, count)
+}
+
+/// Checks one strided array argument of vectors of 3 `T` (float or double); `stride` 0 means
+/// packed.
+pub(super) fn check_array_of<T>(
+    function: &str,
+    name: &str,
+    stride_name: &str,
+    base: *const T,
+    stride: usize,
+    count: usize,
+) -> Outcome {
+    let element = 3 * std::mem::size_of::<T>();
+    let scalar = if std::mem::size_of::<T>() == 8 {
+        "doubles"
+    } else {
+        "floats"
+    };
     if base.is_null() {
         return Err(Failure::null(
             function,
             &format!("{name} (with count {count})"),
         ));
     }
-    let stride = if stride == 0 { VEC3_BYTES } else { stride };
-    if stride < VEC3_BYTES {
+    let stride = if stride == 0 { element } else { stride };
+    if stride < element {
         return Err(Failure::new(
             psr_status::InvalidArgument,
-            format!("{function}: {stride_name} is {stride} bytes, less than one element (3 floats = 12 bytes); use 0 for packed arrays"),
+            format!("{function}: {stride_name} is {stride} bytes, less than one element (3 {scalar} = {element} bytes); use 0 for packed arrays"),
         ));
     }
-    // The last element ends at (count - 1) * stride + 12, which must fit in isize.
+    // The last element ends at (count - 1) * stride + element, which must fit in isize.
     let span = (count - 1)
         .checked_mul(stride)
-        .and_then(|s| s.checked_add(VEC3_BYTES));
+        .and_then(|s| s.checked_add(element));
     match span {
         Some(span) if span <= isize::MAX as usize => Ok(()),
         _ => Err(Failure::new(
@@ -140,6 +173,169 @@ pub unsafe extern "C" fn psr_reconstructor_add_points(
         handle
             .points
             .extend(&p, &n)
+            .map_err(|e| batch_failure(F, e))
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// One batch's double positions and float normals.
+type F64Batch = (Vec<[f64; 3]>, Vec<[f32; 3]>);
+
+/// Reads the strided double positions and float normals of one batch, after checking them as
+/// psr_reconstructor_add_points checks its arrays.
+///
+/// # Safety
+/// `positions` and `normals` are NULL or valid for reads of their strided spans (`count`
+/// vectors of 3 doubles, resp. 3 floats).
+unsafe fn gather_f64_batch(
+    function: &str,
+    positions: *const f64,
+    position_stride_bytes: usize,
+    normals: *const f32,
+    normal_stride_bytes: usize,
+    count: usize,
+) -> Result<F64Batch, Failure> {
+    check_array_of(
+        function,
+        "positions",
+        "position_stride_bytes",
+        positions,
+        position_stride_bytes,
+        count,
+    )?;
+    check_array(
+        function,
+        "normals",
+        "normal_stride_bytes",
+        normals,
+        normal_stride_bytes,
+        count,
+    )?;
+    // SAFETY: both arrays passed their checks above, and are readable over their spans (this
+    // function's contract).
+    Ok(unsafe {
+        (
+            gather_vec3_of(positions, position_stride_bytes, count),
+            gather_vec3(normals, normal_stride_bytes, count),
+        )
+    })
+}
+
+/// psr_reconstructor_add_points with positions in double precision: 3 doubles per position
+/// (position_stride_bytes 0 = packed, 24 bytes, else at least 24), normals in float as there.
+/// The reconstructor keeps the doubles, fits the bounding cube to them and returns a mesh whose
+/// float positions are relative to a round origin near the points (psr_mesh_origin;
+/// psr_mesh_copy_positions_f64 gives the vertices in double, in the input's coordinates), so
+/// coordinates far from 0, such as georeferenced scans 10^6 m away, keep the precision of the
+/// object's own size. Coordinates must also be within float range (|c| < 3.4e38). Costs 24
+/// more bytes per point held, for every point of r, once any batch came in double.
+///
+/// r must not be NULL; positions and normals may be NULL only when count is 0. Returns the
+/// statuses of psr_reconstructor_add_points (a stride below 24 for positions is
+/// PSR_STATUS_INVALID_ARGUMENT).
+///
+/// # Safety
+/// `r` is NULL or a live handle; `positions` and `normals` are NULL or valid for reads of the
+/// strided spans described above.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_add_points_f64(
+    r: *mut psr_reconstructor,
+    positions: *const f64,
+    position_stride_bytes: usize,
+    normals: *const f32,
+    normal_stride_bytes: usize,
+    count: usize,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_add_points_f64";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(F, r) }?;
+        if count == 0 {
+            return Ok(());
+        }
+        // SAFETY: the arrays are NULL or readable over their spans (this function's contract).
+        let (p, n) = unsafe {
+            gather_f64_batch(
+                F,
+                positions,
+                position_stride_bytes,
+                normals,
+                normal_stride_bytes,
+                count,
+            )
+        }?;
+        handle
+            .points
+            .extend_f64(&p, &n)
+            .map_err(|e| batch_failure(F, e))
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// psr_reconstructor_add_points_f64 with an affine transform applied to the batch first:
+/// transform is 16 doubles, a 4x4 matrix in row-major order (element 4 * row + column), so
+/// position p becomes M p + t with M the upper-left 3x3 block and t its last column (elements
+/// 3, 7 and 11); the last row (elements 12 to 15) must be exactly 0 0 0 1. Normals are transformed
+/// by M's inverse transpose and renormalised (they stay perpendicular to the surface under
+/// non-uniform scales and shears, and outward under reflections). For registering scans, each
+/// with its pose, and placing local coordinates in a georeferenced frame; PoissonRecon's
+/// --xForm (a file of the same 16 numbers, row-major).
+///
+/// r must not be NULL; transform must not be NULL, even when count is 0 (it is checked then
+/// too); positions and normals may be NULL only when count is 0. Returns the statuses of
+/// psr_reconstructor_add_points_f64, and PSR_STATUS_INVALID_TRANSFORM for a NaN or infinite
+/// entry, a last row other than 0 0 0 1, or a singular M (nothing from the batch is added).
+///
+/// # Safety
+/// `r` is NULL or a live handle; `positions` and `normals` are NULL or valid for reads of the
+/// strided spans described above; `transform` is NULL or valid for reads of 16 doubles.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_add_points_transformed(
+    r: *mut psr_reconstructor,
+    positions: *const f64,
+    position_stride_bytes: usize,
+    normals: *const f32,
+    normal_stride_bytes: usize,
+    count: usize,
+    transform: *const f64,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_add_points_transformed";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(F, r) }?;
+        if transform.is_null() {
+            return Err(Failure::null(F, "transform"));
+        }
+        // SAFETY: `transform` is not NULL, so valid for reads of 16 doubles (this function's
+        // contract); read unaligned, as C does not promise more than double's alignment.
+        let flat = unsafe { transform.cast::<[f64; 16]>().read_unaligned() };
+        let matrix: [[f64; 4]; 4] = [0, 1, 2, 3].map(|r| [0, 1, 2, 3].map(|c| flat[4 * r + c]));
+        // An empty batch still has its transform checked, so a bad one is reported at once.
+        let (p, n) = if count == 0 {
+            (Vec::new(), Vec::new())
+        } else {
+            // SAFETY: the arrays are NULL or readable over their spans (this function's
+            // contract).
+            unsafe {
+                gather_f64_batch(
+                    F,
+                    positions,
+                    position_stride_bytes,
+                    normals,
+                    normal_stride_bytes,
+                    count,
+                )
+            }?
+        };
+        handle
+            .points
+            .extend_transformed(&p, &n, &matrix)
             .map_err(|e| batch_failure(F, e))
     };
     // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to

@@ -49,6 +49,13 @@ pub enum psr_status {
     /// A confidence weight is negative, NaN or infinite (the message gives its index in the
     /// batch), or, at solve, every weight is 0.
     InvalidWeight = 14,
+    /// A transform given with points (psr_reconstructor_add_points_transformed) has a NaN or
+    /// infinite entry, is not affine (last row not 0 0 0 1) or is singular (the message says
+    /// which).
+    InvalidTransform = 15,
+    /// The mesh would have more vertices, or the input more points, than 32-bit indices can
+    /// name (the message gives the count): reconstruct at a lower depth or in pieces.
+    TooLarge = 16,
 }
 
 /// The name of a status, e.g. "PSR_STATUS_ZERO_NORMAL", as a static NUL-terminated string
@@ -71,6 +78,8 @@ pub extern "C" fn psr_status_string(status: c_int) -> *const c_char {
         12 => "PSR_STATUS_THREADS_UNAVAILABLE\0",
         13 => "PSR_STATUS_NON_FINITE_ATTRIBUTE\0",
         14 => "PSR_STATUS_INVALID_WEIGHT\0",
+        15 => "PSR_STATUS_INVALID_TRANSFORM\0",
+        16 => "PSR_STATUS_TOO_LARGE\0",
         _ => "PSR_STATUS_UNKNOWN\0",
     };
     name.as_ptr().cast()
@@ -122,6 +131,8 @@ impl Failure {
             Error::AttributeLength { .. } => psr_status::InvalidArgument,
             Error::AttributesDiffer { .. } => psr_status::InvalidArgument,
             Error::InvalidChannelName { .. } => psr_status::InvalidArgument,
+            Error::InvalidTransform { .. } => psr_status::InvalidTransform,
+            Error::TooLarge { .. } => psr_status::TooLarge,
             Error::Internal(_) => psr_status::InternalError,
         };
         Failure::new(status, format!("{function}: {error}"))
@@ -162,13 +173,15 @@ mod tests {
                 "PSR_STATUS_NON_FINITE_ATTRIBUTE",
             ),
             (psr_status::InvalidWeight, "PSR_STATUS_INVALID_WEIGHT"),
+            (psr_status::InvalidTransform, "PSR_STATUS_INVALID_TRANSFORM"),
+            (psr_status::TooLarge, "PSR_STATUS_TOO_LARGE"),
         ];
         for (status, name) in all {
             // SAFETY: psr_status_string returns a static NUL-terminated string, never NULL.
             let got = unsafe { CStr::from_ptr(psr_status_string(status as c_int)) };
             assert_eq!(got.to_str().unwrap(), name);
         }
-        for unknown in [-1, 15, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 17, c_int::MAX, c_int::MIN] {
             // SAFETY: as above.
             let got = unsafe { CStr::from_ptr(psr_status_string(unknown)) };
             assert_eq!(got.to_str().unwrap(), "PSR_STATUS_UNKNOWN");

@@ -312,6 +312,8 @@ static void test_order_and_parameters(void) {
     CHECK(strcmp(psr_status_string(PSR_STATUS_OK), "PSR_STATUS_OK") == 0);
     CHECK(strcmp(psr_status_string(9), "PSR_STATUS_BUFFER_TOO_SMALL") == 0);
     CHECK(strcmp(psr_status_string(-5), "PSR_STATUS_UNKNOWN") == 0);
+    CHECK(strcmp(psr_status_string(PSR_STATUS_INVALID_TRANSFORM), "PSR_STATUS_INVALID_TRANSFORM") == 0);
+    CHECK(strcmp(psr_status_string(PSR_STATUS_TOO_LARGE), "PSR_STATUS_TOO_LARGE") == 0);
     CHECK(strcmp(psr_status_string(1000), "PSR_STATUS_UNKNOWN") == 0);
     CHECK(strcmp(psr_stage_string(PSR_STAGE_POINTS), "points") == 0);
     CHECK(strcmp(psr_stage_string(PSR_STAGE_DENSITY), "density") == 0);
@@ -444,6 +446,104 @@ static void test_boundaries(void) {
     CHECK(m != NULL && psr_mesh_vertex_count(m) > 100 && psr_mesh_triangle_count(m) > 100);
     psr_mesh_free(m);
     psr_reconstructor_free(r);
+
+/* Points in double, far from 0, directly and through a translation: the mesh's double vertices
+ * (origin + float positions) are the same sphere's near 0, shifted; bad transforms, NULLs and
+ * short buffers are refused. */
+static void test_double_points(void) {
+    enum { N = 1000 };
+    static const double shift[3] = {1e6, -2e6, 3e5};
+    static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    double translate[16], singular[16], projective[16], origin[3] = {-1, -1, -1};
+    float p[3 * N], n[3 * N], *near_pos;
+    double local[3 * N], moved[3 * N], *exact;
+    psr_reconstructor *near_r = NULL, *far_r = NULL, *moved_r = NULL;
+    psr_mesh *near_m = NULL, *far_m = NULL, *moved_m = NULL;
+    size_t k, nv;
+    double worst = 0.0, worst_moved = 0.0;
+
+    section("points in double, transforms, double vertices");
+    sphere(N, p, n);
+    for (k = 0; k < 3 * N; k++) {
+        local[k] = p[k];
+        moved[k] = p[k] + shift[k % 3];
+    }
+    memcpy(translate, identity, sizeof translate);
+    translate[3] = shift[0];
+    translate[7] = shift[1];
+    translate[11] = shift[2];
+    memcpy(singular, identity, sizeof singular);
+    singular[5] = 0.0;
+    memcpy(projective, identity, sizeof projective);
+    projective[14] = 2.0;
+
+    CHECK_STATUS(psr_reconstructor_new(&near_r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_new(&far_r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_new(&moved_r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(near_r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(far_r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(moved_r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_points(near_r, p, 0, n, 0, N), PSR_STATUS_OK);
+
+    CHECK_STATUS(psr_reconstructor_add_points_f64(NULL, moved, 0, n, 0, N),
+                 PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points_f64(far_r, NULL, 0, n, 0, N),
+                 PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points_f64(far_r, moved, 12, n, 0, N),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points_f64(far_r, moved, 0, n, 0, N), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_points_transformed(moved_r, local, 0, n, 0, N, NULL),
+                 PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_add_points_transformed(moved_r, local, 0, n, 0, N, singular),
+                 PSR_STATUS_INVALID_TRANSFORM);
+    CHECK(contains(psr_reconstructor_last_error(moved_r), "singular"));
+    CHECK_STATUS(psr_reconstructor_add_points_transformed(moved_r, NULL, 0, NULL, 0, 0, projective),
+                 PSR_STATUS_INVALID_TRANSFORM);
+    CHECK_STATUS(psr_reconstructor_add_points_transformed(moved_r, local, 0, n, 0, N, translate),
+                 PSR_STATUS_OK);
+
+    CHECK_STATUS(psr_reconstructor_solve(near_r, &near_m), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(far_r, &far_m), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(moved_r, &moved_m), PSR_STATUS_OK);
+    if (near_m != NULL && far_m != NULL && moved_m != NULL) {
+        nv = psr_mesh_vertex_count(near_m);
+        CHECK(nv > 100 && psr_mesh_vertex_count(far_m) == nv &&
+              psr_mesh_vertex_count(moved_m) == nv);
+        CHECK_STATUS(psr_mesh_origin(far_m, NULL), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_mesh_origin(NULL, origin), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_mesh_origin(near_m, origin), PSR_STATUS_OK);
+        CHECK(origin[0] == 0.0 && origin[1] == 0.0 && origin[2] == 0.0);
+        CHECK_STATUS(psr_mesh_origin(far_m, origin), PSR_STATUS_OK);
+        CHECK(fabs(origin[0] - shift[0]) < 8.0 && fabs(origin[1] - shift[1]) < 8.0);
+        exact = malloc(3 * nv * sizeof(double));
+        exact[0] = -7.0;
+        CHECK_STATUS(psr_mesh_copy_positions_f64(far_m, exact, 3 * nv - 1),
+                     PSR_STATUS_BUFFER_TOO_SMALL);
+        CHECK(exact[0] == -7.0);
+        CHECK_STATUS(psr_mesh_copy_positions_f64(far_m, NULL, 3 * nv), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_mesh_copy_positions_f64(NULL, exact, 3 * nv), PSR_STATUS_NULL_ARGUMENT);
+        near_pos = (float *)psr_mesh_positions(near_m);
+        CHECK_STATUS(psr_mesh_copy_positions_f64(far_m, exact, 3 * nv), PSR_STATUS_OK);
+        for (k = 0; k < 3 * nv; k++) {
+            double d = fabs(exact[k] - shift[k % 3] - near_pos[k]);
+            if (d > worst) worst = d;
+        }
+        CHECK_STATUS(psr_mesh_copy_positions_f64(moved_m, exact, 3 * nv), PSR_STATUS_OK);
+        for (k = 0; k < 3 * nv; k++) {
+            double d = fabs(exact[k] - shift[k % 3] - near_pos[k]);
+            if (d > worst_moved) worst_moved = d;
+        }
+        /* 3e-5 of the sphere's diagonal 2*sqrt(3) (tests/precision.rs: default parameters). */
+        CHECK(worst < 1e-4);
+        CHECK(worst_moved < 1e-4);
+        free(exact);
+    }
+    psr_mesh_free(near_m);
+    psr_mesh_free(far_m);
+    psr_mesh_free(moved_m);
+    psr_reconstructor_free(near_r);
+    psr_reconstructor_free(far_r);
+    psr_reconstructor_free(moved_r);
 }
 
 /* Points without normals: counted, refused when bad, and reconstructed with estimated
@@ -1124,6 +1224,8 @@ int main(void) {
     test_bad_batches();
     test_mesh();
     test_boundaries();
+
+    test_double_points();
     test_positions_without_normals();
     test_sensors();
     test_point_arrays();
