@@ -225,7 +225,7 @@ mod tests {
                 })
                 .collect();
             let chi = Indicator {
-                tree: &tree,
+                tree,
                 coefficients,
             };
             let mut worst = 0.0f64;

@@ -3350,7 +3350,9 @@ fn one_implicit_handle_is_evaluated_from_many_threads_at_once() {
         }
     });
     unsafe { psr_implicit_free(f) };
+}
 
+// ------------------------------------------------------------------------------------------------
 // Double-precision points, transforms and vertices (issue 17)
 // ------------------------------------------------------------------------------------------------
 

@@ -1038,6 +1038,7 @@ fn grid_writes_chi_as_npy_and_raw() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
         assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
     }
+}
 
 /// Writes the kitten's points as binary PLY with `double` x y z, each shifted by `shift`.
 fn kitten_in_double(path: &Path, shift: [f64; 3]) {

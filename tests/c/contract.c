@@ -446,6 +446,7 @@ static void test_boundaries(void) {
     CHECK(m != NULL && psr_mesh_vertex_count(m) > 100 && psr_mesh_triangle_count(m) > 100);
     psr_mesh_free(m);
     psr_reconstructor_free(r);
+}
 
 /* Points in double, far from 0, directly and through a translation: the mesh's double vertices
  * (origin + float positions) are the same sphere's near 0, shifted; bad transforms, NULLs and
@@ -1224,7 +1225,6 @@ int main(void) {
     test_bad_batches();
     test_mesh();
     test_boundaries();
-
     test_double_points();
     test_positions_without_normals();
     test_sensors();
