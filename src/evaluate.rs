@@ -224,10 +224,7 @@ mod tests {
                     x
                 })
                 .collect();
-            let chi = Indicator {
-                tree,
-                coefficients,
-            };
+            let chi = Indicator { tree, coefficients };
             let mut worst = 0.0f64;
             let mut inside = 0.0f64;
             for k in 0..=40 {
