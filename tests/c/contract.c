@@ -144,12 +144,15 @@ static void test_null_arguments(void) {
     CHECK(contains(psr_reconstructor_last_error(r), "out is NULL"));
     CHECK_STATUS(psr_reconstructor_get_full_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, NULL), PSR_STATUS_NULL_ARGUMENT);
-    CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, &u), PSR_STATUS_OK);
-    CHECK(u == 8);
-    CHECK_STATUS(psr_reconstructor_set_min_component_samples(r, 0), PSR_STATUS_OK);
-    CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, &u), PSR_STATUS_OK);
-    CHECK(u == 0);
-    CHECK_STATUS(psr_reconstructor_set_min_component_samples(r, 8), PSR_STATUS_OK);
+    {
+        uint32_t min_samples = 7;
+        CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, &min_samples), PSR_STATUS_OK);
+        CHECK(min_samples == 8);
+        CHECK_STATUS(psr_reconstructor_set_min_component_samples(r, 0), PSR_STATUS_OK);
+        CHECK_STATUS(psr_reconstructor_get_min_component_samples(r, &min_samples), PSR_STATUS_OK);
+        CHECK(min_samples == 0);
+        CHECK_STATUS(psr_reconstructor_set_min_component_samples(r, 8), PSR_STATUS_OK);
+    }
     CHECK_STATUS(psr_reconstructor_get_kernel_depth(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_samples_per_node(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_scale(r, NULL), PSR_STATUS_NULL_ARGUMENT);
