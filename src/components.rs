@@ -31,7 +31,6 @@ use crate::grid::KeyMap;
 use crate::octree::Octree;
 use glam::DVec3;
 use rayon::prelude::*;
-use std::collections::HashSet;
 
 /// What [`drop_unsupported`] removed.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -99,7 +98,16 @@ pub(crate) fn drop_unsupported(
         let packed = cell.map(|v| (v + 1) as u64 & 0x7_ffff);
         (depth as u64) << 57 | packed[0] << 38 | packed[1] << 19 | packed[2]
     };
-    let wanted: HashSet<u64> = crossed.iter().map(|&(d, c, _)| key(d, c)).collect();
+    let wanted: KeyMap<()> = crossed.iter().map(|&(d, c, _)| (key(d, c), ())).collect();
+    // The finest cells those leaves cover, as a box: samples outside it are skipped at once.
+    let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
+    for &(d, c, _) in &crossed {
+        let shift = finest - d;
+        for a in 0..3 {
+            low[a] = low[a].min(c[a] << shift);
+            high[a] = high[a].max(((c[a] + 1) << shift) - 1);
+        }
+    }
     let inv_h = (finest as f64).exp2();
     let (depths, wanted) = (&depths, &wanted);
     let found: Vec<u64> = samples
@@ -107,9 +115,10 @@ pub(crate) fn drop_unsupported(
         .flat_map_iter(|&p| {
             let cell = (p * inv_h).floor();
             let cell = [cell.x as i64, cell.y as i64, cell.z as i64];
-            depths.iter().filter_map(move |&d| {
+            let inside = (0..3).all(|a| (low[a]..=high[a]).contains(&cell[a]));
+            depths.iter().filter(move |_| inside).filter_map(move |&d| {
                 let k = key(d, cell.map(|v| v >> (finest - d)));
-                wanted.contains(&k).then_some(k)
+                wanted.contains_key(&k).then_some(k)
             })
         })
         .collect();
