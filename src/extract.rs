@@ -564,18 +564,6 @@ pub(crate) fn extract_around_samples(
     Ok(mesh)
 }
 
-/// The leaf of `tree` that contains the point `p` (unit-cube coordinates), as its depth and its
-/// cell at that depth; `None` beyond a cell of the cube. For [`crate::components`], which
-/// counts the samples in the leaves a piece of the surface crosses.
-pub(crate) fn leaf_at(tree: &Octree, p: DVec3) -> Option<(u32, [i64; 3])> {
-    let finest = tree.max_depth();
-    let leaves = Leaves { tree, finest };
-    let cell = cell_of(p, (finest as f64).exp2()).map(i64::from);
-    leaves
-        .containing(finest, cell)
-        .map(|leaf| (leaf.depth, leaf.cell))
-}
-
 /// Leaves planned and traced together (fixed, so the mesh does not depend on the thread count).
 const WAVE_BATCH: usize = 16384;
 

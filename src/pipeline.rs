@@ -272,7 +272,7 @@ pub(crate) fn run(
     let removed = pool.install(|| {
         components::drop_unsupported(
             &mut raw,
-            &chi.tree,
+            chi.tree.max_depth(),
             &samples.positions,
             params.min_component_samples,
         )
