@@ -26,9 +26,10 @@
 //! component always stays, so the output is never emptied. Components are whole closed
 //! surfaces, so removing some keeps the mesh closed and manifold.
 //!
-//! Cost: a union-find over the triangles (bunny depth 10, one component: 0.03 s of a 17 s
+//! Cost: a union-find over the triangles (bunny depth 10, one component: 0.06 s of a 23 s
 //! run); when there are other components, their vertices in a hash grid and one probe per
-//! sample (Happy Buddha depth 10, three components: 0.2 s of 44 s).
+//! sample (Happy Buddha depth 10, three components: 0.37 s of 55 s; both on a loaded 2-core
+//! machine, `docs/benchmarks.md`).
 
 use crate::extract::RawMesh;
 use crate::grid::KeyMap;
