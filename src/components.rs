@@ -27,9 +27,10 @@
 //! surfaces, so removing some keeps the mesh closed and manifold.
 //!
 //! Cost: a union-find over the triangles (bunny depth 10, one component: 0.06 s of a 23 s
-//! run); when there are other components, their vertices in a hash grid and one probe per
-//! sample (Happy Buddha depth 10, three components: 0.37 s of 55 s; both on a loaded 2-core
-//! machine, `docs/benchmarks.md`).
+//! run); when there are other components, their vertices (at most 64 of each at first: a
+//! large one, another object of the scene, is rarely short of support) in a hash grid and one
+//! probe per sample (Happy Buddha depth 10, three components: 0.37 s of 55 s; both on a loaded
+//! 2-core machine, `docs/benchmarks.md`).
 
 use crate::extract::RawMesh;
 use crate::grid::KeyMap;
@@ -93,60 +94,44 @@ pub(crate) fn drop_unsupported(
         })
         .collect();
 
-    // The other components' vertices in a grid of buckets as wide as the largest radius, each
-    // vertex listed in the 27 buckets around its own: a sample then looks in its own bucket
-    // only, and finds every vertex within that radius of it.
-    let bucket = radius.values().fold(finest_cell, |a, &b| a.max(b));
-    let bucket_of = |p: DVec3| -> [i64; 3] {
-        let c = (p / bucket).floor();
-        [c.x as i64, c.y as i64, c.z as i64]
-    };
-    // Buckets are at least a finest cell wide and the points within a cell of the unit cube:
-    // coordinates from -2 to 2^16 + 1, 21 bits per axis after the offset.
-    let key = |c: [i64; 3]| -> u64 {
-        let packed = c.map(|v| (v + 4) as u64 & 0x1f_ffff);
-        packed[0] << 42 | packed[1] << 21 | packed[2]
-    };
-    let mut near: KeyMap<Vec<u32>> = KeyMap::default();
-    for (v, &p) in mesh.vertices.iter().enumerate() {
-        if component[v] == largest {
-            continue;
-        }
-        let c = bucket_of(p);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    near.entry(key([c[0] + dx, c[1] + dy, c[2] + dz]))
-                        .or_default()
-                        .push(v as u32);
-                }
-            }
+    // The samples within that radius of each other component's vertices. A large component
+    // (another object of the scene) is first probed through an even subset of its vertices:
+    // the samples near them are a lower bound of its support, and usually enough, so its
+    // whole vertex list is never bucketed; only components still short of `min_samples` are
+    // probed again with every vertex.
+    let mut vertices_of: KeyMap<Vec<u32>> = KeyMap::default();
+    for (v, &root) in component.iter().enumerate() {
+        if root != largest && triangles_of[root as usize] > 0 {
+            vertices_of.entry(root as u64).or_default().push(v as u32);
         }
     }
-
-    // Each sample's supported components (within their radius of one of their vertices).
-    let near = &near;
-    let supports: Vec<u32> = samples
-        .par_iter()
-        .flat_map_iter(|&p| {
-            let mut roots: Vec<u32> = Vec::new();
-            if let Some(vertices) = near.get(&key(bucket_of(p))) {
-                for &v in vertices {
-                    let root = component[v as usize];
-                    let r = radius[&(root as u64)];
-                    if p.distance_squared(mesh.vertices[v as usize]) <= r * r {
-                        roots.push(root);
-                    }
-                }
-                roots.sort_unstable();
-                roots.dedup();
-            }
-            roots
+    let mut probe: Vec<u32> = vertices_of
+        .values()
+        .flat_map(|list| {
+            let step = list.len().div_ceil(PROBE_VERTICES);
+            list.iter().step_by(step).copied()
         })
         .collect();
-    let mut support: KeyMap<u64> = KeyMap::default();
-    for root in supports {
-        *support.entry(root as u64).or_default() += 1;
+    probe.sort_unstable();
+    let mut support = samples_near(&probe, &component, &radius, mesh, samples, finest_cell);
+    let mut again: Vec<u32> = vertices_of
+        .iter()
+        .filter(|(root, list)| {
+            list.len() > PROBE_VERTICES
+                && support.get(root).copied().unwrap_or(0) < min_samples as u64
+        })
+        .flat_map(|(_, list)| list.iter().copied())
+        .collect();
+    if !again.is_empty() {
+        again.sort_unstable();
+        support.extend(samples_near(
+            &again,
+            &component,
+            &radius,
+            mesh,
+            samples,
+            finest_cell,
+        ));
     }
 
     // The verdict.
@@ -194,6 +179,73 @@ pub(crate) fn drop_unsupported(
     mesh.vertices = vertices;
     mesh.normals = normals;
     removed
+}
+
+/// Vertices of a component probed in a first pass (see [`drop_unsupported`]).
+const PROBE_VERTICES: usize = 64;
+
+/// For the components of the `vertices` listed, the number of `samples` within their radius of
+/// one of those vertices (per component root). The vertices go into a grid of buckets as wide
+/// as the largest radius, each listed in the 27 buckets around its own: a sample then looks in
+/// its own bucket only, and finds every listed vertex within that radius of it.
+fn samples_near(
+    vertices: &[u32],
+    component: &[u32],
+    radius: &KeyMap<f64>,
+    mesh: &RawMesh,
+    samples: &[DVec3],
+    finest_cell: f64,
+) -> KeyMap<u64> {
+    let radius_of = |v: u32| radius[&(component[v as usize] as u64)];
+    let bucket = vertices
+        .iter()
+        .fold(finest_cell, |a, &v| a.max(radius_of(v)));
+    let bucket_of = |p: DVec3| -> [i64; 3] {
+        let c = (p / bucket).floor();
+        [c.x as i64, c.y as i64, c.z as i64]
+    };
+    // Buckets are at least a finest cell wide and the points within a cell of the unit cube:
+    // coordinates from -2 to 2^16 + 1, 21 bits per axis after the offset.
+    let key = |c: [i64; 3]| -> u64 {
+        let packed = c.map(|v| (v + 4) as u64 & 0x1f_ffff);
+        packed[0] << 42 | packed[1] << 21 | packed[2]
+    };
+    let mut near: KeyMap<Vec<u32>> = KeyMap::default();
+    for &v in vertices {
+        let c = bucket_of(mesh.vertices[v as usize]);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    near.entry(key([c[0] + dx, c[1] + dy, c[2] + dz]))
+                        .or_default()
+                        .push(v);
+                }
+            }
+        }
+    }
+    let near = &near;
+    let supports: Vec<u32> = samples
+        .par_iter()
+        .flat_map_iter(|&p| {
+            let mut roots: Vec<u32> = Vec::new();
+            if let Some(listed) = near.get(&key(bucket_of(p))) {
+                for &v in listed {
+                    let r = radius_of(v);
+                    if p.distance_squared(mesh.vertices[v as usize]) <= r * r {
+                        roots.push(component[v as usize]);
+                    }
+                }
+                roots.sort_unstable();
+                roots.dedup();
+            }
+            roots
+        })
+        .collect();
+    let mut support: KeyMap<u64> = KeyMap::default();
+    for root in supports {
+        *support.entry(root as u64).or_default() += 1;
+    }
+    support
 }
 
 /// The connected components of a mesh by shared vertices: for each vertex, the lowest vertex
