@@ -923,8 +923,9 @@ psr_status psr_reconstructor_set_vertex_placement(psr_reconstructor *r, int32_t 
 psr_status psr_reconstructor_get_vertex_placement(const psr_reconstructor *r, int32_t *out);
 
 /**
- * Sets the fewest input samples that must lie in the octree cells a closed component of the
- * surface crosses for it to stay in the mesh (the largest component always stays): the level
+ * Sets the fewest input samples that must lie within one cell of a closed component of the
+ * surface (the finest cell, or its mean edge length where it was meshed coarser) for it to stay
+ * in the mesh (the largest component always stays): the level
  * set's tiny "bubbles" beside the surface, around a few stray samples, are left out, while a
  * real part of the scan, however small, carries its own samples. Default 8; 0 keeps every
  * component. psr_mesh_unsupported_components tells how many were left out. No PoissonRecon

@@ -164,8 +164,9 @@ pub struct Params {
     /// Whether the mesh gets a unit outward normal per vertex ([`crate::Mesh::normals`]),
     /// ∇χ/|∇χ| at the vertex. Default false. PoissonRecon `--normals`.
     pub vertex_normals: bool,
-    /// The fewest input samples that must lie in the octree leaves a closed component of the
-    /// surface crosses for the component to stay (the largest component always stays). The
+    /// The fewest input samples that must lie within one cell of a closed component's vertices
+    /// (the finest cell, or the component's mean edge length where it was meshed at a coarser
+    /// depth) for the component to stay (the largest component always stays). The
     /// level set of χ can have tiny closed pieces ("bubbles") beside the surface, around a few
     /// stray samples or none; a real part of the scan, however small, carries its own samples.
     /// Default 8: the smallest closed surface extraction makes crosses 2 × 2 × 2 cells, and the

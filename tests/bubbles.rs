@@ -17,9 +17,9 @@
 //! surface's (a misregistered fragment), make no component at depths 9–11 (before it, the same
 //! clouds made 1 and 4 such components at depth 11); and what the level set still has beside the
 //! surface, a few 8–500-triangle pieces around 0–12 samples on the shared scans, is left out by
-//! `Params::min_component_samples` (8), which counts the samples in the octree leaves a
-//! component crosses. A real small part with its own samples stays (the pebble test, the Happy
-//! Buddha's fragment).
+//! `Params::min_component_samples` (8), which counts the samples within one cell of a
+//! component's vertices at its own resolution, as [`unsupported_components`] does. A real
+//! small part with its own samples stays (the pebble test, the Happy Buddha's fragment).
 
 use psr::{reconstruct, Mesh, Params, PointSet};
 use psr_test_support::{data_or_skip, sample_sphere, vertex_components, Rng};

@@ -276,10 +276,11 @@ struct Args {
     vertex_normals: bool,
 
     /// Leave out every closed component of the surface but the largest that fewer than N input
-    /// samples support (lie in the octree cells it crosses): the tiny "bubbles" the level set
-    /// can have beside the surface around a few stray samples. A real part of the scan carries
-    /// its own samples and stays, however small. 0 keeps every component. PoissonRecon: none
-    /// (it keeps them; its SurfaceTrimmer's --aRatio drops small pieces by area).
+    /// samples support (lie within one cell of it, at its own resolution): the tiny "bubbles"
+    /// the level set can have beside the surface around a few stray samples. A real part of the
+    /// scan carries its own samples and stays, however small. 0 keeps every component.
+    /// PoissonRecon: none (it keeps them; its SurfaceTrimmer's --aRatio drops small pieces by
+    /// area).
     #[arg(long, value_name = "N", default_value_t = Params::default().min_component_samples)]
     min_component_samples: u32,
 
