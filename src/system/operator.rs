@@ -3,11 +3,46 @@
 //! [`super::screening`]).
 
 use super::bricks::CoreBricks;
-use super::screening::{padded, tensor_accumulate, Proxies, ScreeningCells};
+use super::screening::{padded, tensor_accumulate, Proxies, ScreeningCell, ScreeningCells};
 #[cfg(doc)]
 use super::{divergence, divergence_of_prolonged, fill_mirrors, update_on_core};
 use crate::bspline::tables;
 use crate::octree::Level;
+
+/// The screening term's sweep over the core bricks: each brick collects from the screening
+/// cells within one node of it the 27 block values `contribute` gives for a cell (W_q χ(q) for
+/// [`DepthOperator::apply`], W_q t for [`DepthOperator::add_screening_target`]), folded back
+/// across the cube's faces with the level's sign, and adds α times them to its core nodes in
+/// `out`.
+fn screening_sweep(
+    level: &Level,
+    bricks: &CoreBricks,
+    cells: &ScreeningCells,
+    scale: f64,
+    out: &mut [f64],
+    contribute: impl Fn(&ScreeningCell, &mut [f64; 27]) + Sync,
+) {
+    bricks.for_each_brick::<0, ()>(
+        |_, _, _| {},
+        out,
+        vec![(); bricks.len()],
+        |_, scratch, cb, core_nodes, ()| {
+            let acc = &mut scratch.screened;
+            acc.fill(0.0);
+            cells.accumulate(
+                level,
+                cb,
+                &bricks.around[cb],
+                level.face_sign,
+                acc,
+                &contribute,
+            );
+            for (o, [x, y, z]) in core_nodes {
+                *o += scale * acc[padded(x, y, z)];
+            }
+        },
+    );
+}
 
 /// The operator A_d = L_d + S_d of one depth, with its scratch space.
 pub struct DepthOperator<'a> {
@@ -70,29 +105,15 @@ impl<'a> DepthOperator<'a> {
         );
         cells.weigh_outside_core_bricks(level, proxies, input, chi);
         let chi = &*chi;
-        let scale = self.screening;
-        bricks.for_each_brick::<0, ()>(
-            |_, _, _| {},
+        screening_sweep(
+            level,
+            bricks,
+            cells,
+            self.screening,
             out,
-            vec![(); bricks.len()],
-            |_, scratch, cb, core_nodes, ()| {
-                let acc = &mut scratch.screened;
-                acc.fill(0.0);
-                let face_sign = level.face_sign;
-                cells.accumulate(
-                    level,
-                    cb,
-                    &bricks.around[cb],
-                    face_sign,
-                    acc,
-                    |cell, contribution| {
-                        for (slot, q) in cell.slots().zip(cell.proxy_range()) {
-                            tensor_accumulate(&proxies.stencil(q), chi[slot], contribution);
-                        }
-                    },
-                );
-                for (o, [x, y, z]) in core_nodes {
-                    *o += scale * acc[padded(x, y, z)];
+            |cell, contribution| {
+                for (slot, q) in cell.slots().zip(cell.proxy_range()) {
+                    tensor_accumulate(&proxies.stencil(q), chi[slot], contribution);
                 }
             },
         );
@@ -111,33 +132,19 @@ impl<'a> DepthOperator<'a> {
         let Some(cells) = &self.screening_cells else {
             return;
         };
-        let scale = self.screening;
-        bricks.for_each_brick::<0, ()>(
-            |_, _, _| {},
+        screening_sweep(
+            level,
+            bricks,
+            cells,
+            self.screening,
             out,
-            vec![(); bricks.len()],
-            |_, scratch, cb, core_nodes, ()| {
-                let acc = &mut scratch.screened;
-                acc.fill(0.0);
-                let face_sign = level.face_sign;
-                cells.accumulate(
-                    level,
-                    cb,
-                    &bricks.around[cb],
-                    face_sign,
-                    acc,
-                    |cell, contribution| {
-                        for q in cell.proxy_range() {
-                            tensor_accumulate(
-                                &proxies.stencil(q),
-                                proxies.weight[q] * target,
-                                contribution,
-                            );
-                        }
-                    },
-                );
-                for (o, [x, y, z]) in core_nodes {
-                    *o += scale * acc[padded(x, y, z)];
+            |cell, contribution| {
+                for q in cell.proxy_range() {
+                    tensor_accumulate(
+                        &proxies.stencil(q),
+                        proxies.weight[q] * target,
+                        contribution,
+                    );
                 }
             },
         );
