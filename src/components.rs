@@ -250,7 +250,8 @@ fn samples_near(
 
 /// The connected components of a mesh by shared vertices: for each vertex, the lowest vertex
 /// index of its component (a union-find that always links the higher root under the lower).
-fn vertex_components(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+/// Also [`crate::trim`]'s pieces.
+pub(crate) fn vertex_components(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
     let mut parent: Vec<u32> = (0..vertex_count as u32).collect();
     fn root(parent: &mut [u32], mut v: u32) -> u32 {
         while parent[v as usize] != v {

@@ -69,6 +69,7 @@
 //! distance then edge, and the pieces over the triangles in order.
 
 use crate::attributes::{Channel, Colors};
+use crate::components::vertex_components;
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, TrimReport};
 use crate::Workers;
@@ -872,23 +873,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
 
     // 4. Pieces: components by shared vertices, their areas, the size rule.
     let vertices = n + crossings.keys.len();
-    let mut parent: Vec<u32> = (0..vertices as u32).collect();
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            let up = parent[parent[x as usize] as usize];
-            parent[x as usize] = up;
-            x = up;
-        }
-        x
-    }
-    for piece in &pieces {
-        for k in 1..3 {
-            let (ra, rb) = (find(&mut parent, piece[0]), find(&mut parent, piece[k]));
-            if ra != rb {
-                parent[ra.max(rb) as usize] = ra.min(rb);
-            }
-        }
-    }
+    let component = vertex_components(vertices, &pieces);
     let areas: Vec<f64> = pieces
         .par_iter()
         .map(|p| triangle_area(p.map(position)))
@@ -897,7 +882,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
     let mut piece_triangles = vec![0u32; vertices];
     let mut roots = Vec::with_capacity(pieces.len());
     for (p, &a) in pieces.iter().zip(&areas) {
-        let r = find(&mut parent, p[0]);
+        let r = component[p[0] as usize];
         piece_area[r as usize] += a;
         piece_triangles[r as usize] += 1;
         roots.push(r);
