@@ -103,12 +103,9 @@ fn fit_plane(
     scratch: &mut sheets::Scratch,
     bits: &mut [u64],
 ) -> (Fit, bool) {
-    let row = neighbors.of(i);
     // Relative to the point itself: the covariance about the mean is the same, with less
     // cancellation far from the origin.
-    rel.clear();
-    rel.push(DVec3::ZERO);
-    rel.extend(row.iter().map(|&j| positions[j as usize] - positions[i]));
+    sheets::offsets_around(i, positions, neighbors, rel);
     let count = rel.len() as f64;
     let mean = rel.iter().fold(DVec3::ZERO, |s, &p| s + p) / count;
     let mut c = [[0.0f64; 3]; 3];

@@ -387,14 +387,7 @@ pub(super) fn revisit_ambiguous(
                     }
                     (t[1][0], t[2][0], t[2][1]) = (t[0][1], t[0][2], t[1][2]);
                     let start = jacobi_eigen(t).1[2];
-                    rel.clear();
-                    rel.push(DVec3::ZERO);
-                    rel.extend(
-                        neighbors
-                            .of(i)
-                            .iter()
-                            .map(|&j| positions[j as usize] - positions[i]),
-                    );
+                    offsets_around(i, positions, neighbors, rel);
                     two_sheets(rel, start, scratch).map(|found| {
                         let mut bits = vec![0u64; k.div_ceil(64)];
                         mark_across(scratch, &mut bits);
@@ -414,6 +407,24 @@ pub(super) fn revisit_ambiguous(
     }
     sheets.index();
     Ok(())
+}
+
+/// Point `i`'s neighbourhood as offsets from it, itself first (0): what the plane fit and
+/// [`two_sheets`] read.
+pub(super) fn offsets_around(
+    i: usize,
+    positions: &[DVec3],
+    neighbors: &Neighbors,
+    rel: &mut Vec<DVec3>,
+) {
+    rel.clear();
+    rel.push(DVec3::ZERO);
+    rel.extend(
+        neighbors
+            .of(i)
+            .iter()
+            .map(|&j| positions[j as usize] - positions[i]),
+    );
 }
 
 /// Which neighbours lie on another sheet, for normals the caller gives (their lines are kept:
@@ -440,14 +451,7 @@ pub(super) fn across_given(
                     || (Scratch::default(), Vec::with_capacity(k + 1)),
                     |(scratch, rel), (at, bits)| {
                         let i = batch * BATCH + at;
-                        rel.clear();
-                        rel.push(DVec3::ZERO);
-                        rel.extend(
-                            neighbors
-                                .of(i)
-                                .iter()
-                                .map(|&j| positions[j as usize] - positions[i]),
-                        );
+                        offsets_around(i, positions, neighbors, rel);
                         if two_sheets(rel, normals[i], scratch).is_some() {
                             mark_across(scratch, bits);
                         }
