@@ -1160,3 +1160,75 @@ fn double_inputs_and_transforms_keep_far_coordinates() {
     assert!(stderr(&out).contains("expected 16"), "{}", stderr(&out));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Proves: --min-component-samples reaches the reconstruction. The kitten with a pebble of 400
+/// samples beside it keeps the pebble by default (nothing left out, as --verbose reports) and
+/// loses it when more samples than it has are asked for; a value that is not a count is a usage
+/// error.
+#[test]
+fn min_component_samples_leaves_out_pieces_with_fewer_samples() {
+    let dir = scratch("min_component_samples");
+    let mut cloud = psr::ply::read_point_cloud(&kitten()).unwrap();
+    let (lo, hi) = cloud
+        .positions
+        .iter()
+        .fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
+            (
+                std::array::from_fn(|a| lo[a].min(p[a])),
+                std::array::from_fn(|a| hi[a].max(p[a])),
+            )
+        });
+    let side = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f32::max);
+    let radius = 0.03 * side;
+    let centre = [
+        hi[0] + 0.1 * side,
+        (lo[1] + hi[1]) / 2.0,
+        (lo[2] + hi[2]) / 2.0,
+    ];
+    // 400 points of a sphere (a Fibonacci lattice), normals outward.
+    for k in 0..400 {
+        let z = 1.0 - 2.0 * (k as f32 + 0.5) / 400.0;
+        let r = (1.0 - z * z).sqrt();
+        let phi = k as f32 * 2.399_963;
+        let n = [r * phi.cos(), r * phi.sin(), z];
+        cloud
+            .positions
+            .push(std::array::from_fn(|a| centre[a] + radius * n[a]));
+        cloud.normals.push(n);
+    }
+    let input = dir.join("kitten_and_pebble.ply");
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    let mesh = dir.join("mesh.ply");
+    let kept = psr_on(&input, &mesh, &["--depth", "7", "--verbose"]);
+    assert_eq!(kept.status.code(), Some(0), "{}", stderr(&kept));
+    assert!(
+        stderr(&kept).contains("psr: 0 unsupported components left out"),
+        "{}",
+        stderr(&kept)
+    );
+    let strict = psr_on(
+        &input,
+        &mesh,
+        &[
+            "--depth",
+            "7",
+            "--verbose",
+            "--min-component-samples",
+            "1000",
+        ],
+    );
+    assert_eq!(strict.status.code(), Some(0), "{}", stderr(&strict));
+    assert!(
+        stderr(&strict).contains("psr: 1 unsupported components left out"),
+        "{}",
+        stderr(&strict)
+    );
+    let bad = psr_on(&input, &mesh, &["--min-component-samples", "few"]);
+    assert_eq!(bad.status.code(), Some(2), "{}", stderr(&bad));
+    assert!(
+        stderr(&bad).contains("--min-component-samples"),
+        "{}",
+        stderr(&bad)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
