@@ -1442,8 +1442,8 @@ double psr_mesh_trim_depth(const psr_mesh *m);
  * is; a library newer than your header must not write beyond it.)
  *
  * a must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
- * PSR_STATUS_INVALID_ARGUMENT (struct_size is smaller than the first four fields; nothing is
- * written) or PSR_STATUS_INTERNAL_ERROR.
+ * PSR_STATUS_INVALID_ARGUMENT (struct_size is smaller than the first four fields or larger
+ * than 4096 bytes; nothing is written) or PSR_STATUS_INTERNAL_ERROR.
  *
  * # Safety
  * `a` is NULL or valid for writes of `struct_size` bytes.
@@ -1469,7 +1469,7 @@ psr_status psr_point_arrays_init(psr_point_arrays *a, size_t struct_size);
  *
  * r and a must not be NULL; with count 0 nothing is read but struct_size. Returns
  * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT (r, a, positions, normals, or an array whose count
- * or components say it is there), PSR_STATUS_INVALID_ARGUMENT (struct_size too small, or
+ * or components say it is there), PSR_STATUS_INVALID_ARGUMENT (struct_size too small or above 4096, or
  * larger with fields this library does not know set; a stride below one element; count *
  * stride overflowing; color_components not 3 or 4; a channel name that is not UTF-8, empty,
  * has whitespace or repeats; attributes that differ from the earlier batches'),

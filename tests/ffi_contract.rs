@@ -2504,7 +2504,7 @@ fn add_arrays(r: *mut psr_reconstructor, a: &psr_point_arrays) -> psr_status {
 }
 
 /// Proves: psr_point_arrays_init and psr_reconstructor_add_point_arrays refuse NULL and bad
-/// sizes with the documented statuses; a struct from an older (smaller) header works, its
+/// sizes (below the first fields, above 4096) with the documented statuses; a struct from an older (smaller) header works, its
 /// missing fields counting as absent; a struct from a newer header works while its unknown
 /// fields are zero and is refused (not silently ignored) when they are set; count 0 reads
 /// nothing else.
@@ -2545,6 +2545,19 @@ fn point_arrays_null_and_struct_sizes() {
             "{}",
             last_error(r)
         );
+
+        // A garbage size above 4096 (a struct never set up) is refused, neither read nor
+        // written past the struct (found by fuzzing: both read and zeroed struct_size bytes).
+        let mut a = point_arrays();
+        a.struct_size = 4097;
+        assert_eq!(add_arrays(r, &a), psr_status::InvalidArgument);
+        assert!(last_error(r).contains("4096"), "{}", last_error(r));
+        a.struct_size = 77;
+        assert_eq!(
+            psr_point_arrays_init(&mut a, usize::MAX),
+            psr_status::InvalidArgument
+        );
+        assert_eq!(a.struct_size, 77, "nothing written on failure");
 
         // count 0: nothing else is read (all pointers NULL).
         assert_eq!(add_arrays(r, &point_arrays()), psr_status::Ok);

@@ -15,6 +15,7 @@ use super::params::{get_param, set_param};
 use super::points::{batch_failure, check_array, gather_vec3};
 use super::reconstructor::psr_reconstructor;
 use super::status::{psr_status, Failure, Outcome};
+use super::MAX_STRUCT_SIZE;
 use crate::{Colors, Mesh, PointSet};
 use std::ffi::{c_char, CStr};
 use std::mem::{offset_of, size_of};
@@ -85,8 +86,8 @@ const MIN_SIZE: usize = offset_of!(psr_point_arrays, position_stride_bytes) + WO
 /// is; a library newer than your header must not write beyond it.)
 ///
 /// a must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
-/// PSR_STATUS_INVALID_ARGUMENT (struct_size is smaller than the first four fields; nothing is
-/// written) or PSR_STATUS_INTERNAL_ERROR.
+/// PSR_STATUS_INVALID_ARGUMENT (struct_size is smaller than the first four fields or larger
+/// than 4096 bytes; nothing is written) or PSR_STATUS_INTERNAL_ERROR.
 ///
 /// # Safety
 /// `a` is NULL or valid for writes of `struct_size` bytes.
@@ -98,9 +99,7 @@ pub unsafe extern "C" fn psr_point_arrays_init(
     const F: &str = "psr_point_arrays_init";
     guard_no_handle(F, || {
         require_out(F, "a", a)?;
-        if struct_size < MIN_SIZE {
-            return Err(too_small(F, struct_size));
-        }
+        check_size(F, struct_size)?;
         // SAFETY: `a` is valid for writes of struct_size bytes (this function's contract);
         // zero bytes are a valid value of every field (NULL pointers, 0 sizes).
         unsafe {
@@ -111,16 +110,20 @@ pub unsafe extern "C" fn psr_point_arrays_init(
     })
 }
 
-/// The failure for a struct_size below the fields every batch needs.
-fn too_small(function: &str, struct_size: usize) -> Failure {
-    Failure::new(
+/// Refuses a struct_size below the fields every batch needs, or above [`MAX_STRUCT_SIZE`]
+/// (an unset or uninitialised size, which must not be read or written as a huge struct).
+fn check_size(function: &str, struct_size: usize) -> Outcome {
+    if (MIN_SIZE..=MAX_STRUCT_SIZE).contains(&struct_size) {
+        return Ok(());
+    }
+    Err(Failure::new(
         psr_status::InvalidArgument,
         format!(
-            "{function}: struct_size is {struct_size}, less than the {MIN_SIZE} bytes of \
-             psr_point_arrays' first fields; initialise the struct with \
+            "{function}: struct_size is {struct_size}, not the size of a psr_point_arrays \
+             ({MIN_SIZE} to {MAX_STRUCT_SIZE} bytes); initialise the struct with \
              psr_point_arrays_init(&a, sizeof a)"
         ),
-    )
+    ))
 }
 
 /// Reads the caller's struct: the fields wholly within its struct_size, the others zero.
@@ -133,9 +136,7 @@ unsafe fn read_arrays(
 ) -> Result<psr_point_arrays, Failure> {
     // SAFETY: every version of the struct begins with struct_size (this function's contract).
     let size = unsafe { a.cast::<usize>().read_unaligned() };
-    if size < MIN_SIZE {
-        return Err(too_small(function, size));
-    }
+    check_size(function, size)?;
     let known = size_of::<psr_point_arrays>();
     let bytes = a.cast::<u8>();
     if size > known {
@@ -401,7 +402,7 @@ unsafe fn batch_of(function: &str, a: &psr_point_arrays) -> Result<PointSet, Fai
 ///
 /// r and a must not be NULL; with count 0 nothing is read but struct_size. Returns
 /// PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT (r, a, positions, normals, or an array whose count
-/// or components say it is there), PSR_STATUS_INVALID_ARGUMENT (struct_size too small, or
+/// or components say it is there), PSR_STATUS_INVALID_ARGUMENT (struct_size too small or above 4096, or
 /// larger with fields this library does not know set; a stride below one element; count *
 /// stride overflowing; color_components not 3 or 4; a channel name that is not UTF-8, empty,
 /// has whitespace or repeats; attributes that differ from the earlier batches'),
