@@ -10,6 +10,11 @@ the total (the moment to the return, the latency a user sees); then the worst pe
 
     python3 bench/cancel.py --lib target/release/libpsr.so --depth 11 --runs 8
     python3 bench/cancel.py --lib /tmp/libpsr_before.so --input bunny_scans --depth 10
+    python3 bench/cancel.py --stages density,octree,extract,mesh --runs 1
+
+With --stages, each run's moment is drawn inside one of those stages instead (by the full solve's
+timeline: from the stage's first callback call, or the previous stage's last, to its last),
+--runs per stage.
 
 Needs numpy and a libpsr.so (`cargo build --release`); data from $PSR_DATA_DIR (default
 ../shared/data). Only the C ABI is used, so any build of the library can be measured."""
@@ -85,6 +90,7 @@ def main():
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--runs", type=int, default=8)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--stages", default="", help="comma-separated stage names (see above)")
     args = ap.parse_args()
 
     lib = load(args.lib)
@@ -131,10 +137,10 @@ def main():
     assert status == STATUS_OK, lib.psr_reconstructor_last_error(r)
     full = end - start
     # The longest wait for a callback call in each stage (from the previous call, or the start).
-    gaps, stage_start, prev = {}, {}, start
+    gaps, span, prev = {}, {}, start
     for t, stage, _ in state["calls"]:
         name = stage_name(stage)
-        stage_start.setdefault(name, prev)
+        span[name] = (span.get(name, (prev - start, 0.0))[0], t - start)
         gaps[name] = max(gaps.get(name, 0.0), t - prev)
         prev = t
     gaps["(return)"] = end - prev
@@ -146,8 +152,12 @@ def main():
     rng = random.Random(args.seed)
     worst = {}
     print("run  stop at s  stage      wait s  stop->return s  total s  status")
-    for run in range(args.runs):
-        offset = rng.uniform(0.0, full)
+    if args.stages:
+        moments = [(name, rng.uniform(*span[name])) for name in args.stages.split(",")
+                   for _ in range(args.runs)]
+    else:
+        moments = [(None, rng.uniform(0.0, full)) for _ in range(args.runs)]
+    for run, (_, offset) in enumerate(moments):
         status, start, end, _ = solve(offset)
         moment = start + offset
         if state["stopped"] is None:

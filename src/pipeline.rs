@@ -85,6 +85,15 @@ impl Stage {
 /// A progress callback: receives the stage and the fraction of it done (0..=1) and returns
 /// `true` to go on, `false` to cancel. It is called on the thread that called
 /// [`crate::reconstruct_with_progress`], never concurrently.
+///
+/// It is called while each stage runs, not only between stages: the stage's work runs on the
+/// worker threads while the calling thread waits in slices of at most 20 ms and calls it after
+/// each slice with the fraction done so far (never less than the call before within a stage),
+/// then once with 1 when the stage ends. After it returns `false` it is not called again: the
+/// stage stops at its next cancel point (between batches of work, a few milliseconds to a
+/// tenth of a second apart; `docs/architecture.md`, "Progress and cancellation", lists the
+/// longer ones) and the reconstruction returns `Err(Error::Cancelled)` once its memory is
+/// freed. The output never depends on the callback.
 pub type Progress<'a> = &'a mut dyn FnMut(Stage, f32) -> bool;
 
 /// Times stages and forwards progress; turns a "stop" from the callback into `Cancelled`.
@@ -229,9 +238,9 @@ pub(crate) fn run(
         let finest_system = finest_system.elapsed().as_secs_f64();
         watch.step(2, 4, 0.0, 1.0)?;
         let mut field_v: Vec<[Vec<f64>; 3]> = Vec::with_capacity(finest);
-        for d in 0..finest {
-            field_v.push(splat_level(&tree.levels[d], &samples, &at_depth[d], params));
-            watch.step(d + 1, finest, 0.5, 1.0)?;
+        for (level, at) in tree.levels.iter().zip(&at_depth).take(finest) {
+            field_v.push(splat_level(level, &samples, at, params));
+            watch.step(field_v.len(), finest, 0.5, 1.0)?;
         }
         Ok((rho_finest, field_v, finest_system))
     })?;
