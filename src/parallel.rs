@@ -1,6 +1,7 @@
 //! Parallel primitives shared by the stages: fixed chunking, so that results never depend on
-//! the number of threads, and the disjoint writes the stages make from several threads at
-//! once.
+//! the number of threads, the disjoint writes the stages make from several threads at once,
+//! and [`watched`] jobs, whose progress the calling thread reports while they run and which
+//! it can cancel (every stage of the pipeline runs as one).
 //!
 //! This file and `system/simd.rs` hold the crate's `unsafe` code outside the C API. Here it is
 //! one pointer, [`SharedSlice`], written through at indices that a safe wrapper has proved
@@ -344,6 +345,73 @@ impl<'a, T> SharedSlice<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn pool() -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap()
+    }
+
+    /// Proves: while a watched job runs, its fractions reach the report on the calling thread,
+    /// never going back, and the job's result is returned.
+    #[test]
+    fn a_watched_job_reports_on_the_calling_thread() {
+        let caller = std::thread::current().id();
+        let mut seen = Vec::new();
+        let result = watched(
+            &pool(),
+            &mut |f| {
+                assert_eq!(std::thread::current().id(), caller);
+                seen.push(f);
+                true
+            },
+            |watch| {
+                assert_ne!(std::thread::current().id(), caller);
+                for k in 1..=10 {
+                    std::thread::sleep(SLICE);
+                    watch.step(k, 10, 0.0, 1.0)?;
+                }
+                Ok(42)
+            },
+        );
+        assert_eq!(result, Ok(42));
+        assert!(seen.iter().any(|&f| f > 0.0 && f < 1.0), "{seen:?}");
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+    }
+
+    /// Proves: a report that says stop cancels a job that would otherwise never end, at its
+    /// next cancel point, with `Error::Cancelled`, and is not called again.
+    #[test]
+    fn a_stop_cancels_a_watched_job_at_its_next_cancel_point() {
+        let mut calls = 0;
+        let result: Result<()> = watched(
+            &pool(),
+            &mut |_| {
+                calls += 1;
+                false
+            },
+            |watch| loop {
+                watch.check()?;
+                std::thread::sleep(Duration::from_millis(1));
+            },
+        );
+        assert_eq!(result, Err(Error::Cancelled));
+        assert_eq!(calls, 1);
+    }
+
+    /// Proves: a stop that comes as the job finishes still gives `Error::Cancelled` (the
+    /// caller said stop: no result), and a job's own error comes through unchanged.
+    #[test]
+    fn a_stop_wins_over_a_finished_job_and_errors_pass_through() {
+        let result = watched(&pool(), &mut |_| false, |_| {
+            std::thread::sleep(3 * SLICE);
+            Ok(1)
+        });
+        assert_eq!(result, Err(Error::Cancelled));
+        let failed: Result<()> = watched(&pool(), &mut |_| true, |_| Err(Error::EmptyInput));
+        assert_eq!(failed, Err(Error::EmptyInput));
+    }
 
     #[test]
     #[should_panic(expected = "not strictly increasing")]
