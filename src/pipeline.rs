@@ -90,10 +90,11 @@ impl Stage {
 /// worker threads while the calling thread waits in slices of at most 20 ms and calls it after
 /// each slice with the fraction done so far (never less than the call before within a stage),
 /// then once with 1 when the stage ends. After it returns `false` it is not called again: the
-/// stage stops at its next cancel point (between batches of work, a few milliseconds to a
-/// tenth of a second apart; `docs/architecture.md`, "Progress and cancellation", lists the
-/// longer ones) and the reconstruction returns `Err(Error::Cancelled)` once its memory is
-/// freed. The output never depends on the callback.
+/// stage stops at its next cancel point (`docs/architecture.md`, "Progress and cancellation",
+/// lists them: mostly batches of work milliseconds apart, but on a million points at depth 11
+/// up to a second in the octree and seconds inside one splat, right-hand side or solver
+/// iteration at the finest depths) and the reconstruction returns `Err(Error::Cancelled)` once
+/// its memory is freed. The output never depends on the callback.
 pub type Progress<'a> = &'a mut dyn FnMut(Stage, f32) -> bool;
 
 /// Times stages and forwards progress; turns a "stop" from the callback into `Cancelled`.
