@@ -400,7 +400,16 @@ typedef struct psr_reconstructor psr_reconstructor;
  * (psr_reconstructor_solve then returns PSR_STATUS_CANCELLED and no mesh).
  *
  * It is called only from inside psr_reconstructor_solve, on the thread that called it, never
- * concurrently with itself. It must not call any function on the reconstructor being solved
+ * concurrently with itself. It is called while each stage runs, not only between stages: the
+ * stage's work runs on psr's worker threads while the calling thread waits in slices of at most
+ * 20 ms and calls it after each slice with the fraction of the stage done so far (within a
+ * stage never less than the call before), then with 1 when the stage ends; so a host that
+ * polls for a "stop" (a Cancel button, Ctrl-C) from the callback sees it within about 20 ms
+ * plus the callback's own time. After it returns false it is not called again: the stage stops
+ * at its next cancel point (docs/architecture.md lists them: mostly batches of work milliseconds
+ * apart, but on a million points at depth 11 up to a second in the octree and seconds inside
+ * one splat, right-hand side or solver iteration at the finest depths) and
+ * psr_reconstructor_solve returns once the reconstruction's memory is freed. The mesh never depends on the callback. It must not call any function on the reconstructor being solved
  * (such calls are refused with PSR_STATUS_INVALID_ARGUMENT, and psr_reconstructor_free does
  * nothing); it may use other handles, psr_status_string, psr_stage_string and the version
  * functions. It must not unwind (no C++ exception or longjmp out of it).
@@ -1059,7 +1068,8 @@ psr_status psr_reconstructor_set_progress_callback(psr_reconstructor *r, psr_pro
  * Reconstructs a watertight mesh from r's points and parameters and writes a new mesh to
  * *out; free it with psr_mesh_free. r keeps its points and parameters and may be solved again.
  * Runs on the calling thread, using the number of worker threads set with
- * psr_reconstructor_set_threads; the progress callback, if any, is called on the calling thread.
+ * psr_reconstructor_set_threads; the progress callback, if any, is called on the calling thread,
+ * during every stage at least every 20 ms (see psr_progress_fn).
  *
  * r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
  * PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),

@@ -32,8 +32,10 @@
 //! probe per sample (Happy Buddha depth 10, three components: 0.37 s of 55 s; both on a loaded
 //! 2-core machine, `docs/benchmarks.md`).
 
+use crate::error::Result;
 use crate::extract::RawMesh;
 use crate::grid::KeyMap;
+use crate::parallel::Watch;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -55,11 +57,15 @@ pub(crate) fn drop_unsupported(
     finest_depth: u32,
     samples: &[DVec3],
     min_samples: u32,
-) -> Removed {
+    watch: &Watch,
+) -> Result<Removed> {
     if min_samples == 0 || mesh.triangles.is_empty() {
-        return Removed::default();
+        return Ok(Removed::default());
     }
+    // Cancel points (`watch`) between the passes, each at most a few tenths of a second on
+    // millions of triangles.
     let component = vertex_components(mesh.vertices.len(), &mesh.triangles);
+    watch.check()?;
     // Triangles per component (indexed by the component's root vertex).
     let mut triangles_of = vec![0usize; mesh.vertices.len()];
     for t in &mesh.triangles {
@@ -70,8 +76,9 @@ pub(crate) fn drop_unsupported(
         .max_by_key(|&r| (triangles_of[r], std::cmp::Reverse(r)))
         .expect("a mesh with triangles has vertices") as u32;
     if triangles_of[largest as usize] == mesh.triangles.len() {
-        return Removed::default();
+        return Ok(Removed::default());
     }
+    watch.check()?;
 
     // Each other component's radius: one cell at the surface's own resolution there, the
     // finest cell or, where the component was traced in coarser leaves (sparse samples are
@@ -113,7 +120,9 @@ pub(crate) fn drop_unsupported(
         })
         .collect();
     probe.sort_unstable();
+    watch.check()?;
     let mut support = samples_near(&probe, &component, &radius, mesh, samples, finest_cell);
+    watch.check()?;
     let mut again: Vec<u32> = vertices_of
         .iter()
         .filter(|(root, list)| {
@@ -132,6 +141,7 @@ pub(crate) fn drop_unsupported(
             samples,
             finest_cell,
         ));
+        watch.check()?;
     }
 
     // The verdict.
@@ -146,7 +156,7 @@ pub(crate) fn drop_unsupported(
         }
     }
     if removed.components == 0 {
-        return removed;
+        return Ok(removed);
     }
 
     // The kept vertices, renumbered in their order (a new index is never above the old one).
@@ -178,7 +188,7 @@ pub(crate) fn drop_unsupported(
     }
     mesh.vertices = vertices;
     mesh.normals = normals;
-    removed
+    Ok(removed)
 }
 
 /// Vertices of a component probed in a first pass (see [`drop_unsupported`]).

@@ -26,7 +26,9 @@
 //! came out less accurate at depth 12 than unscreened), and gives stray samples a coarse depth.
 
 use crate::bspline::stencil27;
+use crate::error::Result;
 use crate::grid::{morton, unmorton, KeyMap};
+use crate::parallel::{map_in_blocks, Watch};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -185,11 +187,12 @@ pub fn estimate(
     positions: &[DVec3],
     max_depth: u32,
     samples_per_node: f64,
-) -> SampleDensity {
+    watch: &Watch,
+) -> Result<SampleDensity> {
     let kernel_depth = field.depth;
-    let per_sample: Vec<(f64, f64, f64)> = positions
-        .par_iter()
-        .map(|&p| {
+    let per_sample: Vec<(f64, f64, f64)> = map_in_blocks(
+        positions,
+        |&p| {
             let w = field.evaluate(p);
             if w <= 0.0 {
                 // A sample always lies within the support of its own splat, so W(s) > 0 unless
@@ -218,13 +221,16 @@ pub fn estimate(
                 finer = coarser;
             }
             (w, PLANE_KERNEL_PEAK / finer, 0.0)
-        })
-        .collect();
-    SampleDensity {
+        },
+        watch,
+        0.5,
+        0.95,
+    )?;
+    Ok(SampleDensity {
         area: per_sample.iter().map(|s| s.1).collect(),
         depth: per_sample.iter().map(|s| s.2).collect(),
         quantiles: quantiles(&per_sample.iter().map(|s| s.0).collect::<Vec<_>>()),
-    }
+    })
 }
 
 /// One sample's contribution at one depth.
@@ -333,7 +339,9 @@ mod tests {
                 &[DVec3::new(0.5, 0.5, z), DVec3::new(0.31, 0.62, z)],
                 8,
                 1.5,
-            );
+                &Watch::new(),
+            )
+            .unwrap();
             assert!((est.area[0] - est.area[1]).abs() < 1e-3 * est.area[0]);
             mean_area += est.area[0] / 8.0;
             // (512/32)² = 256 samples per depth-5 node: log₄(W/1.5) ≈ 3.7 depths finer, so
@@ -365,7 +373,7 @@ mod tests {
         }
         let field = DensityField::splat(&pts, None, 8);
         let centre = pts.len() / 2 + 24;
-        let est = estimate(&field, &pts[centre..centre + 1], 10, 1.5);
+        let est = estimate(&field, &pts[centre..centre + 1], 10, 1.5, &Watch::new()).unwrap();
         let expected_depth = (64.0 * (115.0f64 / 192.0 / 1.5).sqrt()).log2();
         assert!(
             (est.depth[0] - expected_depth).abs() < 0.35,
@@ -399,7 +407,7 @@ mod tests {
         let stray = DVec3::new(0.5, 0.5, 0.3 + 24.0 / 256.0);
         pts.push(stray);
         let field = DensityField::splat(&pts, None, 8);
-        let est = estimate(&field, &[stray, pts[100]], 10, 1.5);
+        let est = estimate(&field, &[stray, pts[100]], 10, 1.5, &Watch::new()).unwrap();
         assert!(est.depth[0] <= 5.0, "stray sample's depth {}", est.depth[0]);
         // The plane's spacing is a kernel node's width: n = 1.5 samples per node at depth
         // 8 − log₂(√(1.5·192/115)) = 7.34.
@@ -449,7 +457,7 @@ mod tests {
             .collect();
         let (depth, kernel_depth, samples_per_node) = (8, 6, 1.5);
         let field = DensityField::splat(&unit, None, kernel_depth);
-        let estimate = estimate(&field, &unit, depth, samples_per_node);
+        let estimate = estimate(&field, &unit, depth, samples_per_node, &Watch::new()).unwrap();
         assert!(estimate.depth.iter().all(|d| (0.0..=8.0).contains(d)));
         let mut by_z: Vec<(f64, f64)> = on_sphere
             .iter()

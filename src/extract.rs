@@ -57,6 +57,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::Indicator;
 use crate::grid::{cell_of, KeyMap};
 use crate::octree::{Level, Octree, CORE, NONE, SPLIT};
+use crate::parallel::Watch;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -544,22 +545,25 @@ fn face_centre(points: &[Point]) -> Point {
 
 /// Stage 8: the mesh of {χ = γ} (unit-cube coordinates), traced from the finest-depth cells of
 /// the samples at `positions`, its vertices fitted to the surface ([`fit_to_surface`]) unless
-/// `on_isosurface`; with the normals at the vertices when fitted or `with_normals`.
+/// `on_isosurface`; with the normals at the vertices when fitted or `with_normals`. Reports
+/// its progress to `watch` (up to 0.9: the caller's last step is the rest) and stops with
+/// `Error::Cancelled` at the cancel point after each batch of leaves when it is cancelled.
 pub(crate) fn extract_around_samples(
     chi: &Indicator,
     isovalue: f64,
     positions: &[DVec3],
     on_isosurface: bool,
     with_normals: bool,
+    watch: &Watch,
 ) -> Result<RawMesh> {
     let inv_h = (chi.tree.max_depth() as f64).exp2();
     let seeds: Vec<[i64; 3]> = positions
         .iter()
         .map(|&p| cell_of(p, inv_h).map(i64::from))
         .collect();
-    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface || with_normals)?;
+    let mut mesh = extract(chi, isovalue, seeds, !on_isosurface || with_normals, watch)?;
     if !on_isosurface {
-        fit_to_surface(&mut mesh);
+        fit_to_surface(&mut mesh, watch)?;
     }
     Ok(mesh)
 }
@@ -569,12 +573,15 @@ const WAVE_BATCH: usize = 16384;
 
 /// Extracts {χ = γ} on the leaves of `chi`'s tree, following the surface from the leaves
 /// containing the finest-depth cells in `seeds` (any order, duplicates allowed). Fails with
-/// [`Error::TooLarge`] when the mesh would need vertex ids past 2³¹.
+/// [`Error::TooLarge`] when the mesh would need vertex ids past 2³¹, and with
+/// `Error::Cancelled` at a cancel point (three per batch of leaves) once `watch` is cancelled;
+/// its progress, the leaves traced over the leaves found so far, goes to `watch` (0 to 0.8).
 pub fn extract(
     chi: &Indicator,
     isovalue: f64,
     seeds: Vec<[i64; 3]>,
     with_normals: bool,
+    watch: &Watch,
 ) -> Result<RawMesh> {
     let finest = chi.tree.max_depth();
     let leaves = Leaves {
@@ -606,6 +613,8 @@ pub fn extract(
         .filter_map(|&c| leaves.containing(finest, c))
         .collect();
     frontier.retain(|leaf| visited.insert(leaves.key(leaf), ()).is_none());
+    watch.check()?;
+    let mut traced = 0usize;
 
     // Where each leaf of the wave stands among its neighbours, its points and χ − γ there.
     // The corners of a leaf of the finest depth come from the leaf's own 27 nodes, which
@@ -659,6 +668,7 @@ pub fn extract(
         needed.dedup();
         let fresh: Vec<f64> = needed.par_iter().map(|&k| evaluate(unpack(k))).collect();
         values.extend(needed.into_iter().zip(fresh));
+        watch.check()?;
         plans
             .par_iter_mut()
             .for_each(|(_, points, _, vals, looked_up)| {
@@ -684,6 +694,7 @@ pub fn extract(
                 leaf_loops(&faces[..count], &points, &vals, &evaluate)
             })
             .collect();
+        watch.check()?;
 
         // Every crossing of this batch may make a vertex and every loop a centre vertex: their
         // ids must stay below ADDED_CENTRE (and so fit in u32), checked here once for the
@@ -792,6 +803,10 @@ pub fn extract(
                 })
             }));
         }
+        // Every leaf found is traced once: the fraction of those found so far that are traced
+        // reaches 1 at the end (finding leaves lowers it meanwhile: the watch keeps the largest).
+        traced += batch.len();
+        watch.step(traced, visited.len(), 0.0, 0.8)?;
         if done == frontier.len() {
             frontier = std::mem::take(&mut next_frontier);
             done = 0;
@@ -831,7 +846,10 @@ pub fn extract(
 /// orientation the move reverses are slivers from edge roots next to a corner: on the bunny
 /// scans at depth 10, 337 of 1.08M triangles, 2e-3 of the mean area each before the move,
 /// 5e-6 of the total area after; Happy Buddha 728 of 2.7M, 3e-6 of the area.
-pub fn fit_to_surface(mesh: &mut RawMesh) {
+///
+/// Stops with `Error::Cancelled` between its passes once `watch` is cancelled (the mesh is then
+/// half moved: the caller drops it).
+pub fn fit_to_surface(mesh: &mut RawMesh, watch: &Watch) -> Result<()> {
     const SMOOTHING_PASSES: usize = 2;
     assert_eq!(
         mesh.normals.len(),
@@ -843,7 +861,8 @@ pub fn fit_to_surface(mesh: &mut RawMesh) {
     let mut sag = mean_over_edges(&mesh.triangles, &valid, |a, b| {
         (normals[b] - normals[a]).dot(vertices[b] - vertices[a]) / 8.0
     });
-    for _ in 0..SMOOTHING_PASSES {
+    for pass in 0..SMOOTHING_PASSES {
+        watch.step(pass, SMOOTHING_PASSES + 1, 0.8, 0.9)?;
         let around = mean_over_edges(&mesh.triangles, &valid, |_, b| sag[b]);
         sag = sag
             .iter()
@@ -855,6 +874,8 @@ pub fn fit_to_surface(mesh: &mut RawMesh) {
         .par_iter_mut()
         .zip(mesh.normals.par_iter().zip(sag.par_iter()))
         .for_each(|(v, (n, &s))| *v += *n * s);
+    watch.set(0.9);
+    Ok(())
 }
 
 /// For every vertex of a closed mesh, the mean of `term(vertex, neighbour)` over its edges

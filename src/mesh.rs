@@ -3,7 +3,9 @@
 
 use crate::attributes::{Channel, Colors, PointAttributes};
 use crate::density::DensityField;
+use crate::error::Result;
 use crate::extract::RawMesh;
+use crate::parallel::{map_in_blocks, Watch};
 use crate::points::UnitCubeMap;
 use crate::Stage;
 use glam::DVec3;
@@ -161,13 +163,15 @@ impl Mesh {
 
 /// Stage 9: `raw`'s vertices mapped back to input coordinates by `map`, relative to `origin`
 /// when one is given (see [`Mesh::origin`]), each with the sampling density there (`density`,
-/// for trimming); its figures are left for the caller.
+/// for trimming); its figures are left for the caller. The densities, most of the work, are
+/// evaluated in blocks with cancel points, reporting to `watch` (from 0.5 to 1).
 pub(crate) fn in_input_coordinates(
     raw: RawMesh,
     map: &UnitCubeMap,
     origin: Option<DVec3>,
     density: &DensityField,
-) -> Mesh {
+    watch: &Watch,
+) -> Result<Mesh> {
     let positions: Vec<[f32; 3]> = match origin {
         // The f32 path: exactly as before origins existed.
         None => raw
@@ -184,18 +188,20 @@ pub(crate) fn in_input_coordinates(
             .map(|&v| (map.to_input(v) - origin).as_vec3().to_array())
             .collect(),
     };
-    let densities: Vec<f32> = raw
-        .vertices
-        .par_iter()
-        .map(|&v| density.evaluate(v) as f32)
-        .collect();
-    Mesh {
+    let densities: Vec<f32> = map_in_blocks(
+        &raw.vertices,
+        |&v| density.evaluate(v) as f32,
+        watch,
+        0.5,
+        1.0,
+    )?;
+    Ok(Mesh {
         positions,
         origin: origin.map_or([0.0; 3], |o| o.to_array()),
         triangles: raw.triangles,
         densities,
         ..Mesh::default()
-    }
+    })
 }
 
 /// Gives `mesh` the attributes the points had (`points` says which), from the flattened values
@@ -247,12 +253,14 @@ mod tests {
             triangles: vec![[0, 1, 0]],
             normals: Vec::new(),
         };
-        let mesh = in_input_coordinates(raw_again, &map, None, &density);
+        let watch = Watch::new();
+        let mesh = in_input_coordinates(raw_again, &map, None, &density, &watch).unwrap();
         let far = UnitCubeMap {
             origin: map.origin + DVec3::new(1e6, -2e6, 3e5),
             ..map
         };
-        let shifted = in_input_coordinates(raw, &far, Some(far.nearby_origin()), &density);
+        let shifted =
+            in_input_coordinates(raw, &far, Some(far.nearby_origin()), &density, &watch).unwrap();
         assert_eq!(shifted.origin, [1e6 + 12.0, -2e6 + 20.0, 3e5 + 32.0]);
         for (p, q) in shifted.positions_f64().iter().zip(&mesh.positions) {
             let want = [1e6, -2e6, 3e5];

@@ -19,8 +19,9 @@
 //! paper's) that is where its neighbours live.
 
 use crate::density::DepthSample;
+use crate::error::Result;
 use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
-use crate::parallel::DistinctIndices;
+use crate::parallel::{DistinctIndices, Watch};
 use crate::Boundary;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -349,7 +350,24 @@ impl Octree {
     /// face lands on the mirrored node inside), and every halo node outside it is linked to the
     /// inside node it mirrors; with free boundaries the core may reach one node beyond the
     /// cube, where functions still overlap it.
+    /// (The pipeline builds through [`Octree::around_samples`]; tests call this directly.)
+    #[cfg(test)]
     pub fn build(sample_cells: Vec<Vec<Coord>>, full_depth: u32, boundary: Boundary) -> Octree {
+        let unwatched = Watch::new();
+        match Octree::build_watched(sample_cells, full_depth, boundary, &unwatched) {
+            Ok(tree) => tree,
+            Err(e) => unreachable!("a watch nobody cancels stopped the build: {e}"),
+        }
+    }
+
+    /// [`Octree::build`], reporting its progress to `watch` and stopping (with
+    /// `Error::Cancelled`) between depths when it is cancelled.
+    fn build_watched(
+        sample_cells: Vec<Vec<Coord>>,
+        full_depth: u32,
+        boundary: Boundary,
+        watch: &Watch,
+    ) -> Result<Octree> {
         let mirror_sign = boundary.mirror_sign();
         let max_depth = sample_cells.len() as u32 - 1;
         // Core sets as sorted packed keys, finest first so parents can be added on the way up.
@@ -396,15 +414,23 @@ impl Octree {
                 keys = clip(dilate(&keys, 1));
             }
             cores[d as usize] = keys;
+            // The finest depths are most of the work: count them as such.
+            let done = (max_depth - d + 1) as usize;
+            watch.step(done, max_depth as usize + 1, 0.0, 0.5)?;
         }
         // The levels are independent: built side by side (the widening of one level's bricks
         // is serial).
         let mut levels: Vec<Level> = cores
             .into_par_iter()
             .enumerate()
-            .map(|(d, core)| Level::with_halo(d as u32, &core, mirror_sign))
-            .collect();
+            .map(|(d, core)| {
+                // (A cancelled build skips the levels not yet started.)
+                (!watch.is_cancelled()).then(|| Level::with_halo(d as u32, &core, mirror_sign))
+            })
+            .collect::<Option<Vec<Level>>>()
+            .ok_or(crate::Error::Cancelled)?;
         for d in 1..levels.len() {
+            watch.step(d, levels.len(), 0.8, 1.0)?;
             let (coarse, fine) = levels.split_at_mut(d);
             let (coarse, fine) = (&mut coarse[d - 1], &fine[0]);
             // The core of depth d − 1 holds the parents of the core of depth d.
@@ -419,17 +445,19 @@ impl Octree {
                 coarse.flags[p as usize] |= SPLIT;
             }
         }
-        Octree { levels }
+        Ok(Octree { levels })
     }
 
     /// The tree around the samples splatted at each depth (`at_depth[d]`, see
-    /// [`crate::density::samples_by_depth`]), at `positions` in the unit cube.
+    /// [`crate::density::samples_by_depth`]), at `positions` in the unit cube; cancelled
+    /// through `watch` (see [`Octree::build`]).
     pub(crate) fn around_samples(
         at_depth: &[Vec<DepthSample>],
         positions: &[DVec3],
         full_depth: u32,
         boundary: Boundary,
-    ) -> Octree {
+        watch: &Watch,
+    ) -> Result<Octree> {
         let sample_cells: Vec<Vec<Coord>> = at_depth
             .iter()
             .enumerate()
@@ -440,7 +468,7 @@ impl Octree {
                     .collect()
             })
             .collect();
-        Octree::build(sample_cells, full_depth, boundary)
+        Octree::build_watched(sample_cells, full_depth, boundary, watch)
     }
 
     pub fn max_depth(&self) -> u32 {

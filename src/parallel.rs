@@ -1,14 +1,19 @@
 //! Parallel primitives shared by the stages: fixed chunking, so that results never depend on
-//! the number of threads, and the disjoint writes the stages make from several threads at
-//! once.
+//! the number of threads, the disjoint writes the stages make from several threads at once,
+//! and [`watched`] jobs, whose progress the calling thread reports while they run and which
+//! it can cancel (every stage of the pipeline runs as one).
 //!
 //! This file and `system/simd.rs` hold the crate's `unsafe` code outside the C API. Here it is
 //! one pointer, [`SharedSlice`], written through at indices that a safe wrapper has proved
 //! distinct: by a [`DistinctIndices`] list (checked strictly increasing when it is made), or by
 //! handing out the element of one index at a time per task. Callers never write `unsafe`.
 
+use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::ops::Deref;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::mpsc;
+use std::time::Duration;
 
 /// Elements per parallel task in the per-node loops: fixed, so that every reduction adds the
 /// same partial sums in the same order whatever the thread count.
@@ -154,6 +159,154 @@ pub(crate) fn split_parts<T>(
     parts
 }
 
+/// The longest the calling thread of [`watched`] waits between two calls of its report: with a
+/// job that checks its [`Watch`] at least every ~0.1 s, a "stop" returns within 0.2 s.
+pub(crate) const SLICE: Duration = Duration::from_millis(20);
+
+/// What a job run by [`watched`] shares with the thread waiting for it: the fraction of the job
+/// done (set by the job, read by the waiting thread) and the cancel flag (raised by the waiting
+/// thread, checked by the job between its pieces of work). Both are atomics, so the job may set
+/// and check them from any of its threads; neither changes what the job computes.
+#[derive(Debug, Default)]
+pub(crate) struct Watch {
+    /// The f32 bits of the fraction done, only ever raised (non-negative floats order as their
+    /// bits), so the fractions reported never go back.
+    fraction: AtomicU32,
+    cancelled: AtomicBool,
+}
+
+impl Watch {
+    /// A watch nobody reads or cancels (for jobs run outside [`watched`], e.g. in unit tests).
+    pub(crate) fn new() -> Watch {
+        Watch::default()
+    }
+
+    /// Records that `fraction` (clamped to 0..=1) of the job is done, unless more already is.
+    pub(crate) fn set(&self, fraction: f32) {
+        let f = if fraction.is_nan() {
+            0.0
+        } else {
+            fraction.clamp(0.0, 1.0)
+        };
+        self.fraction.fetch_max(f.to_bits(), Ordering::Relaxed);
+    }
+
+    /// The fraction done so far.
+    pub(crate) fn fraction(&self) -> f32 {
+        f32::from_bits(self.fraction.load(Ordering::Relaxed))
+    }
+
+    /// Whether the waiting thread asked the job to stop.
+    pub(crate) fn is_cancelled(&self) -> bool {
+        self.cancelled.load(Ordering::Relaxed)
+    }
+
+    /// `Err(Error::Cancelled)` once the waiting thread asked the job to stop: a cancel point.
+    pub(crate) fn check(&self) -> Result<()> {
+        if self.is_cancelled() {
+            Err(Error::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+
+    /// [`Watch::set`] to `from + (to − from)·done/total`, then [`Watch::check`]: the usual
+    /// cancel point between the pieces of a step that spans `from..to` of the job.
+    pub(crate) fn step(&self, done: usize, total: usize, from: f32, to: f32) -> Result<()> {
+        let part = if total == 0 {
+            1.0
+        } else {
+            (done as f64 / total as f64) as f32
+        };
+        self.set(from + (to - from) * part);
+        self.check()
+    }
+
+    fn cancel(&self) {
+        self.cancelled.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Runs `job` on `pool` while the calling thread waits for it in slices of at most [`SLICE`],
+/// calling `report(fraction done)` after each slice on the calling thread (so the caller's
+/// callback is never called from a worker, nor concurrently). When `report` returns false the
+/// [`Watch`] is cancelled, `report` is not called again, and once the job has returned (at its
+/// next cancel point, or having finished) the result is `Err(Error::Cancelled)`. A panic in the
+/// job reaches the caller, as from [`rayon::ThreadPool::install`].
+///
+/// The job computes the same result as it would under `pool.install`: only the waiting and the
+/// reports differ, so the output does not depend on when, or whether, a report happens.
+pub(crate) fn watched<R: Send>(
+    pool: &rayon::ThreadPool,
+    report: &mut dyn FnMut(f32) -> bool,
+    job: impl FnOnce(&Watch) -> Result<R> + Send,
+) -> Result<R> {
+    let watch = Watch::new();
+    let (done, finished) = mpsc::sync_channel::<Result<R>>(1);
+    pool.in_place_scope(|scope| {
+        let watch = &watch;
+        scope.spawn(move |_| {
+            // The receiver waits until this sends or the job unwinds (then the scope re-raises
+            // the panic), so a failed send cannot happen; there is nothing to do if it did.
+            let _ = done.send(job(watch));
+        });
+        let mut stopped = false;
+        loop {
+            let wait = if stopped {
+                finished
+                    .recv()
+                    .map_err(|_| mpsc::RecvTimeoutError::Disconnected)
+            } else {
+                finished.recv_timeout(SLICE)
+            };
+            match wait {
+                Ok(result) => {
+                    return if stopped {
+                        Err(Error::Cancelled)
+                    } else {
+                        result
+                    }
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    if !report(watch.fraction().min(1.0)) {
+                        stopped = true;
+                        watch.cancel();
+                    }
+                }
+                // The job panicked: the scope re-raises the panic when this closure returns.
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(Error::Internal(
+                        "a watched job ended without a result".into(),
+                    ))
+                }
+            }
+        }
+    })
+}
+
+/// Items per block of [`map_in_blocks`]: a few milliseconds of work per block for the costliest
+/// maps (χ at a point), so cancel points come often, and enough items that the pause between
+/// blocks costs nothing.
+pub(crate) const BLOCK: usize = 1 << 14;
+
+/// `items.par_iter().map(f).collect()` one block of [`BLOCK`] items after another, with a
+/// [`Watch::step`] from `from` to `to` after each: the same values in the same order, with
+/// cancel points.
+pub(crate) fn map_in_blocks<T: Sync, R: Send>(
+    items: &[T],
+    f: impl Fn(&T) -> R + Sync,
+    watch: &Watch,
+    from: f32,
+    to: f32,
+) -> Result<Vec<R>> {
+    let mut out = Vec::with_capacity(items.len());
+    for block in items.chunks(BLOCK) {
+        out.par_extend(block.par_iter().map(&f));
+        watch.step(out.len(), items.len(), from, to)?;
+    }
+    Ok(out)
+}
+
 /// A slice written from several threads at indices known to be disjoint between threads. Only
 /// the safe wrappers of this module reach its elements.
 struct SharedSlice<'a, T> {
@@ -192,6 +345,73 @@ impl<'a, T> SharedSlice<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn pool() -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap()
+    }
+
+    /// Proves: while a watched job runs, its fractions reach the report on the calling thread,
+    /// never going back, and the job's result is returned.
+    #[test]
+    fn a_watched_job_reports_on_the_calling_thread() {
+        let caller = std::thread::current().id();
+        let mut seen = Vec::new();
+        let result = watched(
+            &pool(),
+            &mut |f| {
+                assert_eq!(std::thread::current().id(), caller);
+                seen.push(f);
+                true
+            },
+            |watch| {
+                assert_ne!(std::thread::current().id(), caller);
+                for k in 1..=10 {
+                    std::thread::sleep(SLICE);
+                    watch.step(k, 10, 0.0, 1.0)?;
+                }
+                Ok(42)
+            },
+        );
+        assert_eq!(result, Ok(42));
+        assert!(seen.iter().any(|&f| f > 0.0 && f < 1.0), "{seen:?}");
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+    }
+
+    /// Proves: a report that says stop cancels a job that would otherwise never end, at its
+    /// next cancel point, with `Error::Cancelled`, and is not called again.
+    #[test]
+    fn a_stop_cancels_a_watched_job_at_its_next_cancel_point() {
+        let mut calls = 0;
+        let result: Result<()> = watched(
+            &pool(),
+            &mut |_| {
+                calls += 1;
+                false
+            },
+            |watch| loop {
+                watch.check()?;
+                std::thread::sleep(Duration::from_millis(1));
+            },
+        );
+        assert_eq!(result, Err(Error::Cancelled));
+        assert_eq!(calls, 1);
+    }
+
+    /// Proves: a stop that comes as the job finishes still gives `Error::Cancelled` (the
+    /// caller said stop: no result), and a job's own error comes through unchanged.
+    #[test]
+    fn a_stop_wins_over_a_finished_job_and_errors_pass_through() {
+        let result = watched(&pool(), &mut |_| false, |_| {
+            std::thread::sleep(3 * SLICE);
+            Ok(1)
+        });
+        assert_eq!(result, Err(Error::Cancelled));
+        let failed: Result<()> = watched(&pool(), &mut |_| true, |_| Err(Error::EmptyInput));
+        assert_eq!(failed, Err(Error::EmptyInput));
+    }
 
     #[test]
     #[should_panic(expected = "not strictly increasing")]

@@ -12,6 +12,7 @@ use crate::implicit::ImplicitFunction;
 use crate::isovalue;
 use crate::mesh::{self, Mesh, Stats};
 use crate::octree::Octree;
+use crate::parallel::{self, Watch};
 use crate::points::{PointSet, Samples, UnitCubeMap};
 use crate::solve::{self, System};
 use crate::splat::splat_level;
@@ -84,6 +85,16 @@ impl Stage {
 /// A progress callback: receives the stage and the fraction of it done (0..=1) and returns
 /// `true` to go on, `false` to cancel. It is called on the thread that called
 /// [`crate::reconstruct_with_progress`], never concurrently.
+///
+/// It is called while each stage runs, not only between stages: the stage's work runs on the
+/// worker threads while the calling thread waits in slices of at most 20 ms and calls it after
+/// each slice with the fraction done so far (never less than the call before within a stage),
+/// then once with 1 when the stage ends. After it returns `false` it is not called again: the
+/// stage stops at its next cancel point (`docs/architecture.md`, "Progress and cancellation",
+/// lists them: mostly batches of work milliseconds apart, but on a million points at depth 11
+/// up to a second in the octree and seconds inside one splat, right-hand side or solver
+/// iteration at the finest depths) and the reconstruction returns `Err(Error::Cancelled)` once
+/// its memory is freed. The output never depends on the callback.
 pub type Progress<'a> = &'a mut dyn FnMut(Stage, f32) -> bool;
 
 /// Times stages and forwards progress; turns a "stop" from the callback into `Cancelled`.
@@ -103,6 +114,20 @@ impl Clock<'_, '_> {
         } else {
             Err(Error::Cancelled)
         }
+    }
+
+    /// Runs `job`, the work of `stage`, in `pool` through [`parallel::watched`]: the calling
+    /// thread waits for it in slices of at most [`parallel::SLICE`], reporting the job's
+    /// progress to the callback after each, and a "stop" cancels the job at its next cancel
+    /// point ([`Watch::check`]).
+    fn watch<R: Send>(
+        &mut self,
+        stage: Stage,
+        pool: &rayon::ThreadPool,
+        job: impl FnOnce(&Watch) -> Result<R> + Send,
+    ) -> Result<R> {
+        let progress = &mut self.progress;
+        parallel::watched(pool, &mut |fraction| (progress)(stage, fraction), job)
     }
 
     fn done(&mut self, stage: Stage) -> Result<()> {
@@ -154,20 +179,26 @@ pub(crate) fn run(
     let origin = points.positions_f64().map(|_| map.nearby_origin());
     let params = &params.for_cube(map.size);
     clock.stats.depth = params.depth;
-    let mut samples = pool.install(|| Samples::in_morton_order(points, &map, params.depth))?;
+    let mut samples = clock.watch(Stage::Points, pool, |_| {
+        Samples::in_morton_order(points, &map, params.depth)
+    })?;
     clock.done(Stage::Points)?;
 
     // 2. Density: each sample's area and depth(s) (before the octree: they decide its nodes).
     let kernel_depth = params.effective_kernel_depth();
-    let field = DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
-    let mut sample_density = pool.install(|| {
-        density::estimate(
+    let (field, mut sample_density) = clock.watch(Stage::Density, pool, |watch| {
+        let field =
+            DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
+        watch.step(1, 2, 0.0, 1.0)?;
+        let sample_density = density::estimate(
             &field,
             &samples.positions,
             params.depth,
             params.samples_per_node as f64,
-        )
-    });
+            watch,
+        )?;
+        Ok((field, sample_density))
+    })?;
     clock.stats.kernel_depth = kernel_depth;
     clock.stats.sample_density_quantiles = std::mem::take(&mut sample_density.quantiles);
     clock.done(Stage::Density)?;
@@ -179,14 +210,15 @@ pub(crate) fn run(
         params.depth,
         params.effective_full_depth(),
     );
-    let tree = pool.install(|| {
+    let tree = clock.watch(Stage::Octree, pool, |watch| {
         Octree::around_samples(
             &at_depth,
             &samples.positions,
             params.effective_full_depth(),
             params.boundary,
+            watch,
         )
-    });
+    })?;
     let finest = tree.max_depth() as usize;
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
     clock.done(Stage::Octree)?;
@@ -196,17 +228,23 @@ pub(crate) fn run(
     // depth prolongs it), so the system's first step runs here, before the coarser depths' V
     // exist; V's three vectors and ρ (four halo-sized vectors of the finest depth) are the
     // peak of these stages. Its time is counted in the system stage.
-    let v_finest =
-        pool.install(|| splat_level(&tree.levels[finest], &samples, &at_depth[finest], params));
-    let finest_system = Instant::now();
-    let mut rho_finest = pool.install(|| divergence(&tree.levels[finest], v_finest));
-    fill_mirrors(&tree.levels[finest], &mut rho_finest);
-    let finest_system = finest_system.elapsed().as_secs_f64();
-    let field_v: Vec<[Vec<f64>; 3]> = pool.install(|| {
-        (0..finest)
-            .map(|d| splat_level(&tree.levels[d], &samples, &at_depth[d], params))
-            .collect()
-    });
+    // Cancel points between the depths (the finest splat and its divergence are about half
+    // of the work).
+    let (rho_finest, field_v, finest_system) = clock.watch(Stage::Splat, pool, |watch| {
+        let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params);
+        watch.step(1, 4, 0.0, 1.0)?;
+        let finest_system = Instant::now();
+        let mut rho_finest = divergence(&tree.levels[finest], v_finest);
+        fill_mirrors(&tree.levels[finest], &mut rho_finest);
+        let finest_system = finest_system.elapsed().as_secs_f64();
+        watch.step(2, 4, 0.0, 1.0)?;
+        let mut field_v: Vec<[Vec<f64>; 3]> = Vec::with_capacity(finest);
+        for (level, at) in tree.levels.iter().zip(&at_depth).take(finest) {
+            field_v.push(splat_level(level, &samples, at, params));
+            watch.step(field_v.len(), finest, 0.5, 1.0)?;
+        }
+        Ok((rho_finest, field_v, finest_system))
+    })?;
     // The attributes' splat (stage 9) reads each sample's depths and normal again; without
     // attributes they go now.
     let carries_attributes = !samples.attributes.is_empty();
@@ -220,10 +258,14 @@ pub(crate) fn run(
     clock.done_moving(Stage::Splat, finest_system)?;
 
     // 5. System: the right-hand side of every depth and the samples' screening weights.
-    let rho = system::right_hand_sides(&tree, rho_finest, &field_v, pool, |fraction| {
-        clock.report(Stage::System, fraction)
+    let (rho, screening_weights) = clock.watch(Stage::System, pool, |watch| {
+        let rho = system::right_hand_sides(&tree, rho_finest, &field_v, pool, |fraction| {
+            watch.set(fraction);
+            watch.check()
+        })?;
+        let screening_weights = system::sample_weights(&sample_density.area, &samples.confidence);
+        Ok((rho, screening_weights))
     })?;
-    let screening_weights = system::sample_weights(&sample_density.area, &samples.confidence);
     clock.done(Stage::System)?;
 
     // 6. Solve, coarse to fine (each depth's ρ and V are dropped once read).
@@ -235,23 +277,29 @@ pub(crate) fn run(
         screening_weights: &screening_weights,
         screening: system::depth_weight(params.point_weight, params.depth),
     };
-    let coefficients = {
-        let progress = &mut clock.progress;
-        let mut on_solve = |fraction: f32| (progress)(Stage::Solve, fraction);
-        solve::cascade(system, params, pool, &mut on_solve, &mut clock.stats.solves)?
-    };
+    let (coefficients, solves) = clock.watch(Stage::Solve, pool, |watch| {
+        let mut on_solve = |fraction: f32| {
+            watch.set(fraction);
+            !watch.is_cancelled()
+        };
+        let mut solves = Vec::new();
+        let coefficients = solve::cascade(system, params, pool, &mut on_solve, &mut solves)?;
+        Ok((coefficients, solves))
+    })?;
+    clock.stats.solves.extend(solves);
     clock.done(Stage::Solve)?;
 
     // 7. Isovalue: the area-weighted mean of χ at the samples (§4.5).
     let chi = Indicator { tree, coefficients };
-    let isovalue = pool.install(|| {
+    let isovalue = clock.watch(Stage::Isovalue, pool, |watch| {
         isovalue::weighted_mean(
             &chi,
             &samples.positions,
             &sample_density.area,
             &samples.confidence,
+            watch,
         )
-    });
+    })?;
     clock.stats.isovalue = isovalue;
     clock.done(Stage::Isovalue)?;
 
@@ -259,53 +307,58 @@ pub(crate) fn run(
     let on_isosurface = params.vertex_placement == VertexPlacement::OnIsosurface;
     // Attributes and vertex normals need ∇χ at the vertices, which fitting computes anyway.
     let with_normals = carries_attributes || params.vertex_normals;
-    let mut raw = pool.install(|| {
-        extract::extract_around_samples(
+    // Tracing the surface is ~9/10 of the stage, leaving out the bubbles the rest.
+    let (raw, removed) = clock.watch(Stage::Extract, pool, |watch| {
+        let mut raw = extract::extract_around_samples(
             &chi,
             isovalue,
             &samples.positions,
             on_isosurface,
             with_normals,
-        )
-    })?;
-    // The level set's closed pieces that too few samples support (bubbles) are left out.
-    let removed = pool.install(|| {
-        components::drop_unsupported(
+            watch,
+        )?;
+        // The level set's closed pieces that too few samples support (bubbles) are left out.
+        let removed = components::drop_unsupported(
             &mut raw,
             chi.tree.max_depth(),
             &samples.positions,
             params.min_component_samples,
-        )
-    });
+            watch,
+        )?;
+        Ok((raw, removed))
+    })?;
     clock.stats.unsupported_components = removed.components;
     clock.stats.unsupported_triangles = removed.triangles;
     clock.done(Stage::Extract)?;
 
     // 9. Mesh: back to input coordinates, with the sampling density at each vertex, and the
     // points' attributes and the normals when there are any.
-    let attributes = carries_attributes.then(|| {
-        let field = attributes::SampleField {
-            positions: &samples.positions,
-            normals: &samples.normals,
-            values: &samples.attributes,
-            width: points.attributes().width(),
-            weights: sample_density
-                .area
-                .iter()
-                .zip(&samples.confidence)
-                .map(|(a, c)| a * c)
-                .collect(),
-            at_depth: &at_depth,
-            key_depth: params.depth,
-        };
-        pool.install(|| {
+    let (attributes, normals, mut mesh) = clock.watch(Stage::Mesh, pool, |watch| {
+        let attributes = carries_attributes.then(|| {
+            let field = attributes::SampleField {
+                positions: &samples.positions,
+                normals: &samples.normals,
+                values: &samples.attributes,
+                width: points.attributes().width(),
+                weights: sample_density
+                    .area
+                    .iter()
+                    .zip(&samples.confidence)
+                    .map(|(a, c)| a * c)
+                    .collect(),
+                at_depth: &at_depth,
+                key_depth: params.depth,
+            };
             attributes::at_vertices(&field, &raw.vertices, &raw.normals, &raw.triangles)
-        })
-    });
-    let normals = params.vertex_normals.then(|| {
-        pool.install(|| attributes::vertex_normals(&raw.vertices, &raw.normals, &raw.triangles))
-    });
-    let mut mesh = pool.install(|| mesh::in_input_coordinates(raw, &map, origin, &field));
+        });
+        watch.step(1, 3, 0.0, 0.5)?;
+        let normals = params
+            .vertex_normals
+            .then(|| attributes::vertex_normals(&raw.vertices, &raw.normals, &raw.triangles));
+        watch.step(2, 3, 0.0, 0.5)?;
+        let mesh = mesh::in_input_coordinates(raw, &map, origin, &field, watch)?;
+        Ok((attributes, normals, mesh))
+    })?;
     if let Some(values) = attributes {
         mesh::set_attributes(&mut mesh, points.attributes(), &values);
     }

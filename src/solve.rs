@@ -40,7 +40,7 @@ pub(crate) struct System<'a> {
 /// Solves the system depth by depth from the root and returns z_d on K_d for every depth: the
 /// coarser solution prolonged to depth d plus the correction solved there. Each depth's
 /// figures are appended to `solves`; `progress(fraction of the whole solve)` is called once
-/// per iteration and may cancel.
+/// per iteration and between the steps that set up each depth, and may cancel.
 ///
 /// Memory: V of each depth (and of all coarser ones, accumulated) is read for the last time
 /// while its depth is solved, prolonged to the next depth where it is that depth's coarse
@@ -70,6 +70,16 @@ pub(crate) fn cascade(
     for d in 0..=max_depth as usize {
         let depth_started = Instant::now();
         let level = &tree.levels[d];
+        let base = d as f32 / depths as f32;
+        // A cancel point between the set-up steps (each up to a few tenths of a second at the
+        // finest depths of a large scan).
+        let mut go_on = || -> Result<()> {
+            if progress(base) {
+                Ok(())
+            } else {
+                Err(Error::Cancelled)
+            }
+        };
         let proxies = pool.install(|| {
             Proxies::build(
                 level,
@@ -78,7 +88,9 @@ pub(crate) fn cascade(
                 proxy_depth(d as u32, max_depth),
             )
         });
+        go_on()?;
         let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
+        go_on()?;
         // This depth's rho is used here for the last time.
         let is_finest = d == max_depth as usize;
         let rho_here = std::mem::take(&mut rho[d]);
@@ -93,6 +105,7 @@ pub(crate) fn cascade(
                 y
             }
         });
+        go_on()?;
         let coarse_div = next_coarse_div
             .take()
             .unwrap_or_else(|| vec![0.0; level.core.len()]);
@@ -112,8 +125,10 @@ pub(crate) fn cascade(
                 scale: 0.125,
             };
             next_coarse_div = Some(pool.install(|| divergence_of_prolonged(&prolonged)));
+            go_on()?;
             if d + 1 < max_depth as usize {
                 pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
+                go_on()?;
             }
         }
         // b − A·y on the core, computed in A·y's vector.
@@ -130,7 +145,7 @@ pub(crate) fn cascade(
         });
         drop(rho_here);
         drop(coarse_div);
-        let base = d as f32 / depths as f32;
+        go_on()?;
         // The coefficients of this depth: the prolonged coarser solution plus the correction
         // the solve adds on the core.
         let mut z = y;

@@ -1396,6 +1396,96 @@ fn progress_runs_on_the_calling_thread_through_the_stages_in_order() {
     assert!(!rec.names.iter().any(|n| n == "unknown"), "{:?}", rec.names);
 }
 
+/// What `stop_inside` saw: it says stop at the first call reporting `stage` below 1 (the
+/// stage still running).
+struct StopInside {
+    stage: psr_stage,
+    stopped_at: Option<f32>,
+    calls_after_stop: usize,
+}
+
+unsafe extern "C" fn stop_inside(user: *mut c_void, stage: psr_stage, fraction: f32) -> bool {
+    let s = &mut *user.cast::<StopInside>();
+    if s.stopped_at.is_some() {
+        s.calls_after_stop += 1;
+        return false;
+    }
+    if stage == s.stage && fraction < 1.0 {
+        s.stopped_at = Some(fraction);
+        return false;
+    }
+    true
+}
+
+/// Proves (issue 18): a C host's callback is called inside the extraction and the solve, not
+/// only between stages, and a stop there returns PSR_STATUS_CANCELLED with no mesh and no
+/// further call; the same handle then solves again to the mesh a fresh handle makes, bit for
+/// bit. (100,000 points at depth 8: each of these stages lasts far longer than the 20 ms
+/// between calls.)
+#[test]
+fn a_stop_inside_a_long_stage_cancels_and_the_handle_solves_the_same_after() {
+    let setup = |r: *mut psr_reconstructor| unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 8), psr_status::Ok);
+        assert_eq!(psr_reconstructor_set_threads(r, 2), psr_status::Ok);
+        add_sphere(r, 100_000);
+    };
+    let fresh = new_handle();
+    setup(fresh);
+    let Some(m) = solve_or_skip(fresh, "a_stop_inside_a_long_stage_cancels") else {
+        unsafe { psr_reconstructor_free(fresh) };
+        return;
+    };
+    let want = mesh_arrays(m);
+    unsafe {
+        psr_mesh_free(m);
+        psr_reconstructor_free(fresh);
+    }
+    let r = new_handle();
+    setup(r);
+    for stage in [psr_stage::Solve, psr_stage::Extract] {
+        let mut s = StopInside {
+            stage,
+            stopped_at: None,
+            calls_after_stop: 0,
+        };
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        let status = unsafe {
+            let user = ptr::addr_of_mut!(s).cast::<c_void>();
+            assert_eq!(
+                psr_reconstructor_set_progress_callback(r, Some(stop_inside), user),
+                psr_status::Ok
+            );
+            psr_reconstructor_solve(r, &mut mesh)
+        };
+        assert_eq!(
+            status,
+            psr_status::Cancelled,
+            "{stage:?}: {}",
+            last_error(r)
+        );
+        assert_eq!(mesh, sentinel_ptr(), "no mesh on cancellation");
+        let fraction = s.stopped_at.expect("the stage was reported while it ran");
+        assert!((0.0..1.0).contains(&fraction), "{stage:?}: {fraction}");
+        assert_eq!(s.calls_after_stop, 0, "{stage:?}: called after the stop");
+    }
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(r, None, ptr::null_mut()),
+            psr_status::Ok
+        );
+        let mut m = ptr::null_mut();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut m),
+            psr_status::Ok,
+            "{}",
+            last_error(r)
+        );
+        assert!(mesh_arrays(m) == want, "the mesh after the cancels differs");
+        psr_mesh_free(m);
+        psr_reconstructor_free(r);
+    }
+}
+
 #[test]
 fn returning_false_from_the_callback_cancels() {
     for cancel_on_call in [1, 3] {

@@ -42,7 +42,8 @@ pub unsafe extern "C" fn psr_reconstructor_set_progress_callback(
 /// Reconstructs a watertight mesh from r's points and parameters and writes a new mesh to
 /// *out; free it with psr_mesh_free. r keeps its points and parameters and may be solved again.
 /// Runs on the calling thread, using the number of worker threads set with
-/// psr_reconstructor_set_threads; the progress callback, if any, is called on the calling thread.
+/// psr_reconstructor_set_threads; the progress callback, if any, is called on the calling thread,
+/// during every stage at least every 20 ms (see psr_progress_fn).
 ///
 /// r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
 /// PSR_STATUS_EMPTY_INPUT (no points), PSR_STATUS_INVALID_PARAMETER (kernel_depth > depth),
