@@ -18,6 +18,7 @@
 //! node function near the cube's face reaches beyond it, and with free boundaries (the
 //! paper's) that is where its neighbours live.
 
+use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
 use crate::parallel::DistinctIndices;
@@ -54,6 +55,9 @@ pub struct Level {
     /// The sign a value takes across one face: +1 (Neumann, and free, which has no mirrors),
     /// −1 (Dirichlet). See [`Level::mirror_sign`].
     pub face_sign: f64,
+    /// The degree of the node functions (which also decides where a node's function is
+    /// centred, see [`crate::bspline`]): every stage reads it from here.
+    pub degree: Degree,
     index: BrickIndex,
 }
 
@@ -569,6 +573,7 @@ impl Level {
             core: DistinctIndices::new(core),
             mirrors,
             face_sign: mirror_sign.unwrap_or(1.0),
+            degree: Degree::Two,
             index,
         }
     }

@@ -6,7 +6,6 @@ use super::bricks::CoreBricks;
 use super::screening::{padded, tensor_accumulate, Proxies, ScreeningCell, ScreeningCells};
 #[cfg(doc)]
 use super::{divergence, divergence_of_prolonged, fill_mirrors, update_on_core};
-use crate::bspline::tables;
 use crate::octree::Level;
 
 /// The screening term's sweep over the core bricks: each brick collects from the screening
@@ -163,6 +162,7 @@ impl<'a> DepthOperator<'a> {
         let mut out = vec![0.0; level.core.len()];
         bricks.divergence(
             |cb, windows, _| bricks.gather(level, cb, &v, windows),
+            level.degree.tables(),
             1.0 / level.width(),
             &mut out,
         );
@@ -172,7 +172,7 @@ impl<'a> DepthOperator<'a> {
     /// The diagonal of A on the core (for Jacobi preconditioning).
     pub fn diagonal(&mut self) -> Vec<f64> {
         let level = self.level;
-        let t = tables();
+        let t = level.degree.tables();
         let lap = level.width() * 3.0 * t.stiffness[2] * t.mass[2] * t.mass[2];
         let mut out = vec![lap; level.core.len()];
         let Some(cells) = &self.screening_cells else {

@@ -3,6 +3,7 @@
 //! weight W_q), applied brick by brick on the Laplacian's windows.
 
 use super::bricks::{CoreBricks, WINDOW};
+use crate::bspline::Degree;
 use crate::grid::{cell_of, morton_nested};
 use crate::octree::{brick_local, Level, NEAR, NONE};
 use glam::DVec3;
@@ -52,6 +53,8 @@ pub struct Proxies {
     /// The proxy's position in its cell, in cell widths (each coordinate in [0, 1]): 12 bytes
     /// a proxy, where its stencil would take 72 (see [`Proxies::stencil`]).
     pub offset: Vec<[f32; 3]>,
+    /// The degree of the level's node functions (see [`Proxies::stencil`]).
+    pub degree: Degree,
 }
 
 impl Proxies {
@@ -88,7 +91,10 @@ impl Proxies {
                 )
             })
             .collect();
-        let mut proxies = Proxies::default();
+        let mut proxies = Proxies {
+            degree: level.degree,
+            ..Proxies::default()
+        };
         for piece in pieces {
             proxies.cell.extend(piece.cell);
             proxies.weight.extend(piece.weight);
@@ -149,9 +155,15 @@ impl Proxies {
 
     /// b(t − centre) for the three nodes per axis around proxy `q`'s cell (cell − 1, cell,
     /// cell + 1), at the proxy: with f its offset in the cell, the degree-2 B-spline gives
-    /// ½(1 − f)², ¾ − (f − ½)² and ½f².
+    /// ½(1 − f)², ¾ − (f − ½)² and ½f²; degree 1's hats on the cell's corners 0, 1 − f and f.
     #[inline]
     pub fn stencil(&self, q: usize) -> [[f64; 3]; 3] {
+        if self.degree == Degree::One {
+            return self.offset[q].map(|f| {
+                let f = f as f64;
+                [0.0, 1.0 - f, f]
+            });
+        }
         self.offset[q].map(|f| {
             let f = f as f64;
             let g = 1.0 - f;
