@@ -185,6 +185,7 @@ pub(crate) fn run(
             &samples.positions,
             params.effective_full_depth(),
             params.boundary,
+            params.node_degree(),
         )
     });
     let finest = tree.max_depth() as usize;

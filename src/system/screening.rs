@@ -263,6 +263,7 @@ impl ScreeningCells {
     /// `origin`, a block node beyond the cube going to the inside node it mirrors, times
     /// `face_sign` per face crossed (the transpose of [`fill_mirrors`](super::fill_mirrors)).
     fn add_reflected(
+        degree: Degree,
         origin: [i32; 3],
         n: i32,
         face_sign: f64,
@@ -277,11 +278,17 @@ impl ScreeningCells {
             for a in 0..3 {
                 node[a] += w[a] as i32 - 3;
                 let g = origin[a] + node[a];
+                // Degree 1's nodes sit on corners: −g mirrors g, and the faces' own nodes
+                // (0 and n) are inside.
+                let (near, far) = match degree {
+                    Degree::Two => (-1, 2 * n - 1),
+                    Degree::One => (0, 2 * n),
+                };
                 if g < 0 {
-                    node[a] = -1 - g - origin[a];
+                    node[a] = near - g - origin[a];
                     sign *= face_sign;
-                } else if g >= n {
-                    node[a] = 2 * n - 1 - g - origin[a];
+                } else if g > far - n {
+                    node[a] = far - g - origin[a];
                     sign *= face_sign;
                 }
             }
@@ -432,7 +439,7 @@ impl ScreeningCells {
             let mut contribution = [0.0; 27];
             contribute(cell, &mut contribution);
             if reflects {
-                Self::add_reflected(origin, n, face_sign, w, &contribution, acc);
+                Self::add_reflected(level.degree, origin, n, face_sign, w, &contribution, acc);
                 continue;
             }
             // Block node d of a cell at window coordinate w (local + 2) is at local w − 3 + d,

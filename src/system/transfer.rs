@@ -4,7 +4,7 @@
 
 use super::bricks::{BrickNodes, BrickScratch, CoreBricks, WINDOW};
 use crate::bspline::{Degree, REFINE};
-use crate::octree::{axis_interval_masks, brick_local, reflect, AxisStep, Level, NONE};
+use crate::octree::{axis_interval_masks, brick_local, AxisStep, Level, NONE};
 use crate::parallel::split_parts;
 use rayon::prelude::*;
 
@@ -28,8 +28,8 @@ impl ProlongedField<'_> {
         if !self.fine.mirrors.is_empty() {
             // Neumann or Dirichlet: a node outside the cube mirrors its reflection inside, if in
             // K_d, with the signs of [`fill_mirrors_field`](super::fill_mirrors_field).
-            let n = 1i32 << self.fine.depth;
-            if let Some((inside, flips)) = reflect(self.fine.coord(i), n) {
+            let c = self.fine.coord(i);
+            if let Some((inside, flips)) = self.fine.reflect(c) {
                 if let Some(j) = self.fine.find(inside) {
                     let v = prolonged_at(self.coarse, self.fine, self.field, scales, j);
                     let scalar = self.fine.mirror_sign(flips);
@@ -38,6 +38,27 @@ impl ProlongedField<'_> {
                             -scalar * v[axis]
                         } else {
                             scalar * v[axis]
+                        }
+                    });
+                }
+            } else if self.fine.degree == Degree::One {
+                // A node on a face is its own image: the components the reflection would
+                // negate are 0 (as `fill_mirrors_field` leaves them).
+                let n = 1i32 << self.fine.depth;
+                let on = (0..3).fold(0u8, |f, a| f | ((c[a] == 0 || c[a] == n) as u8) << a);
+                if on != 0 {
+                    let v = prolonged_at(self.coarse, self.fine, self.field, scales, i);
+                    let scalar = self.fine.mirror_sign(on);
+                    return std::array::from_fn(|axis| {
+                        let sign = if on & (1 << axis) != 0 {
+                            -scalar
+                        } else {
+                            scalar
+                        };
+                        if sign < 0.0 {
+                            0.0
+                        } else {
+                            v[axis]
                         }
                     });
                 }
@@ -137,7 +158,7 @@ impl CoreBricks {
                 for c in (0..8).filter(|c| corners >> c & 1 == 1) {
                     let w = [x + (c & 1), y + (c >> 1 & 1), z + (c >> 2)];
                     let f: [i32; 3] = std::array::from_fn(|a| origin[a] - 2 + w[a] as i32);
-                    if f.iter().any(|&v| v < 0 || v >= n) {
+                    if fine.follows_mirror_rule(f) {
                         for (window, v) in windows.iter_mut().zip(field.at(node as u32)) {
                             window[w[2] * WINDOW + w[1]][w[0]] = v;
                         }
@@ -315,7 +336,7 @@ fn prolong_by_brick<const C: usize>(
                         let l = brick_local(word * 64 + bit as usize);
                         let f: [i32; 3] = std::array::from_fn(|a| origin[a] + l[a] as i32);
                         let value = match at_mirror {
-                            Some(at) if f.iter().any(|&v| v < 0 || v >= n) => at(node),
+                            Some(at) if fine.follows_mirror_rule(f) => at(node),
                             _ => {
                                 prolonged_from_window(fine.degree, window, coarse_origin, f, scale)
                             }
