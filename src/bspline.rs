@@ -79,16 +79,8 @@ pub enum Degree {
 }
 
 impl Degree {
-    /// The polynomial degree, 1 or 2.
-    pub fn as_u8(self) -> u8 {
-        match self {
-            Degree::One => 1,
-            Degree::Two => 2,
-        }
-    }
-
     /// Where node i's function is centred, in node widths: i + this.
-    #[inline]
+    #[cfg(test)]
     pub fn centre_offset(self) -> f64 {
         match self {
             Degree::One => 0.0,
@@ -97,21 +89,11 @@ impl Degree {
     }
 
     /// The 1-D base function at `t` node widths from its centre.
-    #[inline]
+    #[cfg(test)]
     pub fn value(self, t: f64) -> f64 {
         match self {
             Degree::One => hat(t),
             Degree::Two => value(t),
-        }
-    }
-
-    /// Its derivative (in node widths; one-sided limits agree away from the kinks, and at a kink
-    /// of the hat the value of the piece on the right is given).
-    #[inline]
-    pub fn derivative(self, t: f64) -> f64 {
-        match self {
-            Degree::One => hat_derivative(t),
-            Degree::Two => derivative(t),
         }
     }
 

@@ -428,6 +428,7 @@ impl Octree {
     /// face lands on the mirrored node inside), and every halo node outside it is linked to the
     /// inside node it mirrors; with free boundaries the core may reach one node beyond the
     /// cube, where functions still overlap it.
+    #[cfg(test)]
     pub fn build(sample_cells: Vec<Vec<Coord>>, full_depth: u32, boundary: Boundary) -> Octree {
         Self::build_for(sample_cells, full_depth, boundary, Degree::Two)
     }

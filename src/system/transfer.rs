@@ -303,7 +303,6 @@ fn prolong_by_brick<const C: usize>(
     outputs: [&mut [f64]; C],
     combine: impl Fn(f64, f64) -> f64 + Sync,
 ) {
-    let n = 1i32 << fine.depth;
     let index = fine.bricks();
     let bricks = || {
         (0..index.brick_count()).map(|b| {
