@@ -786,7 +786,8 @@ psr_status psr_reconstructor_get_scale(const psr_reconstructor *r, float *out);
 
 /**
  * Sets the screening weight alpha (Kazhdan & Hoppe 2013): how strongly the surface is pulled
- * onto the samples; 0 gives the unscreened 2006 method. Default 4, range 0 to 1e6.
+ * onto the samples; 0 gives the unscreened 2006 method. Default 4 (2 x the default degree 2;
+ * psr_reconstructor_set_degree sets it to 2 x the degree), range 0 to 1e6.
  * PoissonRecon --pointWeight, PCL setPointWeight.
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
@@ -804,6 +805,31 @@ psr_status psr_reconstructor_set_point_weight(psr_reconstructor *r, float point_
  * `r` is NULL or a live handle; `out` is NULL or valid for writes.
  */
 psr_status psr_reconstructor_get_point_weight(const psr_reconstructor *r, float *out);
+
+/**
+ * Sets the degree of the B-spline node functions: 2 (the default; a smooth gradient) or 1
+ * (piecewise-linear, PoissonRecon's and Open3D's default; cheaper per unknown). Also sets the
+ * screening weight to 2 x degree (PoissonRecon's default for that degree): call
+ * psr_reconstructor_set_point_weight after this for another weight. PoissonRecon --degree,
+ * PCL setDegree.
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+ * (PSR_STATUS_INVALID_PARAMETER for any value but 1 and 2, leaving the degree and the
+ * screening weight as they were).
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_degree(psr_reconstructor *r, int32_t degree);
+
+/**
+ * Writes the B-spline degree (1 or 2) to *out. r and out must not be NULL. Returns the
+ * statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_degree(const psr_reconstructor *r, int32_t *out);
 
 /**
  * Sets the number of worker threads psr_reconstructor_solve uses; 0 (the default) means one

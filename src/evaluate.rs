@@ -6,7 +6,9 @@
 //! p the deepest depth whose core functions reach p (p's cell has the `NEAR` flag) holds all of
 //! χ(p): no finer node function is non-zero there, and every coarser one is included in z_d.
 
+#[cfg(test)]
 use crate::bspline::stencil27;
+use crate::bspline::Degree;
 use crate::grid::cell_of;
 use crate::octree::{Octree, NEAR, NONE};
 use glam::DVec3;
@@ -61,7 +63,9 @@ impl Indicator {
 
     /// χ(p) from the block of a point in p's cell.
     pub fn value_in(&self, block: &Block, p: DVec3) -> f64 {
-        let (_, st) = stencil27(p, block.inv_h);
+        let (_, st) = self.tree.levels[block.depth]
+            .degree
+            .stencil27(p, block.inv_h);
         let x = &self.coefficients[block.depth];
         let mut sum = 0.0;
         for (slot, &n) in block.nodes.iter().enumerate() {
@@ -79,10 +83,12 @@ impl Indicator {
     /// depth). At a corner the B-spline weights per axis of the corner's block are ½, ½ and 0
     /// (exactly), so the sum runs over the eight nodes that touch the corner, all in the
     /// cell's block: the corners of a cell need no look-up of their own, and its 27
-    /// coefficients are read once for all of them.
+    /// coefficients are read once for all of them. With degree 1 the weights are 0, 1 and 0:
+    /// χ at a corner is the coefficient of the node on it.
     pub fn finest_corner_values(&self, nodes: &[u32; 27]) -> [Option<f64>; 8] {
         let depth = self.tree.levels.len() - 1;
         let flags = &self.tree.levels[depth].flags;
+        let linear = self.tree.levels[depth].degree == Degree::One;
         let x = &self.coefficients[depth];
         let coefficient = nodes.map(|n| (n != NONE).then(|| x[n as usize]));
         std::array::from_fn(|corner| {
@@ -90,6 +96,10 @@ impl Indicator {
             let own = nodes[(1 + c[0]) + 3 * (1 + c[1]) + 9 * (1 + c[2])];
             if own == NONE || flags[own as usize] & NEAR == 0 {
                 return None;
+            }
+            if linear {
+                // `value_in`'s sum has one non-zero term, weight 1 · 1 · 1.
+                return Some(x[own as usize]);
             }
             // `value_in`'s sum over the corner's block, in its order, without the slots of
             // weight zero; slot (i, j, k) there is node (c + i, c + j, c + k) of the cell's block.
@@ -109,8 +119,13 @@ impl Indicator {
 
     /// ∇χ(p) from the block of a point in p's cell: degree-2 B-splines have continuous first
     /// derivatives.
+    ///
+    /// With degree 1, ∇χ is discontinuous across cell faces: this is the gradient of the
+    /// trilinear piece in the cell of p at the block's depth (the cell `block` was found from).
     pub fn gradient_in(&self, block: &Block, p: DVec3) -> DVec3 {
-        let (value, slope) = stencil27_with_slopes(p, block.inv_h);
+        let (value, slope) = self.tree.levels[block.depth]
+            .degree
+            .stencil27_with_slopes(p, block.inv_h);
         let x = &self.coefficients[block.depth];
         let mut g = DVec3::ZERO;
         for (slot, &n) in block.nodes.iter().enumerate() {
@@ -127,20 +142,6 @@ impl Indicator {
         }
         g * block.inv_h
     }
-}
-
-/// The 27-node weights of [`stencil27`] with, per axis, the B-spline derivatives beside the
-/// values (in node-width units: multiply by 1/h for d/dx).
-fn stencil27_with_slopes(p: DVec3, inv_h: f64) -> ([[f64; 3]; 3], [[f64; 3]; 3]) {
-    let (cell, value) = stencil27(p, inv_h);
-    let t = p * inv_h;
-    let mut slope = [[0.0; 3]; 3];
-    for axis in 0..3 {
-        for (k, slot) in slope[axis].iter_mut().enumerate() {
-            *slot = crate::bspline::derivative(t[axis] - (cell[axis] as f64 - 0.5 + k as f64));
-        }
-    }
-    (value, slope)
 }
 
 #[cfg(test)]

@@ -18,6 +18,7 @@
 //! node function near the cube's face reaches beyond it, and with free boundaries (the
 //! paper's) that is where its neighbours live.
 
+use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::error::Result;
 use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
@@ -52,9 +53,17 @@ pub struct Level {
     /// mirrors (its reflection across the cube's faces, inside the cube) and a bit per reflected
     /// axis.
     pub mirrors: Vec<Mirror>,
+    /// Degree 1 with Neumann or Dirichlet boundaries: the halo nodes on the cube's faces
+    /// (`inside` = `outside`, `flips` the axes whose face they lie on), which are their own
+    /// mirror images: an even extension keeps their value (and scales their rows, see
+    /// [`Level::face_scale`]), an odd one makes it 0. Empty otherwise.
+    pub faces: Vec<Mirror>,
     /// The sign a value takes across one face: +1 (Neumann, and free, which has no mirrors),
     /// −1 (Dirichlet). See [`Level::mirror_sign`].
     pub face_sign: f64,
+    /// The degree of the node functions (which also decides where a node's function is
+    /// centred, see [`crate::bspline`]): every stage reads it from here.
+    pub degree: Degree,
     index: BrickIndex,
 }
 
@@ -69,6 +78,39 @@ impl Level {
         } else {
             1.0
         }
+    }
+
+    /// Reflects a node coordinate into the cube across its faces ([`reflect`] for degree 2,
+    /// [`reflect_corner`] for degree 1), `None` if it is inside.
+    #[inline]
+    pub fn reflect(&self, c: Coord) -> Option<(Coord, u8)> {
+        let n = 1i32 << self.depth;
+        match self.degree {
+            Degree::Two => reflect(c, n),
+            Degree::One => reflect_corner(c, n),
+        }
+    }
+
+    /// Whether a node at `c` takes its value from the mirrors' rule rather than from its own
+    /// coefficient: beyond the cube, or (degree 1) on one of its faces.
+    #[inline]
+    pub fn follows_mirror_rule(&self, c: Coord) -> bool {
+        let n = 1i32 << self.depth;
+        match self.degree {
+            Degree::Two => c.iter().any(|&v| v < 0 || v >= n),
+            Degree::One => c.iter().any(|&v| v <= 0 || v >= n),
+        }
+    }
+
+    /// The factor by which a face node's row of the Laplacian and of the right-hand side is
+    /// scaled (degree 1 with mirrors): ½ per face the node lies on. The free-space stencils
+    /// integrate its function over both sides of the face, twice the cube's part (the even
+    /// extension is symmetric); the screening sums only over the cube, and so must the rest
+    /// of the row, for the system to be the Galerkin system of the folded basis on the cube
+    /// (and symmetric).
+    #[inline]
+    pub fn face_scale(flips: u8) -> f64 {
+        0.5f64.powi(flips.count_ones() as i32)
     }
 
     /// The brick index of K_d (for brick-by-brick traversals).
@@ -295,6 +337,24 @@ pub fn reflect(c: Coord, n: i32) -> Option<(Coord, u8)> {
     (flips != 0).then_some((out, flips))
 }
 
+/// [`reflect`] for degree-1 nodes, which sit on cell corners: the faces are at nodes 0 and n, so
+/// node −i mirrors node i and n + i mirrors n − i; nodes on a face are their own images (inside).
+#[inline]
+pub fn reflect_corner(c: Coord, n: i32) -> Option<(Coord, u8)> {
+    let mut out = c;
+    let mut flips = 0u8;
+    for a in 0..3 {
+        if c[a] < 0 {
+            out[a] = -c[a];
+            flips |= 1 << a;
+        } else if c[a] > n {
+            out[a] = 2 * n - c[a];
+            flips |= 1 << a;
+        }
+    }
+    (flips != 0).then_some((out, flips))
+}
+
 /// Neumann and Dirichlet boundaries: sets every mirror node outside the cube to the value of
 /// the inside node it reflects times [`Level::mirror_sign`], so free-space stencils act as the
 /// folded basis, even (Neumann) or odd (Dirichlet); no-op with free boundaries.
@@ -305,6 +365,11 @@ pub fn reflect(c: Coord, n: i32) -> Option<(Coord, u8)> {
 pub fn fill_mirrors(level: &Level, x: &mut [f64]) {
     for m in &level.mirrors {
         x[m.outside as usize] = level.mirror_sign(m.flips) * x[m.inside as usize];
+    }
+    for f in &level.faces {
+        if level.mirror_sign(f.flips) < 0.0 {
+            x[f.outside as usize] = 0.0;
+        }
     }
 }
 
@@ -321,6 +386,20 @@ pub fn fill_mirrors_field(level: &Level, v: &mut [Vec<f64>; 3]) {
                 scalar
             };
             comp[m.outside as usize] = sign * comp[m.inside as usize];
+        }
+    }
+    // A degree-1 node on a face is its own image: a component the reflection would negate is 0.
+    for f in &level.faces {
+        let scalar = level.mirror_sign(f.flips);
+        for (axis, comp) in v.iter_mut().enumerate() {
+            let sign = if f.flips & (1 << axis) != 0 {
+                -scalar
+            } else {
+                scalar
+            };
+            if sign < 0.0 {
+                comp[f.outside as usize] = 0.0;
+            }
         }
     }
 }
@@ -353,19 +432,34 @@ impl Octree {
     /// (The pipeline builds through [`Octree::around_samples`]; tests call this directly.)
     #[cfg(test)]
     pub fn build(sample_cells: Vec<Vec<Coord>>, full_depth: u32, boundary: Boundary) -> Octree {
+        Self::build_for(sample_cells, full_depth, boundary, Degree::Two)
+    }
+
+    /// [`Octree::build`] for node functions of `degree`.
+    #[cfg(test)]
+    pub fn build_for(
+        sample_cells: Vec<Vec<Coord>>,
+        full_depth: u32,
+        boundary: Boundary,
+        degree: Degree,
+    ) -> Octree {
         let unwatched = Watch::new();
-        match Octree::build_watched(sample_cells, full_depth, boundary, &unwatched) {
+        match Octree::build_watched(sample_cells, full_depth, boundary, degree, &unwatched) {
             Ok(tree) => tree,
             Err(e) => unreachable!("a watch nobody cancels stopped the build: {e}"),
         }
     }
 
-    /// [`Octree::build`], reporting its progress to `watch` and stopping (with
-    /// `Error::Cancelled`) between depths when it is cancelled.
+    /// [`Octree::build_for`], reporting its progress to `watch` and stopping (with
+    /// `Error::Cancelled`) between depths when it is cancelled. Degree 1's nodes sit on cell
+    /// corners, so with mirrors the nodes inside the cube are 0..=n per axis (n = 2^d): with
+    /// Neumann the core reaches the far face's nodes n, with Dirichlet it leaves out both faces'
+    /// nodes (χ is 0 there), and every face node is listed in [`Level::faces`].
     fn build_watched(
         sample_cells: Vec<Vec<Coord>>,
         full_depth: u32,
         boundary: Boundary,
+        degree: Degree,
         watch: &Watch,
     ) -> Result<Octree> {
         let mirror_sign = boundary.mirror_sign();
@@ -374,10 +468,11 @@ impl Octree {
         let mut cores: Vec<Vec<u64>> = vec![Vec::new(); sample_cells.len()];
         for d in (0..=max_depth).rev() {
             let n = 1i32 << d;
-            let (lo, hi) = if mirror_sign.is_some() {
-                (0, n - 1)
-            } else {
-                (-1, n)
+            let (lo, hi) = match (mirror_sign, degree) {
+                (None, _) => (-1, n),
+                (Some(_), Degree::Two) => (0, n - 1),
+                (Some(sign), Degree::One) if sign > 0.0 => (0, n),
+                (Some(_), Degree::One) => (1, n - 1),
             };
             let clip = |keys: Vec<u64>| -> Vec<u64> {
                 keys.into_iter()
@@ -402,14 +497,25 @@ impl Octree {
             }
             if d <= full_depth {
                 let mut grid = Vec::with_capacity((n as usize).pow(3));
-                for z in 0..n {
-                    for y in 0..n {
-                        for x in 0..n {
+                // Every node inside the cube: the cells (degree 2) or the corners in the core's
+                // range (degree 1 with mirrors).
+                let range = match (mirror_sign, degree) {
+                    (Some(_), Degree::One) => lo..hi + 1,
+                    _ => 0..n,
+                };
+                for z in range.clone() {
+                    for y in range.clone() {
+                        for x in range.clone() {
                             grid.push(pack([x, y, z]));
                         }
                     }
                 }
                 keys = merge_unique(&keys, &grid);
+                if degree == Degree::One {
+                    // A parent of a degree-1 core node can be a face node (⌊1/2⌋ = 0), which
+                    // Dirichlet leaves out of the core.
+                    keys = clip(keys);
+                }
             } else {
                 keys = clip(dilate(&keys, 1));
             }
@@ -425,7 +531,8 @@ impl Octree {
             .enumerate()
             .map(|(d, core)| {
                 // (A cancelled build skips the levels not yet started.)
-                (!watch.is_cancelled()).then(|| Level::with_halo(d as u32, &core, mirror_sign))
+                (!watch.is_cancelled())
+                    .then(|| Level::with_halo(d as u32, &core, mirror_sign, degree))
             })
             .collect::<Option<Vec<Level>>>()
             .ok_or(crate::Error::Cancelled)?;
@@ -441,7 +548,9 @@ impl Octree {
                 .collect();
             let mut parents = vec![NONE; core_keys.len()];
             coarse_parents(coarse, &core_keys, &mut parents);
-            for p in parents {
+            // (Every parent is there but a degree-1 Dirichlet face node's, which is no node of
+            // depth 0, where that core is empty.)
+            for p in parents.into_iter().filter(|&p| p != NONE) {
                 coarse.flags[p as usize] |= SPLIT;
             }
         }
@@ -456,6 +565,7 @@ impl Octree {
         positions: &[DVec3],
         full_depth: u32,
         boundary: Boundary,
+        degree: Degree,
         watch: &Watch,
     ) -> Result<Octree> {
         let sample_cells: Vec<Vec<Coord>> = at_depth
@@ -468,7 +578,7 @@ impl Octree {
                     .collect()
             })
             .collect();
-        Octree::build_watched(sample_cells, full_depth, boundary, watch)
+        Octree::build_watched(sample_cells, full_depth, boundary, degree, watch)
     }
 
     pub fn max_depth(&self) -> u32 {
@@ -515,7 +625,7 @@ impl Level {
     /// nodes, NEAR the core widened by one. The widening runs on bit rows of 8×8×8 bricks
     /// ([`BrickRows`]), and the bricks sorted by key list the nodes in Morton order (a brick's
     /// positions are its keys' low nine bits): no per-node sort and no per-node look-up.
-    fn with_halo(depth: u32, core: &[u64], mirror_sign: Option<f64>) -> Level {
+    fn with_halo(depth: u32, core: &[u64], mirror_sign: Option<f64>, degree: Degree) -> Level {
         let core_rows = BrickRows::from_packed(core);
         let near_rows = core_rows.widened();
         let halo_rows = near_rows.widened();
@@ -543,6 +653,7 @@ impl Level {
         let mut flags = Vec::with_capacity(total);
         let mut core = Vec::new();
         let mut mirrors = Vec::new();
+        let mut faces = Vec::new();
         let n = 1i32 << depth;
         for (&(brick, _), [halo, near, in_core]) in bricks.iter().zip(&masks) {
             let first = keys.len() as u32;
@@ -570,8 +681,22 @@ impl Level {
                 // A brick's nodes outside the cube mirror nodes inside; in the same halo,
                 // since the reflection of a halo node is within two nodes of the same core nodes.
                 for i in first..k {
-                    if let Some((inside, flips)) = reflect(unmorton(keys[i as usize]), n) {
+                    let c = unmorton(keys[i as usize]);
+                    let reflected = match degree {
+                        Degree::Two => reflect(c, n),
+                        Degree::One => reflect_corner(c, n),
+                    };
+                    if let Some((inside, flips)) = reflected {
                         mirrors.push((i, morton(inside), flips));
+                    } else if degree == Degree::One {
+                        let on = (0..3).fold(0u8, |f, a| f | ((c[a] == 0 || c[a] == n) as u8) << a);
+                        if on != 0 {
+                            faces.push(Mirror {
+                                outside: i,
+                                inside: i,
+                                flips: on,
+                            });
+                        }
                     }
                 }
             }
@@ -596,7 +721,9 @@ impl Level {
             flags,
             core: DistinctIndices::new(core),
             mirrors,
+            faces,
             face_sign: mirror_sign.unwrap_or(1.0),
+            degree,
             index,
         }
     }

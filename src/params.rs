@@ -136,9 +136,18 @@ pub struct Params {
     /// [1, 100]. PoissonRecon `--scale`, Open3D `scale`, PCL `setScale`.
     pub scale: f32,
     /// Screening weight α (Kazhdan & Hoppe 2013): how strongly the surface is pulled onto the
-    /// samples. 0 gives the 2006 method. Default 4 (2 × the B-spline degree, PoissonRecon's rule),
-    /// range [0, 1e6]. PoissonRecon `--pointWeight`, PCL `setPointWeight`.
+    /// samples. 0 gives the 2006 method. Default 4 (2 × the B-spline degree, PoissonRecon's rule);
+    /// [`Params::with_degree`] sets it to 2 × the new degree, so set it after the degree to
+    /// override. Range [0, 1e6]. PoissonRecon `--pointWeight`, PCL `setPointWeight`, Open3D's
+    /// fixed 2 (with degree 1).
     pub point_weight: f32,
+    /// Degree of the B-spline node functions: 2 (default; support 3 cells, continuous ∇χ) or 1
+    /// (piecewise-linear hats on the cell corners, support 2 cells: 3-wide stencils instead of
+    /// 5-wide, so cheaper per unknown, and a continuous χ whose gradient jumps across cells).
+    /// Both give closed manifold meshes by the same extraction, with every boundary kind.
+    /// PoissonRecon `--degree` (its default is 1), Open3D's fixed degree 1, PCL `setDegree`. See [`Params::with_degree`] for the point weight that
+    /// follows it.
+    pub degree: u8,
     /// Worker threads for this reconstruction; 0 = all cores. Default 0. The result does not
     /// depend on it. Open3D `n_threads`, PCL `setThreads`.
     pub threads: usize,
@@ -187,6 +196,7 @@ impl Default for Params {
             samples_per_node: 1.5,
             scale: 1.1,
             point_weight: 4.0,
+            degree: 2,
             threads: 0,
             max_solver_iterations: 60,
             solver_tolerance: 1e-2,
@@ -241,6 +251,27 @@ impl Params {
     pub fn with_point_weight(mut self, point_weight: f32) -> Self {
         self.point_weight = point_weight;
         self
+    }
+
+    /// These parameters with [`Params::degree`] set to `degree` and [`Params::point_weight`] to
+    /// 2 × `degree`, PoissonRecon's default for that degree (so `with_degree(1)` screens as
+    /// PoissonRecon's and Open3D's defaults do); call [`Params::with_point_weight`] after it for
+    /// another weight. A degree other than 1 or 2 is refused by [`Params::validate`] (and the
+    /// point weight is then left as it was).
+    pub fn with_degree(mut self, degree: u8) -> Self {
+        self.degree = degree;
+        if (1..=2).contains(&degree) {
+            self.point_weight = 2.0 * degree as f32;
+        }
+        self
+    }
+
+    /// The degree as the node functions' [`crate::bspline::Degree`] (validated parameters).
+    pub(crate) fn node_degree(&self) -> crate::bspline::Degree {
+        match self.degree {
+            1 => crate::bspline::Degree::One,
+            _ => crate::bspline::Degree::Two,
+        }
     }
 
     /// These parameters with [`Params::threads`] set to `threads`.
@@ -381,6 +412,10 @@ impl Params {
                 "a number in [0, 1e6]",
             ));
         }
+        if !(1..=2).contains(&self.degree) {
+            return Err(bad("degree", self.degree, "1 or 2"));
+        }
+
         if self.threads > 4096 {
             return Err(bad(
                 "threads",

@@ -216,6 +216,7 @@ pub(crate) fn run(
             &samples.positions,
             params.effective_full_depth(),
             params.boundary,
+            params.node_degree(),
             watch,
         )
     })?;

@@ -138,6 +138,11 @@ pub(crate) fn cascade(
             rhs.par_iter_mut()
                 .zip(level.core.par_iter().zip(&coarse_div))
                 .for_each(|(a, (&c, div))| *a = rho_here[c as usize] + div - *a);
+            // Degree-1 face rows: ⟨∇B_o, V⟩ scaled as the Laplacian's rows are.
+            for &(position, scale) in op.face_rows() {
+                let c = level.core[position] as usize;
+                rhs[position] -= (1.0 - scale) * (rho_here[c] + coarse_div[position]);
+            }
             if let Some(target) = params.boundary.screening_target() {
                 op.add_screening_target(target, &mut rhs);
             }

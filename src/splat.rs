@@ -17,6 +17,7 @@
 //! sign (the same for both kinds): V's values beyond the faces then follow from the inside ones
 //! with the boundary's signs ([`fill_mirrors_field`]).
 
+use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::grid::cell_of;
 use crate::octree::{brick_local, fill_mirrors_field, BrickCursor, Level};
@@ -59,6 +60,7 @@ fn splat_depth(
 ) -> [Vec<f64>; 3] {
     let inv_h = (level.depth as f64).exp2();
     let n = 1i32 << level.depth;
+    let linear = level.degree == Degree::One;
     // Samples grouped by the level index of their cell, in sample order within a cell.
     let mut by_cell: Vec<(u32, DepthSample)> = at_depth
         .par_iter()
@@ -120,9 +122,16 @@ fn splat_depth(
                         o[2] + dz as i32 - 1,
                     ];
                     let mut weight = 1.0;
-                    for axis in 0..3 {
-                        weight *=
-                            axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, fold);
+                    if linear {
+                        // Degree 1: the hats of the cell's corners (trilinear weights).
+                        for axis in 0..3 {
+                            weight *= crate::bspline::hat(t[axis] - o[axis] as f64);
+                        }
+                    } else {
+                        for axis in 0..3 {
+                            weight *=
+                                axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, fold);
+                        }
                     }
                     let normal = DVec3::from_array(normals[s.sample as usize].map(f64::from));
                     sum += normal * (s.mass * weight);

@@ -130,6 +130,7 @@ fn null_for_every_pointer_argument() {
         assert_eq!(psr_reconstructor_set_samples_per_node(null_r, 2.0), NULL);
         assert_eq!(psr_reconstructor_set_scale(null_r, 1.2), NULL);
         assert_eq!(psr_reconstructor_set_point_weight(null_r, 2.0), NULL);
+        assert_eq!(psr_reconstructor_set_degree(null_r, 1), NULL);
         assert_eq!(psr_reconstructor_set_threads(null_r, 1), NULL);
         assert_eq!(
             psr_reconstructor_set_max_solver_iterations(null_r, 10),
@@ -154,6 +155,7 @@ fn null_for_every_pointer_argument() {
         assert_eq!(psr_reconstructor_get_samples_per_node(null_r, &mut f), NULL);
         assert_eq!(psr_reconstructor_get_scale(null_r, &mut f), NULL);
         assert_eq!(psr_reconstructor_get_point_weight(null_r, &mut f), NULL);
+        assert_eq!(psr_reconstructor_get_degree(null_r, &mut 0), NULL);
         assert_eq!(psr_reconstructor_get_threads(null_r, &mut u), NULL);
         assert_eq!(
             psr_reconstructor_get_max_solver_iterations(null_r, &mut u),
@@ -178,6 +180,7 @@ fn null_for_every_pointer_argument() {
         );
         assert_eq!(psr_reconstructor_get_scale(r, ptr::null_mut()), NULL);
         assert_eq!(psr_reconstructor_get_point_weight(r, ptr::null_mut()), NULL);
+        assert_eq!(psr_reconstructor_get_degree(r, ptr::null_mut()), NULL);
         assert_eq!(psr_reconstructor_get_threads(r, ptr::null_mut()), NULL);
         assert_eq!(
             psr_reconstructor_get_max_solver_iterations(r, ptr::null_mut()),
@@ -450,6 +453,38 @@ fn setters_round_trip_and_reject_out_of_range_values_by_name() {
             psr_status::Ok
         );
         assert_eq!(f, 0.0);
+        // The degree: 2 by default; setting it sets the point weight to 2 × degree; a bad
+        // degree is refused with its name and leaves both as they were.
+        let mut deg = 0i32;
+        assert_eq!(psr_reconstructor_get_degree(r, &mut deg), psr_status::Ok);
+        assert_eq!(deg, 2);
+        assert_eq!(psr_reconstructor_set_degree(r, 1), psr_status::Ok);
+        assert_eq!(psr_reconstructor_get_degree(r, &mut deg), psr_status::Ok);
+        assert_eq!(deg, 1);
+        assert_eq!(
+            psr_reconstructor_get_point_weight(r, &mut f),
+            psr_status::Ok
+        );
+        assert_eq!(f, 2.0);
+        for bad in [0, 3, 7, -1, 257, i32::MIN] {
+            assert_eq!(
+                psr_reconstructor_set_degree(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(last_error(r).contains("degree"), "{}", last_error(r));
+        }
+        assert_eq!(psr_reconstructor_get_degree(r, &mut deg), psr_status::Ok);
+        assert_eq!(deg, 1, "a rejected degree leaves the degree as it was");
+        assert_eq!(
+            psr_reconstructor_get_point_weight(r, &mut f),
+            psr_status::Ok
+        );
+        assert_eq!(
+            f, 2.0,
+            "a rejected degree leaves the point weight as it was"
+        );
+        assert_eq!(psr_reconstructor_set_degree(r, 2), psr_status::Ok);
+        assert_eq!(psr_reconstructor_set_point_weight(r, 0.0), psr_status::Ok);
         assert_eq!(psr_reconstructor_set_threads(r, 2), psr_status::Ok);
         assert_eq!(psr_reconstructor_get_threads(r, &mut u), psr_status::Ok);
         assert_eq!(u, 2);

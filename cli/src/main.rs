@@ -112,10 +112,17 @@ struct Args {
     scale: f32,
 
     /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples; 0 is the
-    /// unscreened 2006 method. PoissonRecon: --pointWeight (default 2 × the B-spline degree there
-    /// too: 2 for its default --degree 1, 4 for psr's degree 2).
-    #[arg(long, alias = "pointWeight", value_name = "W", default_value_t = Params::default().point_weight)]
-    point_weight: f32,
+    /// unscreened 2006 method. Default 2 × --degree (4 at psr's default degree 2, 2 at degree
+    /// 1). PoissonRecon: --pointWeight (default 2 × the B-spline degree there too: 2 for its
+    /// default --degree 1).
+    #[arg(long, alias = "pointWeight", value_name = "W")]
+    point_weight: Option<f32>,
+
+    /// Degree of the B-spline node functions: 2 (default; smooth gradient) or 1 (piecewise-linear,
+    /// PoissonRecon's and Open3D's default: cheaper per unknown). Also sets the default
+    /// --point-weight to 2 × degree. PoissonRecon: --degree
+    #[arg(long, value_name = "1|2", default_value_t = Params::default().degree)]
+    degree: u8,
 
     /// Worker threads; 0 = all cores. The result does not depend on it. PoissonRecon: none in
     /// 18.75 (it uses all cores).
@@ -430,14 +437,19 @@ impl Args {
     /// The parameters the options give; a parameter the library adds keeps its default here
     /// until it gets an option.
     fn params(&self) -> Params {
-        Params::default()
+        let params = Params::default()
             .with_depth(self.depth)
             .with_width(self.width)
             .with_full_depth(self.full_depth)
             .with_kernel_depth(self.kernel_depth)
             .with_samples_per_node(self.samples_per_node)
             .with_scale(self.scale)
-            .with_point_weight(self.point_weight)
+            .with_degree(self.degree);
+        let params = match self.point_weight {
+            Some(w) => params.with_point_weight(w),
+            None => params,
+        };
+        params
             .with_threads(self.threads)
             .with_max_solver_iterations(self.iters)
             .with_solver_tolerance(self.tolerance)

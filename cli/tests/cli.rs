@@ -254,6 +254,7 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--samples-per-node", "--samplesPerNode"),
         ("--scale", "--scale"),
         ("--point-weight", "--pointWeight"),
+        ("--degree", "--degree"),
         ("--threads", "none"),
         ("--iters", "--iters"),
         ("--tolerance", "--cgAccuracy"),

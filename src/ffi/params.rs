@@ -296,7 +296,8 @@ pub unsafe extern "C" fn psr_reconstructor_get_scale(
 }
 
 /// Sets the screening weight alpha (Kazhdan & Hoppe 2013): how strongly the surface is pulled
-/// onto the samples; 0 gives the unscreened 2006 method. Default 4, range 0 to 1e6.
+/// onto the samples; 0 gives the unscreened 2006 method. Default 4 (2 x the default degree 2;
+/// psr_reconstructor_set_degree sets it to 2 x the degree), range 0 to 1e6.
 /// PoissonRecon --pointWeight, PCL setPointWeight.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
@@ -333,6 +334,64 @@ pub unsafe extern "C" fn psr_reconstructor_get_point_weight(
             p.point_weight
         })
     }
+}
+
+/// Sets the degree of the B-spline node functions: 2 (the default; a smooth gradient) or 1
+/// (piecewise-linear, PoissonRecon's and Open3D's default; cheaper per unknown). Also sets the
+/// screening weight to 2 x degree (PoissonRecon's default for that degree): call
+/// psr_reconstructor_set_point_weight after this for another weight. PoissonRecon --degree,
+/// PCL setDegree.
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth
+/// (PSR_STATUS_INVALID_PARAMETER for any value but 1 and 2, leaving the degree and the
+/// screening weight as they were).
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_degree(
+    r: *mut psr_reconstructor,
+    degree: i32,
+) -> psr_status {
+    const FUNCTION: &str = "psr_reconstructor_set_degree";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way and holds no reference to r meanwhile.
+        let handle = unsafe { handle_mut(FUNCTION, r) }?;
+        let degree = u8::try_from(degree)
+            .ok()
+            .filter(|d| (1..=2).contains(d))
+            .ok_or_else(|| {
+                Failure::from_error(
+                    FUNCTION,
+                    Error::InvalidParameter {
+                        name: "degree",
+                        value: degree.to_string(),
+                        expected: "1 or 2",
+                    },
+                )
+            })?;
+        handle.params = handle.params.clone().with_degree(degree);
+        Ok(())
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(FUNCTION, r, body) }
+}
+
+/// Writes the B-spline degree (1 or 2) to *out. r and out must not be NULL. Returns the
+/// statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_degree(
+    r: *const psr_reconstructor,
+    out: *mut i32,
+) -> psr_status {
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe { get_param("psr_reconstructor_get_degree", r, out, |p| p.degree as i32) }
 }
 
 /// Sets the number of worker threads psr_reconstructor_solve uses; 0 (the default) means one

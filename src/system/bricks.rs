@@ -8,7 +8,7 @@
 //! POPCNT variants of the passes and gathers live in [`super::simd`].
 
 use super::screening::{Proxies, ScreeningCells, PADDED};
-use crate::bspline::{tables, Tables};
+use crate::bspline::Tables;
 use crate::octree::{brick_local, BrickIndex, Level};
 use crate::parallel::split_parts;
 use rayon::prelude::*;
@@ -267,7 +267,7 @@ impl CoreBricks {
         weighted_chi: Option<(&ScreeningCells, &Proxies, &mut [f64])>,
         out: &mut [f64],
     ) {
-        let t = tables();
+        let t = level.degree.tables();
         let (screening, chi_parts): (_, Vec<&mut [f64]>) = match weighted_chi {
             Some((cells, proxies, chi)) => {
                 let bricks =
@@ -292,14 +292,15 @@ impl CoreBricks {
     }
 
     /// `out[c]` = ⟨∇B_c, V⟩ = (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)) at every
-    /// core node c, for V's coefficients `v(n)` on K_d.
+    /// core node c, for V's coefficients `v(n)` on K_d, with the 1-D tables `t` of the level's
+    /// degree.
     pub(super) fn divergence(
         &self,
         fill: impl Fn(usize, &mut [Vec<[f64; WINDOW]>; 3], &mut BrickScratch) + Sync,
+        t: &Tables,
         inv_h: f64,
         out: &mut [f64],
     ) {
-        let t = tables();
         self.for_each_brick(
             fill,
             out,

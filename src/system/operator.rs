@@ -6,8 +6,7 @@ use super::bricks::CoreBricks;
 use super::screening::{padded, tensor_accumulate, Proxies, ScreeningCell, ScreeningCells};
 #[cfg(doc)]
 use super::{divergence, divergence_of_prolonged, fill_mirrors, update_on_core};
-use crate::bspline::tables;
-use crate::octree::Level;
+use crate::octree::{Level, CORE};
 
 /// The screening term's sweep over the core bricks: each brick collects from the screening
 /// cells within one node of it the 27 block values `contribute` gives for a cell (W_q χ(q) for
@@ -56,6 +55,9 @@ pub struct DepthOperator<'a> {
     screening_cells: Option<ScreeningCells>,
     /// W_q χ(q) at every proxy during a product (empty without screening).
     weighted_chi: Vec<f64>,
+    /// Degree 1 with Neumann boundaries: the core nodes on the cube's faces (by position in
+    /// the core) and the scale of their Laplacian rows ([`Level::face_scale`]).
+    face_rows: Vec<(usize, f64)>,
 }
 
 impl<'a> DepthOperator<'a> {
@@ -64,6 +66,15 @@ impl<'a> DepthOperator<'a> {
         let screens = screening > 0.0 && !proxies.is_empty();
         let bricks = CoreBricks::new(level);
         let screening_cells = screens.then(|| ScreeningCells::new(level, proxies, &bricks));
+        let face_rows = level
+            .faces
+            .iter()
+            .filter(|f| level.flags[f.inside as usize] & CORE != 0)
+            .map(|f| {
+                let position = level.core.partition_point(|&c| c < f.inside);
+                (position, Level::face_scale(f.flips))
+            })
+            .collect();
         DepthOperator {
             level,
             proxies,
@@ -75,6 +86,21 @@ impl<'a> DepthOperator<'a> {
             } else {
                 Vec::new()
             },
+            face_rows,
+        }
+    }
+
+    /// The core nodes on the cube's faces whose rows are scaled, and their scales (degree 1
+    /// with Neumann boundaries; empty otherwise): the right-hand side's rows ⟨∇B_o, V⟩ there
+    /// must be scaled likewise.
+    pub fn face_rows(&self) -> &[(usize, f64)] {
+        &self.face_rows
+    }
+
+    /// The Laplacian's output at the face rows times their scales.
+    fn scale_face_rows(&self, out: &mut [f64]) {
+        for &(position, scale) in &self.face_rows {
+            out[position] *= scale;
         }
     }
 
@@ -93,6 +119,7 @@ impl<'a> DepthOperator<'a> {
         let bricks = &self.bricks;
         let Some(cells) = &self.screening_cells else {
             bricks.laplacian(level, input, level.width(), None, out);
+            self.scale_face_rows(out);
             return;
         };
         let chi = &mut self.weighted_chi;
@@ -103,6 +130,9 @@ impl<'a> DepthOperator<'a> {
             Some((cells, proxies, chi)),
             out,
         );
+        for &(position, scale) in &self.face_rows {
+            out[position] *= scale;
+        }
         cells.weigh_outside_core_bricks(level, proxies, input, chi);
         let chi = &*chi;
         screening_sweep(
@@ -163,6 +193,7 @@ impl<'a> DepthOperator<'a> {
         let mut out = vec![0.0; level.core.len()];
         bricks.divergence(
             |cb, windows, _| bricks.gather(level, cb, &v, windows),
+            level.degree.tables(),
             1.0 / level.width(),
             &mut out,
         );
@@ -172,9 +203,10 @@ impl<'a> DepthOperator<'a> {
     /// The diagonal of A on the core (for Jacobi preconditioning).
     pub fn diagonal(&mut self) -> Vec<f64> {
         let level = self.level;
-        let t = tables();
+        let t = level.degree.tables();
         let lap = level.width() * 3.0 * t.stiffness[2] * t.mass[2] * t.mass[2];
         let mut out = vec![lap; level.core.len()];
+        self.scale_face_rows(&mut out);
         let Some(cells) = &self.screening_cells else {
             return out;
         };
@@ -201,7 +233,7 @@ impl<'a> DepthOperator<'a> {
                     },
                 );
                 for (o, [x, y, z]) in core_nodes {
-                    *o = lap + scale * acc[padded(x, y, z)];
+                    *o += scale * acc[padded(x, y, z)];
                 }
             },
         );

@@ -35,6 +35,7 @@ pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
                 bricks.gather_values(level, cb, component, window);
             }
         },
+        level.degree.tables(),
         1.0 / level.width(),
         &mut out,
     );
@@ -51,6 +52,7 @@ pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Vec<f64> {
     let mut out = vec![0.0; level.core.len()];
     bricks.divergence(
         |cb, windows, scratch| bricks.gather_prolonged(field, cb, windows, scratch),
+        level.degree.tables(),
         1.0 / level.width(),
         &mut out,
     );

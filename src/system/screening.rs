@@ -3,6 +3,7 @@
 //! weight W_q), applied brick by brick on the Laplacian's windows.
 
 use super::bricks::{CoreBricks, WINDOW};
+use crate::bspline::Degree;
 use crate::grid::{cell_of, morton_nested};
 use crate::octree::{brick_local, Level, NEAR, NONE};
 use glam::DVec3;
@@ -52,6 +53,8 @@ pub struct Proxies {
     /// The proxy's position in its cell, in cell widths (each coordinate in [0, 1]): 12 bytes
     /// a proxy, where its stencil would take 72 (see [`Proxies::stencil`]).
     pub offset: Vec<[f32; 3]>,
+    /// The degree of the level's node functions (see [`Proxies::stencil`]).
+    pub degree: Degree,
 }
 
 impl Proxies {
@@ -88,7 +91,10 @@ impl Proxies {
                 )
             })
             .collect();
-        let mut proxies = Proxies::default();
+        let mut proxies = Proxies {
+            degree: level.degree,
+            ..Proxies::default()
+        };
         for piece in pieces {
             proxies.cell.extend(piece.cell);
             proxies.weight.extend(piece.weight);
@@ -149,9 +155,15 @@ impl Proxies {
 
     /// b(t − centre) for the three nodes per axis around proxy `q`'s cell (cell − 1, cell,
     /// cell + 1), at the proxy: with f its offset in the cell, the degree-2 B-spline gives
-    /// ½(1 − f)², ¾ − (f − ½)² and ½f².
+    /// ½(1 − f)², ¾ − (f − ½)² and ½f²; degree 1's hats on the cell's corners 0, 1 − f and f.
     #[inline]
     pub fn stencil(&self, q: usize) -> [[f64; 3]; 3] {
+        if self.degree == Degree::One {
+            return self.offset[q].map(|f| {
+                let f = f as f64;
+                [0.0, 1.0 - f, f]
+            });
+        }
         self.offset[q].map(|f| {
             let f = f as f64;
             let g = 1.0 - f;
@@ -251,6 +263,7 @@ impl ScreeningCells {
     /// `origin`, a block node beyond the cube going to the inside node it mirrors, times
     /// `face_sign` per face crossed (the transpose of [`fill_mirrors`](super::fill_mirrors)).
     fn add_reflected(
+        degree: Degree,
         origin: [i32; 3],
         n: i32,
         face_sign: f64,
@@ -265,11 +278,17 @@ impl ScreeningCells {
             for a in 0..3 {
                 node[a] += w[a] as i32 - 3;
                 let g = origin[a] + node[a];
+                // Degree 1's nodes sit on corners: −g mirrors g, and the faces' own nodes
+                // (0 and n) are inside.
+                let (near, far) = match degree {
+                    Degree::Two => (-1, 2 * n - 1),
+                    Degree::One => (0, 2 * n),
+                };
                 if g < 0 {
-                    node[a] = -1 - g - origin[a];
+                    node[a] = near - g - origin[a];
                     sign *= face_sign;
-                } else if g >= n {
-                    node[a] = 2 * n - 1 - g - origin[a];
+                } else if g > far - n {
+                    node[a] = far - g - origin[a];
                     sign *= face_sign;
                 }
             }
@@ -420,7 +439,7 @@ impl ScreeningCells {
             let mut contribution = [0.0; 27];
             contribute(cell, &mut contribution);
             if reflects {
-                Self::add_reflected(origin, n, face_sign, w, &contribution, acc);
+                Self::add_reflected(level.degree, origin, n, face_sign, w, &contribution, acc);
                 continue;
             }
             // Block node d of a cell at window coordinate w (local + 2) is at local w − 3 + d,

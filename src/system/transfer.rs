@@ -3,8 +3,8 @@
 //! (node by node, brick by brick, or inside a brick window), and the transpose, restriction.
 
 use super::bricks::{BrickNodes, BrickScratch, CoreBricks, WINDOW};
-use crate::bspline::REFINE;
-use crate::octree::{axis_interval_masks, brick_local, reflect, AxisStep, Level, NONE};
+use crate::bspline::{Degree, REFINE};
+use crate::octree::{axis_interval_masks, brick_local, AxisStep, Level, NONE};
 use crate::parallel::split_parts;
 use rayon::prelude::*;
 
@@ -28,8 +28,8 @@ impl ProlongedField<'_> {
         if !self.fine.mirrors.is_empty() {
             // Neumann or Dirichlet: a node outside the cube mirrors its reflection inside, if in
             // K_d, with the signs of [`fill_mirrors_field`](super::fill_mirrors_field).
-            let n = 1i32 << self.fine.depth;
-            if let Some((inside, flips)) = reflect(self.fine.coord(i), n) {
+            let c = self.fine.coord(i);
+            if let Some((inside, flips)) = self.fine.reflect(c) {
                 if let Some(j) = self.fine.find(inside) {
                     let v = prolonged_at(self.coarse, self.fine, self.field, scales, j);
                     let scalar = self.fine.mirror_sign(flips);
@@ -38,6 +38,27 @@ impl ProlongedField<'_> {
                             -scalar * v[axis]
                         } else {
                             scalar * v[axis]
+                        }
+                    });
+                }
+            } else if self.fine.degree == Degree::One {
+                // A node on a face is its own image: the components the reflection would
+                // negate are 0 (as `fill_mirrors_field` leaves them).
+                let n = 1i32 << self.fine.depth;
+                let on = (0..3).fold(0u8, |f, a| f | ((c[a] == 0 || c[a] == n) as u8) << a);
+                if on != 0 {
+                    let v = prolonged_at(self.coarse, self.fine, self.field, scales, i);
+                    let scalar = self.fine.mirror_sign(on);
+                    return std::array::from_fn(|axis| {
+                        let sign = if on & (1 << axis) != 0 {
+                            -scalar
+                        } else {
+                            scalar
+                        };
+                        if sign < 0.0 {
+                            0.0
+                        } else {
+                            v[axis]
                         }
                     });
                 }
@@ -100,6 +121,7 @@ impl CoreBricks {
             let [along_x, _] = &mut scratch.y;
             let [along_y, _, _] = &mut scratch.z;
             prolong_window(
+                fine.degree,
                 &scratch.coarse[c],
                 along_x,
                 along_y,
@@ -136,7 +158,7 @@ impl CoreBricks {
                 for c in (0..8).filter(|c| corners >> c & 1 == 1) {
                     let w = [x + (c & 1), y + (c >> 1 & 1), z + (c >> 2)];
                     let f: [i32; 3] = std::array::from_fn(|a| origin[a] - 2 + w[a] as i32);
-                    if f.iter().any(|&v| v < 0 || v >= n) {
+                    if fine.follows_mirror_rule(f) {
                         for (window, v) in windows.iter_mut().zip(field.at(node as u32)) {
                             window[w[2] * WINDOW + w[1]][w[0]] = v;
                         }
@@ -152,37 +174,42 @@ impl CoreBricks {
 /// as [`coarse_window`] fills it for a fine brick's window) at every position of the fine
 /// 12×12×12 window, one axis at a time: along each axis fine position w takes ¾ of coarse
 /// position ⌊w/2⌋ + 1 and ¼ of ⌊w/2⌋ (w even) or ⌊w/2⌋ + 2 (w odd), the two-scale relation
-/// ([`refinement_parents`]). `along_x` (8·8 rows) and `along_y` (8·12 rows) are scratch space.
+/// ([`refinement_parents`]; degree 1: all of ⌊w/2⌋ + 1 for even w, half of each for odd). `along_x` (8·8 rows) and `along_y` (8·12 rows) are scratch space.
 fn prolong_window(
+    degree: Degree,
     coarse: &[f64],
     along_x: &mut [[f64; WINDOW]],
     along_y: &mut [[f64; WINDOW]],
     out: &mut [[f64; WINDOW]],
     scale: f64,
 ) {
-    let [quarter, three_quarters] = [REFINE[0], REFINE[1]];
+    // [own, partner] weights by the fine position's parity (a window position has the parity
+    // of its fine coordinate: the window starts at a brick origin − 2).
+    let weights = [degree.refine(0), degree.refine(1)];
     let partner = |w: usize| if w & 1 == 0 { w >> 1 } else { (w >> 1) + 2 };
     for (r, row) in along_x[..64].iter_mut().enumerate() {
         let line = &coarse[8 * r..8 * r + 8];
         *row = std::array::from_fn(|w| {
-            three_quarters * line[(w >> 1) + 1] + quarter * line[partner(w)]
+            let [own, other] = weights[w & 1];
+            own * line[(w >> 1) + 1] + other * line[partner(w)]
         });
     }
     for z in 0..8 {
         for w in 0..WINDOW {
+            let [own_w, other_w] = weights[w & 1];
             let (own, other) = (&along_x[8 * z + (w >> 1) + 1], &along_x[8 * z + partner(w)]);
-            along_y[WINDOW * z + w] =
-                std::array::from_fn(|x| three_quarters * own[x] + quarter * other[x]);
+            along_y[WINDOW * z + w] = std::array::from_fn(|x| own_w * own[x] + other_w * other[x]);
         }
     }
     for w in 0..WINDOW {
+        let [own_w, other_w] = weights[w & 1];
         for y in 0..WINDOW {
             let (own, other) = (
                 &along_y[WINDOW * ((w >> 1) + 1) + y],
                 &along_y[WINDOW * partner(w) + y],
             );
             out[WINDOW * w + y] =
-                std::array::from_fn(|x| (three_quarters * own[x] + quarter * other[x]) * scale);
+                std::array::from_fn(|x| (own_w * own[x] + other_w * other[x]) * scale);
         }
     }
 }
@@ -240,6 +267,7 @@ fn coarse_window<const C: usize>(
 /// with the weights of [`refinement_parents`].
 #[inline]
 fn prolonged_from_window<const C: usize>(
+    degree: Degree,
     window: &[Vec<f64>; C],
     origin: [i32; 3],
     f: [i32; 3],
@@ -254,12 +282,10 @@ fn prolonged_from_window<const C: usize>(
     });
     let parents: [usize; 8] =
         std::array::from_fn(|k| place[0][k & 1] + place[1][(k >> 1) & 1] + place[2][(k >> 2) & 1]);
+    let weights = parent_weights(degree, f.map(|v| (v & 1) as usize));
     std::array::from_fn(|component| {
         let values = &window[component][..512];
-        (0..8)
-            .map(|k| PARENT_WEIGHTS[k] * values[parents[k]])
-            .sum::<f64>()
-            * scale
+        (0..8).map(|k| weights[k] * values[parents[k]]).sum::<f64>() * scale
     })
 }
 
@@ -277,7 +303,6 @@ fn prolong_by_brick<const C: usize>(
     outputs: [&mut [f64]; C],
     combine: impl Fn(f64, f64) -> f64 + Sync,
 ) {
-    let n = 1i32 << fine.depth;
     let index = fine.bricks();
     let bricks = || {
         (0..index.brick_count()).map(|b| {
@@ -310,8 +335,10 @@ fn prolong_by_brick<const C: usize>(
                         let l = brick_local(word * 64 + bit as usize);
                         let f: [i32; 3] = std::array::from_fn(|a| origin[a] + l[a] as i32);
                         let value = match at_mirror {
-                            Some(at) if f.iter().any(|&v| v < 0 || v >= n) => at(node),
-                            _ => prolonged_from_window(window, coarse_origin, f, scale),
+                            Some(at) if fine.follows_mirror_rule(f) => at(node),
+                            _ => {
+                                prolonged_from_window(fine.degree, window, coarse_origin, f, scale)
+                            }
                         };
                         let k = (node - first) as usize;
                         for (out, v) in out.iter_mut().zip(value) {
@@ -344,6 +371,20 @@ pub(super) const PARENT_WEIGHTS: [f64; 8] = {
     w
 };
 
+/// The two-scale weights of the eight parents of a fine node whose coordinates have these
+/// parities, in the order of [`PARENT_WEIGHTS`] (which degree 2 gives whatever the parities; a
+/// degree-1 node on an even coordinate takes nothing from its partner along that axis).
+#[inline]
+pub(super) fn parent_weights(degree: Degree, parity: [usize; 3]) -> [f64; 8] {
+    match degree {
+        Degree::Two => PARENT_WEIGHTS,
+        Degree::One => {
+            let axis = parity.map(|p| degree.refine(p));
+            std::array::from_fn(|k| axis[0][k & 1] * axis[1][(k >> 1) & 1] * axis[2][(k >> 2) & 1])
+        }
+    }
+}
+
 /// The eight parents of fine node `i` whose refinement covers it, with their two-scale weights:
 /// per axis, child 2m = ¾·parent m + ¼·parent m−1 and child 2m+1 = ¾·parent m + ¼·parent m+1.
 #[inline]
@@ -354,6 +395,10 @@ pub(super) fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32,
     };
     // The parity of each coordinate is the key's bit of that axis (the key's offset is even).
     let key = fine.keys[i as usize];
+    let weights = parent_weights(
+        fine.degree,
+        std::array::from_fn(|a| (key >> a) as usize & 1),
+    );
     let steps: [[AxisStep; 2]; 3] = std::array::from_fn(|axis| {
         let partner = if (key >> axis) & 1 == 0 { -1 } else { 1 };
         [0, partner].map(|delta| AxisStep::new(at.local[axis], delta, axis))
@@ -374,7 +419,7 @@ pub(super) fn refinement_parents(coarse: &Level, fine: &Level, i: u32) -> [(u32,
                 coarse.node_after(at, step)
             }
         };
-        out[k] = (node, PARENT_WEIGHTS[k]);
+        out[k] = (node, weights[k]);
     }
     out
 }
@@ -441,6 +486,7 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
             if v == 0.0 {
                 continue;
             }
+            let weights = parent_weights(fine.degree, l.map(|c| c & 1));
             // Parent at window coordinate l/2 + 1, partners one step towards the node's side.
             let at = |k: usize| {
                 let c: [usize; 3] = std::array::from_fn(|a| {
@@ -470,7 +516,7 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
                     }
                 };
                 if parents[k] != NONE {
-                    coarse_out[parents[k] as usize] += PARENT_WEIGHTS[k] * v;
+                    coarse_out[parents[k] as usize] += weights[k] * v;
                 }
             }
         }

@@ -108,6 +108,7 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_set_samples_per_node(NULL, 2.0f), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_scale(NULL, 1.2f), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_point_weight(NULL, 1.0f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_degree(NULL, 1), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_threads(NULL, 1), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_max_solver_iterations(NULL, 9), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_solver_tolerance(NULL, 1e-3), PSR_STATUS_NULL_ARGUMENT);
@@ -118,6 +119,7 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_get_samples_per_node(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_scale(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_point_weight(NULL, &f), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_degree(NULL, &i), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_threads(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_max_solver_iterations(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_solver_tolerance(NULL, &d), PSR_STATUS_NULL_ARGUMENT);
@@ -157,6 +159,7 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_get_samples_per_node(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_scale(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_point_weight(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_degree(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_threads(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_max_solver_iterations(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_solver_tolerance(r, NULL), PSR_STATUS_NULL_ARGUMENT);
@@ -305,6 +308,17 @@ static void test_order_and_parameters(void) {
     CHECK_STATUS(psr_reconstructor_set_scale(r, (float)NAN), PSR_STATUS_INVALID_PARAMETER);
     CHECK(contains(psr_reconstructor_last_error(r), "scale"));
     CHECK_STATUS(psr_reconstructor_set_solver_tolerance(r, 2.0), PSR_STATUS_INVALID_PARAMETER);
+    {
+        /* The degree: 2 by default; 0 and 3 refused, naming it, and leaving it as it was. */
+        int32_t degree = 0;
+        CHECK_STATUS(psr_reconstructor_get_degree(r, &degree), PSR_STATUS_OK);
+        CHECK(degree == 2);
+        CHECK_STATUS(psr_reconstructor_set_degree(r, 0), PSR_STATUS_INVALID_PARAMETER);
+        CHECK(contains(psr_reconstructor_last_error(r), "degree"));
+        CHECK_STATUS(psr_reconstructor_set_degree(r, 3), PSR_STATUS_INVALID_PARAMETER);
+        CHECK_STATUS(psr_reconstructor_get_degree(r, &degree), PSR_STATUS_OK);
+        CHECK(degree == 2);
+    }
     CHECK_STATUS(psr_reconstructor_get_depth(r, &depth), PSR_STATUS_OK);
     CHECK(depth == 8);
     CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_EMPTY_INPUT);

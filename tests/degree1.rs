@@ -1,0 +1,176 @@
+//! Degree-1 node functions (issue 17): piecewise-linear hats on the cell corners, PoissonRecon's
+//! and Open3D's default, beside psr's default degree 2. On the analytic shapes of
+//! `reconstruction.rs` (the same points, the same Chamfer convention: the mean of the two
+//! one-sided mean distances over the bounding-box diagonal, see that file's module doc), with
+//! `Params::default().with_degree(1)` (point weight 2, PoissonRecon's default for degree 1),
+//! the mesh is a closed, oriented 2-manifold of the right genus whose Chamfer distance falls
+//! with depth and stays within a bound set from a measurement (stated at each bound), for every
+//! boundary kind; the result does not depend on the thread count; a degree other than 1 or 2
+//! is an error naming the parameter.
+
+use psr::{reconstruct, Boundary, Error, Mesh, Params, PointSet};
+use psr_test_support::{
+    chamfer_to_surface, sample_sphere, sample_torus, signed_volume, sphere_bbox_diagonal,
+    sphere_distance, torus_bbox_diagonal, torus_distance, MeshTopology,
+};
+
+const CHAMFER_MESH_SAMPLES: usize = 200_000;
+const CHAMFER_TRUE_SAMPLES: usize = 100_000;
+const TORUS_MAJOR: f64 = 1.0;
+const TORUS_MINOR: f64 = 0.35;
+
+fn point_set(positions: &[[f32; 3]], normals: &[[f32; 3]]) -> PointSet {
+    PointSet::from_slices(positions, normals).expect("valid samples")
+}
+
+fn run(points: &PointSet, params: &Params, label: &str) -> Mesh {
+    let mesh = reconstruct(points, params).unwrap_or_else(|e| panic!("{label}: {e}"));
+    eprintln!(
+        "{label}: {} vertices, {} triangles, {} nodes",
+        mesh.positions.len(),
+        mesh.triangles.len(),
+        mesh.stats.total_nodes()
+    );
+    mesh
+}
+
+/// Closed, oriented, manifold, one component, the given Euler characteristic.
+fn assert_closed(mesh: &Mesh, euler: i64, label: &str) {
+    let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
+    eprintln!("{label}: {topo}");
+    assert!(topo.is_closed_manifold(), "{label}: {topo}");
+    assert!(topo.is_consistently_oriented(), "{label}: {topo}");
+    assert_eq!(topo.invalid_triangles, 0, "{label}: {topo}");
+    assert_eq!(topo.degenerate_triangles, 0, "{label}: {topo}");
+    assert_eq!(topo.duplicate_vertices, 0, "{label}: {topo}");
+    assert!(
+        signed_volume(&mesh.positions, &mesh.triangles) > 0.0,
+        "{label}: faces point inwards"
+    );
+    assert_eq!(topo.components, 1, "{label}: {topo}");
+    assert_eq!(topo.euler, euler, "{label}: {topo}");
+}
+
+/// Proves: degree 1 on the 100k-point unit sphere of `reconstruction.rs` gives a closed
+/// topological sphere at depths 6, 7 and 8 whose Chamfer distance falls with every depth and
+/// is within `SPHERE_DEPTH8_CHAMFER_BOUND` at depth 8.
+#[test]
+fn degree_one_sphere_is_closed_and_converges_with_depth() {
+    let (positions, normals) = sample_sphere(100_000, 1.0, [0.0; 3], 1);
+    let points = point_set(&positions, &normals);
+    let (truth, _) = sample_sphere(CHAMFER_TRUE_SAMPLES, 1.0, [0.0; 3], 1001);
+    let mut chamfers = Vec::new();
+    for depth in [6, 7, 8] {
+        let label = format!("degree-1 sphere depth {depth}");
+        let params = Params::default().with_depth(depth).with_degree(1);
+        let mesh = run(&points, &params, &label);
+        assert_closed(&mesh, 2, &label);
+        let chamfer = chamfer_to_surface(
+            &mesh.positions,
+            &mesh.triangles,
+            sphere_distance([0.0; 3], 1.0),
+            &truth,
+            CHAMFER_MESH_SAMPLES,
+            sphere_bbox_diagonal(1.0),
+        );
+        eprintln!("{label}: {chamfer}");
+        chamfers.push(chamfer.relative_average);
+    }
+    eprintln!("degree-1 sphere Chamfer at depths 6, 7, 8: {chamfers:?}");
+    assert!(
+        chamfers[0] > chamfers[1] && chamfers[1] > chamfers[2],
+        "{chamfers:?}"
+    );
+    assert!(
+        chamfers[2] <= SPHERE_DEPTH8_CHAMFER_BOUND,
+        "degree-1 sphere depth 8: {:.4e} above {SPHERE_DEPTH8_CHAMFER_BOUND:e}",
+        chamfers[2]
+    );
+}
+
+/// Depth-8 degree-1 sphere Chamfer bound: psr measured 4.1436e-5 (depth 6: 7.6775e-5, depth 7:
+/// 4.9922e-5); bound = that × 1.15. Degree 2 measures 1.5444e-5 on the same points and Open3D
+/// 0.20 (PoissonRecon's degree 1) 1.73e-5 (`reconstruction.rs`): psr's degree 1 is 2.4× less
+/// accurate than Open3D's here, a gap this bound records rather than hides. Neither the vertex
+/// placement (on the isosurface: 3.991e-5) nor the point weight (4: 3.486e-5) explains it.
+const SPHERE_DEPTH8_CHAMFER_BOUND: f64 = 4.77e-5;
+
+/// Proves: degree 1 on the 100k-point torus (R = 1, r = 0.35) of `reconstruction.rs` keeps its
+/// hole (Euler characteristic 0) at depths 7 and 8, and its Chamfer distance falls from depth
+/// 7 to 8 to within `TORUS_DEPTH8_CHAMFER_BOUND`.
+#[test]
+fn degree_one_torus_keeps_its_hole_and_converges_with_depth() {
+    let (positions, normals) = sample_torus(100_000, TORUS_MAJOR, TORUS_MINOR, 2);
+    let points = point_set(&positions, &normals);
+    let (truth, _) = sample_torus(CHAMFER_TRUE_SAMPLES, TORUS_MAJOR, TORUS_MINOR, 1002);
+    let mut chamfers = Vec::new();
+    for depth in [7, 8] {
+        let label = format!("degree-1 torus depth {depth}");
+        let params = Params::default().with_depth(depth).with_degree(1);
+        let mesh = run(&points, &params, &label);
+        assert_closed(&mesh, 0, &label);
+        let chamfer = chamfer_to_surface(
+            &mesh.positions,
+            &mesh.triangles,
+            torus_distance(TORUS_MAJOR, TORUS_MINOR),
+            &truth,
+            CHAMFER_MESH_SAMPLES,
+            torus_bbox_diagonal(TORUS_MAJOR, TORUS_MINOR),
+        );
+        eprintln!("{label}: {chamfer}");
+        chamfers.push(chamfer.relative_average);
+    }
+    eprintln!("degree-1 torus Chamfer at depths 7, 8: {chamfers:?}");
+    assert!(chamfers[0] > chamfers[1], "{chamfers:?}");
+    assert!(
+        chamfers[1] <= TORUS_DEPTH8_CHAMFER_BOUND,
+        "degree-1 torus depth 8: {:.4e} above {TORUS_DEPTH8_CHAMFER_BOUND:e}",
+        chamfers[1]
+    );
+}
+
+/// Depth-8 degree-1 torus Chamfer bound: psr measured 3.5521e-5 (depth 7: 6.2627e-5); bound =
+/// that × 1.15. Degree 2 measures 1.3157e-5 on the same points.
+const TORUS_DEPTH8_CHAMFER_BOUND: f64 = 4.09e-5;
+
+/// Proves: at degree 1 every boundary kind gives a closed sphere of one component at depth 7
+/// (their face nodes are handled differently: see `octree::Octree::build_for`; Dirichlet once
+/// gave 160 components here, from face nodes left in the coarse depths' cores), and one and
+/// two threads give the same mesh bit for bit.
+#[test]
+fn degree_one_is_closed_for_every_boundary_and_independent_of_threads() {
+    let (positions, normals) = sample_sphere(20_000, 1.0, [0.0; 3], 5);
+    let points = point_set(&positions, &normals);
+    for boundary in [Boundary::Neumann, Boundary::Free, Boundary::Dirichlet] {
+        let label = format!("degree-1 sphere {boundary:?}");
+        let params = Params::default()
+            .with_depth(7)
+            .with_degree(1)
+            .with_boundary(boundary);
+        let one = run(&points, &params.clone().with_threads(1), &label);
+        assert_closed(&one, 2, &label);
+        let two = run(&points, &params.with_threads(2), &label);
+        assert_eq!(one.positions, two.positions, "{label}");
+        assert_eq!(one.triangles, two.triangles, "{label}");
+    }
+}
+
+/// Proves: a degree other than 1 or 2 is refused with an error naming the parameter (not a
+/// panic), and `with_degree` sets the point weight to 2 × degree unless it is set after.
+#[test]
+fn bad_degrees_are_refused_and_the_point_weight_follows_the_degree() {
+    let (positions, normals) = sample_sphere(2_000, 1.0, [0.0; 3], 3);
+    let points = point_set(&positions, &normals);
+    for degree in [0u8, 3, 7, 255] {
+        let params = Params::default().with_depth(5).with_degree(degree);
+        match reconstruct(&points, &params) {
+            Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "degree"),
+            other => panic!("degree {degree}: {other:?}"),
+        }
+    }
+    assert_eq!(Params::default().point_weight, 4.0);
+    assert_eq!(Params::default().with_degree(1).point_weight, 2.0);
+    assert_eq!(Params::default().with_degree(2).point_weight, 4.0);
+    let p = Params::default().with_degree(1).with_point_weight(4.0);
+    assert_eq!((p.degree, p.point_weight), (1, 4.0));
+}
