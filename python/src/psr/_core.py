@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import ctypes
 import operator
-import signal
 import threading
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any, Generic, TypeVar, Union, overload
+from typing import Any, Generic, TypeVar, Union, overload
 
 import numpy as np
 
@@ -23,9 +22,6 @@ from ._errors import (
     error_for,
 )
 from ._lib import LIB, PROGRESS_FN, DepthSolve, PointArrays, TrimOptions
-
-if TYPE_CHECKING:
-    from types import FrameType
 
 __all__ = [
     "Stage",
@@ -268,18 +264,29 @@ class SolveStats:
 
 
 class _SolveState:
-    """What the progress trampoline shares with the solving thread."""
+    """What a solve's progress trampoline, its worker thread and its caller share."""
 
     def __init__(self, progress: ProgressCallback | None) -> None:
         self.progress = progress
-        self.interrupted = False
-        self.error: BaseException | None = None
-        self.last_stage = -1
+        self.interrupted = False  # set by the caller on Ctrl-C: the next report says stop
+        self.error: BaseException | None = None  # raised by the progress callback
+        self.failure: BaseException | None = None  # raised around the C call
+        self.status = int(Status.OK)
+        self.message = ""
+        self.mesh_ptr = ctypes.c_void_p()
+        self.implicit_ptr = ctypes.c_void_p()
+        self.done = threading.Event()
+        self.mutex = threading.Lock()
+        self.abandoned = False  # the caller left: the worker frees what psr made
+
+    def free_results(self) -> None:
+        LIB.psr_mesh_free(self.mesh_ptr)
+        LIB.psr_implicit_free(self.implicit_ptr)
+        self.mesh_ptr = ctypes.c_void_p()
+        self.implicit_ptr = ctypes.c_void_p()
 
     def on_progress(self, _user: Any, stage: int, fraction: float) -> bool:
-        # Runs on the solving thread, called from inside psr_reconstructor_solve. On the main
-        # thread a pending SIGINT runs the temporary handler below as this Python code starts,
-        # so the flag is seen here, in this very call.
+        # Called from inside psr_reconstructor_solve on the solving thread; False stops psr.
         if self.interrupted or self.error is not None:
             return False
         if self.progress is None:
@@ -294,9 +301,6 @@ class _SolveState:
             self.error = e
             return False
         return go_on is None or bool(go_on)
-
-    def on_sigint(self, _signum: int, _frame: FrameType | None) -> None:
-        self.interrupted = True
 
 
 def _tqdm_progress() -> tuple[ProgressCallback, Callable[[], None]]:
@@ -319,10 +323,6 @@ def _tqdm_progress() -> tuple[ProgressCallback, Callable[[], None]]:
         return True
 
     return update, bar.close
-
-
-def _positions3(name: str, a: Any, count: int) -> np.ndarray:
-    return _arrays.rows(name, a, 3, count)
 
 
 class Reconstructor:
@@ -455,6 +455,7 @@ class Reconstructor:
         points added without normals face (it selects Orientation.VIEWPOINT).
         ``progress``: a default progress callback for :meth:`solve`, or ``"tqdm"``."""
         self._lock = threading.RLock()
+        self._close_pending = False
         self._double = False
         self._viewpoint: tuple[float, float, float] | None = None
         self.progress = progress
@@ -462,6 +463,9 @@ class Reconstructor:
         _check(LIB.psr_reconstructor_new(ctypes.byref(handle)))
         self._handle: ctypes.c_void_p | None = handle
         self._finalizer = weakref.finalize(self, LIB.psr_reconstructor_free, handle)
+        # Not at exit: the process's memory goes anyway, and a solve abandoned after Ctrl-C may
+        # still be using the handle on its worker thread.
+        self._finalizer.atexit = False
         self.depth = depth
         self.width = width
         self.full_depth = full_depth
@@ -493,8 +497,18 @@ class Reconstructor:
 
     def close(self) -> None:
         """Frees the reconstructor (psr_reconstructor_free) now rather than when it is
-        collected. Meshes it made stay valid."""
-        with self._lock:
+        collected; if another thread is using it (such as a solve left running after Ctrl-C),
+        as soon as that call ends. Meshes it made stay valid."""
+        self._close_pending = True
+        if self._lock.acquire(blocking=False):
+            try:
+                self._release()
+            finally:
+                self._lock.release()
+
+    def _release(self) -> None:
+        """Frees the handle if close() asked for it; called with the lock held."""
+        if self._close_pending:
             self._handle = None
             self._finalizer()
 
@@ -736,16 +750,18 @@ class Reconstructor:
         """Reconstructs a watertight mesh from the points added so far
         (psr_reconstructor_solve); the points and parameters stay for another solve.
 
-        ``progress`` (or the constructor's): a callable ``(stage, fraction)`` called on this
-        thread as the stages advance; returning ``False`` cancels with
-        :class:`psr.CancelledError`, and an exception it raises cancels too and propagates from
-        here. ``"tqdm"`` shows a tqdm bar (tqdm must be installed).
+        ``progress`` (or the constructor's): a callable ``(stage, fraction)`` called as the
+        stages advance; returning ``False`` cancels with :class:`psr.CancelledError`, and an
+        exception it raises cancels too and propagates from here. ``"tqdm"`` shows a tqdm bar
+        (tqdm must be installed). ``keep_implicit=True`` keeps the solved indicator function as
+        ``mesh.implicit`` (:class:`Implicit`).
 
-        On the main thread Ctrl-C (SIGINT) cancels the solve at psr's next progress report and
-        raises KeyboardInterrupt (or runs your own SIGINT handler, if you installed one); the
-        handler is replaced only for the duration of the call. The GIL is released while psr
-        runs. ``keep_implicit=True`` keeps the solved indicator function as ``mesh.implicit``
-        (:class:`Implicit`).
+        The GIL is released while psr runs. Called from the main thread, the solve runs on a
+        worker thread (where the progress callback is then called) while the main thread waits,
+        so that Ctrl-C raises KeyboardInterrupt at once: psr is told to stop at its next
+        progress report, and if it has not stopped within 0.3 s it is left to finish
+        in the background (its results are freed) while the exception propagates. From other
+        threads the solve runs on the calling thread.
         """
         progress = progress if progress is not None else self.progress
         close_bar: Callable[[], None] | None = None
@@ -755,60 +771,87 @@ class Reconstructor:
             raise ValueError(f'progress must be a callable, "tqdm" or None, not {progress!r}')
         state = _SolveState(progress)  # type: ignore[arg-type]
         on_main = threading.current_thread() is threading.main_thread()
-        mesh_ptr = ctypes.c_void_p()
-        implicit_ptr = ctypes.c_void_p()
         try:
-            with self._lock:
-                handle = self._live()
-                # A trampoline whenever there is a callback to call or a Ctrl-C to notice.
-                trampoline = PROGRESS_FN(state.on_progress) if (progress or on_main) else None
-                if trampoline is not None:
-                    _check(LIB.psr_reconstructor_set_progress_callback(handle, trampoline, None),
-                           handle)
-                previous = _install_sigint(state) if on_main else None
+            if on_main:
+                worker = threading.Thread(
+                    target=self._solve_call, args=(state, keep_implicit, True),
+                    name="psr-solve", daemon=True,
+                )
                 try:
-                    if keep_implicit:
-                        status = LIB.psr_reconstructor_solve_implicit(
-                            handle, ctypes.byref(mesh_ptr), ctypes.byref(implicit_ptr)
-                        )
-                    else:
-                        status = LIB.psr_reconstructor_solve(handle, ctypes.byref(mesh_ptr))
-                    message = _last_error(handle) if status != Status.OK else ""
-                finally:
-                    if previous is not None:
-                        signal.signal(signal.SIGINT, previous)
-                    if trampoline is not None:
-                        LIB.psr_reconstructor_set_progress_callback(handle, PROGRESS_FN(), None)
-                double = self._double
+                    worker.start()
+                    # Waiting in short steps: the kernel may deliver SIGINT to one of psr's
+                    # threads, and Python runs its handler only when the main thread runs
+                    # Python code, which a wait without a timeout would postpone to the end.
+                    while not state.done.wait(_POLL_SECONDS):
+                        pass
+                except BaseException:
+                    # Ctrl-C (or another exception from a signal handler): stop psr, give it a
+                    # moment to reach a progress report, and leave it running if it does not.
+                    state.interrupted = True
+                    state.done.wait(_CANCEL_GRACE_SECONDS)
+                    with state.mutex:
+                        state.abandoned = not state.done.is_set()
+                    if not state.abandoned:
+                        state.free_results()
+                    raise
+            else:
+                self._solve_call(state, keep_implicit, False)
         finally:
             if close_bar is not None:
                 close_bar()
-        mesh = Mesh._own(mesh_ptr, double) if mesh_ptr.value else None
-        implicit = Implicit._own(implicit_ptr) if implicit_ptr.value else None
-        if state.interrupted:
-            if previous is not None and previous is not signal.default_int_handler and callable(
-                previous
-            ):
-                previous(signal.SIGINT, None)
-            else:
-                raise KeyboardInterrupt
+        if state.failure is not None:
+            raise state.failure
+        mesh = Mesh._own(state.mesh_ptr, self._double) if state.mesh_ptr.value else None
+        implicit = Implicit._own(state.implicit_ptr) if state.implicit_ptr.value else None
         if state.error is not None:
             raise state.error
-        if status != Status.OK:
-            raise error_for(status, message)
+        if state.status != Status.OK:
+            raise error_for(state.status, state.message)
         assert mesh is not None
         mesh.implicit = implicit
         return mesh
 
+    def _solve_call(self, state: _SolveState, keep_implicit: bool, cancellable: bool) -> None:
+        """The locked part of solve(): callback in, psr_reconstructor_solve, callback out."""
+        try:
+            with self._lock:
+                handle = self._live()
+                # The trampoline is needed for a callback to call or a cancel to deliver.
+                trampoline = (
+                    PROGRESS_FN(state.on_progress)
+                    if state.progress is not None or cancellable
+                    else None
+                )
+                if trampoline is not None:
+                    _check(LIB.psr_reconstructor_set_progress_callback(handle, trampoline, None),
+                           handle)
+                try:
+                    if keep_implicit:
+                        status = LIB.psr_reconstructor_solve_implicit(
+                            handle, ctypes.byref(state.mesh_ptr), ctypes.byref(state.implicit_ptr)
+                        )
+                    else:
+                        status = LIB.psr_reconstructor_solve(handle, ctypes.byref(state.mesh_ptr))
+                    state.status = status
+                    state.message = _last_error(handle) if status != Status.OK else ""
+                finally:
+                    if trampoline is not None:
+                        LIB.psr_reconstructor_set_progress_callback(handle, PROGRESS_FN(), None)
+                    self._release()
+        except BaseException as e:  # noqa: BLE001 - handed to the thread that called solve()
+            state.failure = e
+        finally:
+            with state.mutex:
+                state.done.set()
+                if state.abandoned:
+                    state.free_results()
 
-def _install_sigint(state: _SolveState) -> Any:
-    """Replaces the SIGINT handler with one that asks the solve to stop; returns the old one,
-    or None when SIGINT is ignored or not handled from Python (then it is left alone)."""
-    previous = signal.getsignal(signal.SIGINT)
-    if previous in (signal.SIG_IGN, signal.SIG_DFL, None):
-        return None
-    signal.signal(signal.SIGINT, state.on_sigint)
-    return previous
+
+#: How often the main thread wakes while psr works, so a Ctrl-C is handled within this time.
+_POLL_SECONDS = 0.05
+#: How long a solve interrupted by Ctrl-C may take to reach psr's next progress report before
+#: KeyboardInterrupt propagates without it.
+_CANCEL_GRACE_SECONDS = 0.3
 
 
 def _unpack_cloud(
@@ -870,6 +913,7 @@ class Mesh:
         self._ptr = ptr
         self._double = double
         self._finalizer = weakref.finalize(self, LIB.psr_mesh_free, ptr)
+        self._finalizer.atexit = False
         self.implicit = None
         nv = LIB.psr_mesh_vertex_count(ptr)
         nt = LIB.psr_mesh_triangle_count(ptr)
@@ -1081,6 +1125,7 @@ class Implicit:
         self = object.__new__(cls)
         self._ptr = ptr
         self._finalizer = weakref.finalize(self, LIB.psr_implicit_free, ptr)
+        self._finalizer.atexit = False
         return self
 
     def _live(self) -> ctypes.c_void_p:
