@@ -74,8 +74,17 @@ def build_library() -> Path:
         if not path.is_file():
             raise SystemExit(f"PSR_LIBRARY={prebuilt} is not a file")
         return path
-    cmd = [cargo(), "build", "--release", "--lib", "-p", "psr", "--message-format=json-render-diagnostics",
-           "--manifest-path", str(REPO / "Cargo.toml")]
+    cmd = [
+        cargo(),
+        "build",
+        "--release",
+        "--lib",
+        "-p",
+        "psr",
+        "--message-format=json-render-diagnostics",
+        "--manifest-path",
+        str(REPO / "Cargo.toml"),
+    ]
     print("psr-poisson: " + " ".join(cmd), flush=True)
     run = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, check=False)
     if run.returncode != 0:

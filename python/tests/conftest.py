@@ -40,7 +40,7 @@ def sphere(n: int, seed: int = 1, radius: float = 1.0) -> tuple[np.ndarray, np.n
 
 def same_mesh(a: psr.Mesh, b: psr.Mesh) -> bool:
     """Bit-for-bit equality of the arrays two reconstructions returned."""
-    return (
+    return bool(
         a.vertices.dtype == b.vertices.dtype
         and a.vertices.tobytes() == b.vertices.tobytes()
         and a.triangles.tobytes() == b.triangles.tobytes()
@@ -66,8 +66,10 @@ def data_dir() -> Path:
 @pytest.fixture(scope="session")
 def cli() -> Path:
     """The psr program ($PSR_CLI, default target/release/psr of this repository)."""
-    return need(Path(os.environ.get("PSR_CLI", str(REPO / "target" / "release" / "psr"))),
-                "the psr program (cargo build --release -p psr-cli, or set PSR_CLI)")
+    return need(
+        Path(os.environ.get("PSR_CLI", str(REPO / "target" / "release" / "psr"))),
+        "the psr program (cargo build --release -p psr-cli, or set PSR_CLI)",
+    )
 
 
 def pytest_report_header(config: pytest.Config) -> str:

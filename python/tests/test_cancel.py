@@ -21,8 +21,9 @@ import psr
 
 def test_progress_reports_every_stage_in_order(ball: tuple[np.ndarray, np.ndarray]) -> None:
     seen: list[tuple[psr.Stage, float, str]] = []
-    psr.reconstruct(*ball, depth=6,
-                    progress=lambda s, f: seen.append((s, f, threading.current_thread().name)))
+    psr.reconstruct(
+        *ball, depth=6, progress=lambda s, f: seen.append((s, f, threading.current_thread().name))
+    )
     stages = [s for s, _, _ in seen]
     assert all(isinstance(s, psr.Stage) for s in stages)
     order = [s for i, s in enumerate(stages) if i == 0 or stages[i - 1] != s]
@@ -38,15 +39,16 @@ def test_progress_reports_every_stage_in_order(ball: tuple[np.ndarray, np.ndarra
 
 
 @pytest.mark.parametrize("stage", [psr.Stage.OCTREE, psr.Stage.SOLVE, psr.Stage.EXTRACT])
-def test_callback_returning_false_cancels(stage: psr.Stage,
-                                          ball: tuple[np.ndarray, np.ndarray]) -> None:
+def test_callback_returning_false_cancels(
+    stage: psr.Stage, ball: tuple[np.ndarray, np.ndarray]
+) -> None:
     r = psr.Reconstructor(depth=6)
     r.add_points(*ball)
     after: list[psr.Stage] = []
 
     def stop_at(s: psr.Stage, f: float) -> bool:
         after.append(s)
-        return s < stage
+        return bool(s < stage)
 
     with pytest.raises(psr.CancelledError) as info:
         r.solve(progress=stop_at)
@@ -96,8 +98,9 @@ CHILD = textwrap.dedent(
 
 @pytest.mark.parametrize("when", ["density", "octree", "splat", "solve"])
 def test_sigint_stops_a_long_reconstruction_within_a_second(when: str) -> None:
-    child = subprocess.Popen([sys.executable, "-c", CHILD], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+    child = subprocess.Popen(
+        [sys.executable, "-c", CHILD], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     try:
         assert child.stdout is not None
         lines = []
@@ -106,7 +109,7 @@ def test_sigint_stops_a_long_reconstruction_within_a_second(when: str) -> None:
             if line.strip() == f"stage {when}":
                 break
         else:
-            pytest.fail(f"the child ended before stage {when}: {lines} {child.stderr.read()}")
+            pytest.fail(f"the child ended before stage {when}: {lines} {child.communicate()}")
         time.sleep(0.2)  # well inside the stage
         sent = time.monotonic()
         child.send_signal(signal.SIGINT)

@@ -37,10 +37,22 @@ def test_kitten_depth_8_equals_the_cli(cli: Path, tmp_path: Path) -> None:
 
 def test_kitten_with_options_equals_the_cli(cli: Path, tmp_path: Path) -> None:
     kitten = need(KITTEN, "examples/data/kitten_cgal.ply")
-    theirs = run_cli(cli, kitten, tmp_path / "cli.ply", "--depth", "7", "--vertex-normals",
-                     "--boundary", "dirichlet", "--point-weight", "2", "--trim")
-    with psr.Reconstructor(depth=7, vertex_normals=True, boundary="dirichlet",
-                           point_weight=2.0) as r:
+    theirs = run_cli(
+        cli,
+        kitten,
+        tmp_path / "cli.ply",
+        "--depth",
+        "7",
+        "--vertex-normals",
+        "--boundary",
+        "dirichlet",
+        "--point-weight",
+        "2",
+        "--trim",
+    )
+    with psr.Reconstructor(
+        depth=7, vertex_normals=True, boundary="dirichlet", point_weight=2.0
+    ) as r:
         r.add_points(psr.read_ply(kitten))
         ours = r.solve().trim()
     assert_same(ours, theirs)
@@ -49,8 +61,9 @@ def test_kitten_with_options_equals_the_cli(cli: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("name, depth", [("bunny_scans.ply", 8), ("lion_takanawa_rgb.ply", 7)])
-def test_shared_scans_equal_the_cli(name: str, depth: int, cli: Path, data_dir: Path,
-                                    tmp_path: Path) -> None:
+def test_shared_scans_equal_the_cli(
+    name: str, depth: int, cli: Path, data_dir: Path, tmp_path: Path
+) -> None:
     cloud = need(data_dir / name, f"the shared scan {name} (set PSR_DATA_DIR)")
     theirs = run_cli(cli, cloud, tmp_path / "cli.ply", "--depth", str(depth))
     ours = psr.reconstruct(psr.read_ply(cloud), depth=depth)

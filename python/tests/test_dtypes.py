@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 import pytest
 from conftest import same_mesh
@@ -21,7 +24,8 @@ def interleaved(p: np.ndarray, n: np.ndarray, dtype: str = "f4") -> np.ndarray:
     return rec
 
 
-FLOAT32_LAYOUTS = {
+Layout = Callable[[np.ndarray, np.ndarray], tuple[Any, Any]]
+FLOAT32_LAYOUTS: dict[str, Layout] = {
     "c-contiguous": lambda p, n: (p, n),
     "fortran": lambda p, n: (np.asfortranarray(p), np.asfortranarray(n)),
     "reversed rows": lambda p, n: (p[::-1][::-1], n[::-1][::-1]),
@@ -35,8 +39,9 @@ FLOAT32_LAYOUTS = {
 
 
 @pytest.mark.parametrize("layout", FLOAT32_LAYOUTS)
-def test_float32_layouts_give_the_same_mesh(layout: str, ball: tuple[np.ndarray, np.ndarray],
-                                            reference: psr.Mesh) -> None:
+def test_float32_layouts_give_the_same_mesh(
+    layout: str, ball: tuple[np.ndarray, np.ndarray], reference: psr.Mesh
+) -> None:
     p, n = FLOAT32_LAYOUTS[layout](*ball)
     if layout == "lists":
         # Python floats are doubles: the float64 path, whose vertices are float64.
@@ -49,8 +54,7 @@ def test_float32_layouts_give_the_same_mesh(layout: str, ball: tuple[np.ndarray,
 
 
 @pytest.mark.parametrize("dtype", ["f8", ">f8", "longdouble", "f2", "i4"])
-def test_other_dtypes(dtype: str, ball: tuple[np.ndarray, np.ndarray],
-                      reference: psr.Mesh) -> None:
+def test_other_dtypes(dtype: str, ball: tuple[np.ndarray, np.ndarray], reference: psr.Mesh) -> None:
     p, n = ball
     if dtype == "i4":
         p, n = np.rint(p * 1000), np.rint(n * 1000)  # millimetres, integers
@@ -68,8 +72,9 @@ def test_other_dtypes(dtype: str, ball: tuple[np.ndarray, np.ndarray],
     assert np.abs(m.vertices - ref.vertices).max() <= 1e-6 * np.abs(ref.vertices).max()
 
 
-def test_float64_rows_are_read_in_place(ball: tuple[np.ndarray, np.ndarray],
-                                         reference: psr.Mesh) -> None:
+def test_float64_rows_are_read_in_place(
+    ball: tuple[np.ndarray, np.ndarray], reference: psr.Mesh
+) -> None:
     p, n = ball
     both = np.hstack([p, n]).astype(np.float64)
     m = psr.reconstruct(both[:, :3], both[:, 3:], depth=5)
@@ -84,8 +89,13 @@ def test_copies_only_where_psr_cannot_read() -> None:
     rec = interleaved(np.zeros((4, 3)), np.ones((4, 3)))["n"]
     out, stride = _arrays.as_c_rows(rec, np.float32)
     assert out is rec and stride == 25
-    for view in (block[::-1, :3], block[:, ::-1][:, :3], block[:, :3].astype(">f4"),
-                 np.broadcast_to(block[:1, :3], (10, 3)), block[:, :3].T.copy().T[:, ::1]):
+    for view in (
+        block[::-1, :3],
+        block[:, ::-1][:, :3],
+        block[:, :3].astype(">f4"),
+        np.broadcast_to(block[:1, :3], (10, 3)),
+        block[:, :3].T.copy().T[:, ::1],
+    ):
         out, stride = _arrays.as_c_rows(view, np.float32)
         if out is view:
             # Fortran order: columns adjacent, not the three values of a row.

@@ -33,7 +33,7 @@ def raises(kind: type[psr.PsrError], status: Status, match: str | None = None) -
 
 
 def with_value(a: np.ndarray, index: int, value: float, column: int = 1) -> np.ndarray:
-    b = a.copy()
+    b: np.ndarray = a.copy()
     b[index, column] = value
     return b
 
@@ -107,13 +107,30 @@ def test_attribute_lengths_and_values() -> None:
 @pytest.mark.parametrize(
     "name, value",
     [
-        ("depth", 0), ("depth", 17), ("depth", 100), ("depth", -1), ("depth", 2**40),
-        ("full_depth", 17), ("kernel_depth", 17), ("samples_per_node", 0.5),
-        ("samples_per_node", float("nan")), ("scale", 0.9), ("scale", float("inf")),
-        ("point_weight", -1.0), ("threads", 5000), ("max_solver_iterations", 0),
-        ("solver_tolerance", 1.0), ("solver_tolerance", 0.0), ("width", -1.0),
-        ("width", float("nan")), ("boundary", 3), ("boundary", "soft"), ("splatting", 2),
-        ("vertex_placement", -1), ("normal_neighbors", 0), ("normal_orientation", 5),
+        ("depth", 0),
+        ("depth", 17),
+        ("depth", 100),
+        ("depth", -1),
+        ("depth", 2**40),
+        ("full_depth", 17),
+        ("kernel_depth", 17),
+        ("samples_per_node", 0.5),
+        ("samples_per_node", float("nan")),
+        ("scale", 0.9),
+        ("scale", float("inf")),
+        ("point_weight", -1.0),
+        ("threads", 5000),
+        ("max_solver_iterations", 0),
+        ("solver_tolerance", 1.0),
+        ("solver_tolerance", 0.0),
+        ("width", -1.0),
+        ("width", float("nan")),
+        ("boundary", 3),
+        ("boundary", "soft"),
+        ("splatting", 2),
+        ("vertex_placement", -1),
+        ("normal_neighbors", 0),
+        ("normal_orientation", 5),
         ("normal_orientation", psr.Orientation.VIEWPOINT),  # before any viewpoint
     ],
 )
@@ -136,8 +153,10 @@ def test_parameters_that_disagree_are_refused_at_solve() -> None:
     assert len(r.solve().triangles) > 0
 
 
-@pytest.mark.parametrize("name, value", [("depth", 8.5), ("depth", "8"), ("depth", True),
-                                         ("scale", "big"), ("vertex_normals", 1)])
+@pytest.mark.parametrize(
+    "name, value",
+    [("depth", 8.5), ("depth", "8"), ("depth", True), ("scale", "big"), ("vertex_normals", 1)],
+)
 def test_parameters_of_the_wrong_type(name: str, value: Any) -> None:
     with pytest.raises(TypeError, match=name):
         psr.reconstruct(P, N, **{name: value})

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -49,7 +50,7 @@ def test_defaults_are_the_c_apis() -> None:
             assert params[name].kind is inspect.Parameter.KEYWORD_ONLY
 
 
-CHANGED = {
+CHANGED: dict[str, Any] = {
     "depth": 9,
     "width": 0.25,
     "full_depth": 3,
@@ -85,8 +86,9 @@ def test_every_parameter_reaches_psr_and_reads_back() -> None:
     assert r2.normal_orientation is psr.Orientation.VIEWPOINT
 
 
-def test_parameters_change_the_result(ball: tuple[np.ndarray, np.ndarray],
-                                      ball_mesh: psr.Mesh) -> None:
+def test_parameters_change_the_result(
+    ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh
+) -> None:
     coarse = psr.reconstruct(*ball, depth=4)
     assert coarse.depth == 4 and ball_mesh.depth == 6
     assert len(coarse.triangles) < len(ball_mesh.triangles) / 2
@@ -97,8 +99,9 @@ def test_parameters_change_the_result(ball: tuple[np.ndarray, np.ndarray],
     assert by_width.depth == 5
 
 
-def test_reconstructor_reuse_and_batches(ball: tuple[np.ndarray, np.ndarray],
-                                         ball_mesh: psr.Mesh) -> None:
+def test_reconstructor_reuse_and_batches(
+    ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh
+) -> None:
     p, n = ball
     r = psr.Reconstructor(depth=6)
     r.add_points(p[:1000], n[:1000])
@@ -152,8 +155,9 @@ def test_vertex_normals_point_outward(ball: tuple[np.ndarray, np.ndarray]) -> No
 def test_colors_channels_and_confidence(ball: tuple[np.ndarray, np.ndarray]) -> None:
     p, n = ball
     colors = np.where(p[:, :1] > 0, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]]).astype(np.float32)
-    m = psr.reconstruct(p, n, depth=6, colors=colors, channels={"height": p[:, 2]},
-                        confidence=np.full(len(p), 2.0))
+    m = psr.reconstruct(
+        p, n, depth=6, colors=colors, channels={"height": p[:, 2]}, confidence=np.full(len(p), 2.0)
+    )
     assert m.colors is not None and m.colors.shape == (len(m.vertices), 3)
     far = np.abs(m.vertices[:, 0]) > 0.3
     red = m.colors[:, 0] > m.colors[:, 2]
@@ -199,10 +203,13 @@ def test_points_without_normals(ball: tuple[np.ndarray, np.ndarray]) -> None:
     m = psr.reconstruct(p, depth=6)
     assert euler_characteristic(m) == 2
     assert np.linalg.norm(m.vertices, axis=1).mean() == pytest.approx(1.0, abs=0.03)
-    for kwargs in ({"sensor": (0.0, 0.0, 0.0)}, {"sensors": np.zeros_like(p)},
-                   {"viewpoint": (0.0, 0.0, 0.0)}):
+    for kwargs in (
+        {"sensor": (0.0, 0.0, 0.0)},
+        {"sensors": np.zeros_like(p)},
+        {"viewpoint": (0.0, 0.0, 0.0)},
+    ):
         # Normals facing the centre: the surface is the same sphere, turned inside out.
-        inside_out = psr.reconstruct(p, depth=5, **kwargs)  # type: ignore[arg-type]
+        inside_out = psr.reconstruct(p, depth=5, **kwargs)
         assert np.linalg.norm(inside_out.vertices, axis=1).mean() == pytest.approx(1.0, abs=0.05)
 
 
@@ -221,8 +228,14 @@ def test_transform_and_far_from_the_origin(ball: tuple[np.ndarray, np.ndarray]) 
 
 def test_ply_round_trip(tmp_path: Path, ball: tuple[np.ndarray, np.ndarray]) -> None:
     p, n = ball
-    m = psr.reconstruct(p, n, depth=5, vertex_normals=True, colors=np.tile([0.2, 0.4, 1.0], (len(p), 1)),
-                        channels={"t": p[:, 0]})
+    m = psr.reconstruct(
+        p,
+        n,
+        depth=5,
+        vertex_normals=True,
+        colors=np.tile([0.2, 0.4, 1.0], (len(p), 1)),
+        channels={"t": p[:, 0]},
+    )
     for ascii in (False, True):
         path = tmp_path / f"m{ascii}.ply"
         m.write_ply(path, ascii=ascii)
@@ -231,11 +244,16 @@ def test_ply_round_trip(tmp_path: Path, ball: tuple[np.ndarray, np.ndarray]) -> 
         assert np.array_equal(back.triangles, m.triangles)
         assert np.array_equal(back.properties["value"], m.densities)
         assert np.array_equal(back.properties["t"], m.channels["t"])
-        assert np.array_equal(np.stack([back.properties[c] for c in ("nx", "ny", "nz")], 1), m.normals)
+        assert m.normals is not None
+        assert np.array_equal(
+            np.stack([back.properties[c] for c in ("nx", "ny", "nz")], 1), m.normals
+        )
         assert back.properties["red"].dtype == np.uint8
         cloud = psr.read_ply(path)
         assert np.array_equal(cloud.points, m.vertices) and cloud.normals is not None
-        assert cloud.colors is not None and np.abs(cloud.colors - m.colors).max() <= 0.5 / 255 + 1e-6
+        assert (
+            cloud.colors is not None and np.abs(cloud.colors - m.colors).max() <= 0.5 / 255 + 1e-6
+        )
         assert set(cloud.channels) == {"value", "t"}
 
 
@@ -275,7 +293,9 @@ def test_open3d_interop(ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh
     assert len(tm.triangles) == len(m.triangles) and tm.is_watertight()
 
 
-def test_conversions_say_what_is_missing(ball_mesh: psr.Mesh, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_conversions_say_what_is_missing(
+    ball_mesh: psr.Mesh, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import sys
 
     for module, method in (("trimesh", "to_trimesh"), ("open3d", "to_open3d")):

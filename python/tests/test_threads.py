@@ -38,13 +38,18 @@ def test_one_reconstructor_shared_by_threads_takes_turns() -> None:
 
 
 def test_the_gil_is_released_during_the_solve() -> None:
-    p, n = sphere(100_000, seed=6)
+    p, n = sphere(30_000, seed=6)
     in_solve = threading.Event()
     done = threading.Event()
 
     def solve() -> None:
-        psr.reconstruct(p, n, depth=9, threads=1,
-                        progress=lambda s, f: in_solve.set() if s is psr.Stage.SOLVE else None)
+        psr.reconstruct(
+            p,
+            n,
+            depth=8,
+            threads=1,
+            progress=lambda s, f: in_solve.set() if s is psr.Stage.SOLVE else None,
+        )
         done.set()
 
     t = threading.Thread(target=solve)

@@ -17,7 +17,6 @@ from . import _arrays
 from ._errors import (
     InvalidArgumentError,
     InvalidParameterError,
-    PsrError,
     Status,
     error_for,
 )
@@ -56,7 +55,8 @@ class Stage(IntEnum):
     NORMALS = 9
 
     def __str__(self) -> str:
-        return LIB.psr_stage_string(int(self)).decode()
+        name: bytes = LIB.psr_stage_string(int(self))
+        return name.decode()
 
 
 class Boundary(IntEnum):
@@ -110,7 +110,8 @@ _INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
 
 
 def _last_error(handle: ctypes.c_void_p) -> str:
-    return bytes(LIB.psr_reconstructor_last_error(handle)).decode(errors="replace")
+    message: bytes = LIB.psr_reconstructor_last_error(handle)
+    return message.decode(errors="replace")
 
 
 def _check(status: int, handle: ctypes.c_void_p | None = None, message: str = "") -> None:
@@ -337,9 +338,7 @@ class Reconstructor:
     concurrently, each with its own worker threads, and the GIL is released while psr runs.
     """
 
-    depth = _Param[int](
-        ctypes.c_uint32, _u32, int, "Maximum octree depth, 1 to 16 (default 8)."
-    )
+    depth = _Param[int](ctypes.c_uint32, _u32, int, "Maximum octree depth, 1 to 16 (default 8).")
     width = _Param[float](
         ctypes.c_double,
         _real,
@@ -348,7 +347,10 @@ class Reconstructor:
         "(default 0: off).",
     )
     full_depth = _Param[int](
-        ctypes.c_uint32, _u32, int, "Depth down to which the octree is complete, 0 to 16 (default 5)."
+        ctypes.c_uint32,
+        _u32,
+        int,
+        "Depth down to which the octree is complete, 0 to 16 (default 5).",
     )
     kernel_depth = _Param[int](
         ctypes.c_int32,
@@ -645,7 +647,12 @@ class Reconstructor:
                     )
                 pos, stride = _arrays.as_c_rows(p, np.float64)
                 status = LIB.psr_reconstructor_add_points_transformed(
-                    handle, pos.ctypes.data, stride, normals_c.ctypes.data, normal_stride, n,
+                    handle,
+                    pos.ctypes.data,
+                    stride,
+                    normals_c.ctypes.data,
+                    normal_stride,
+                    n,
                     m.ctypes.data,
                 )
                 double = True
@@ -737,7 +744,6 @@ class Reconstructor:
         with self._lock:
             handle = self._live()
             _check(LIB.psr_reconstructor_add_point_arrays(handle, ctypes.byref(a)), handle)
-        del keep
 
     # --- solving ---------------------------------------------------------------------------------
 
@@ -769,13 +775,15 @@ class Reconstructor:
             progress, close_bar = _tqdm_progress()
         elif isinstance(progress, str):
             raise ValueError(f'progress must be a callable, "tqdm" or None, not {progress!r}')
-        state = _SolveState(progress)  # type: ignore[arg-type]
+        state = _SolveState(progress)
         on_main = threading.current_thread() is threading.main_thread()
         try:
             if on_main:
                 worker = threading.Thread(
-                    target=self._solve_call, args=(state, keep_implicit, True),
-                    name="psr-solve", daemon=True,
+                    target=self._solve_call,
+                    args=(state, keep_implicit, True),
+                    name="psr-solve",
+                    daemon=True,
                 )
                 try:
                     worker.start()
@@ -823,8 +831,10 @@ class Reconstructor:
                     else None
                 )
                 if trampoline is not None:
-                    _check(LIB.psr_reconstructor_set_progress_callback(handle, trampoline, None),
-                           handle)
+                    _check(
+                        LIB.psr_reconstructor_set_progress_callback(handle, trampoline, None),
+                        handle,
+                    )
                 try:
                     if keep_implicit:
                         status = LIB.psr_reconstructor_solve_implicit(
@@ -896,6 +906,9 @@ class Mesh:
     the object (or by :meth:`close`).
     """
 
+    _ptr: ctypes.c_void_p
+    _double: bool
+    _finalizer: Any
     vertices: np.ndarray
     triangles: np.ndarray
     densities: np.ndarray
@@ -942,8 +955,14 @@ class Mesh:
             values = np.empty(nv, np.float32)
             _check(LIB.psr_mesh_copy_channel(ptr, i, values.ctypes.data, nv))
             self.channels[name] = values
-        for a in (self.vertices, self.triangles, self.densities, self.normals, self.colors,
-                  *self.channels.values()):
+        for a in (
+            self.vertices,
+            self.triangles,
+            self.densities,
+            self.normals,
+            self.colors,
+            *self.channels.values(),
+        ):
             if a is not None:
                 a.flags.writeable = False
         return self
@@ -1019,8 +1038,9 @@ class Mesh:
             s = DepthSolve()
             s.struct_size = ctypes.sizeof(s)
             _check(LIB.psr_mesh_solve_stats(ptr, i, ctypes.byref(s)))
-            stats.append(SolveStats(s.depth, s.iterations, s.unknowns, s.relative_residual,
-                                    s.seconds))
+            stats.append(
+                SolveStats(s.depth, s.iterations, s.unknowns, s.relative_residual, s.seconds)
+            )
         return stats
 
     @property
@@ -1094,7 +1114,7 @@ class Mesh:
             import trimesh
         except ImportError:
             raise ImportError("Mesh.to_trimesh needs trimesh: pip install trimesh") from None
-        attributes: dict[str, np.ndarray] = {"density": self.densities, **self.channels}
+        attributes: dict[str, Any] = {"density": self.densities, **self.channels}
         return trimesh.Trimesh(
             vertices=self.vertices,
             faces=self.triangles,
@@ -1116,6 +1136,9 @@ class Implicit:
     """The solved indicator function chi of one reconstruction (psr_implicit): evaluate it and
     its gradient at points, or sample it on a grid. The surface is where chi equals
     ``isovalue``; chi - isovalue is negative inside. Safe to use from several threads."""
+
+    _ptr: ctypes.c_void_p
+    _finalizer: Any
 
     def __init__(self) -> None:
         raise TypeError("implicit functions come from solve(keep_implicit=True)")
@@ -1270,4 +1293,3 @@ def reconstruct(
             transform=transform,
         )
         return r.solve(progress=progress, keep_implicit=keep_implicit)
-

@@ -21,10 +21,22 @@ __all__ = ["PointCloud", "PlyMesh", "PlyError", "read_ply", "read_ply_mesh", "wr
 PathLike = Union[str, "os.PathLike[str]"]
 
 _TYPES = {
-    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
-    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
-    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
 }
 _COLORS = ("red", "green", "blue", "alpha")
 _SENSORS = ("sensor_x", "sensor_y", "sensor_z")
@@ -100,9 +112,7 @@ def _read_header(f: IO[bytes], path: str) -> tuple[str, list[_Element]]:
         elif words[0] == "property" and elements:
             try:
                 if words[1] == "list" and len(words) == 5:
-                    elements[-1].properties.append(
-                        (words[4], _TYPES[words[2]], _TYPES[words[3]])
-                    )
+                    elements[-1].properties.append((words[4], _TYPES[words[2]], _TYPES[words[3]]))
                 elif len(words) == 3:
                     elements[-1].properties.append((words[2], _TYPES[words[1]]))
                 else:
@@ -136,8 +146,10 @@ def _read_binary(f: IO[bytes], fmt: str, elements: list[_Element], path: str) ->
                 raise PlyError(f"{path}: only triangle faces are supported")
             data[el.name] = {name: rec["v"]}
         else:
-            raise PlyError(f"{path}: element {el.name} has list properties this reader skips "
-                           "only in ASCII files")
+            raise PlyError(
+                f"{path}: element {el.name} has list properties this reader skips "
+                "only in ASCII files"
+            )
     return data
 
 
@@ -178,8 +190,8 @@ def _read(path: PathLike) -> dict[str, Any]:
 
 
 def _vertex(data: dict[str, Any], path: str) -> np.ndarray:
-    v = data.get("vertex")
-    if v is None or not all(k in v.dtype.names for k in "xyz"):
+    v: np.ndarray | None = data.get("vertex")
+    if v is None or not all(k in (v.dtype.names or ()) for k in "xyz"):
         raise PlyError(f"{path}: no vertex element with x, y, z")
     return v
 
@@ -250,8 +262,11 @@ def write_ply(path: PathLike, mesh: Any, *, ascii: bool = False) -> None:
     vertices = np.asarray(mesh.vertices)
     triangles = np.asarray(mesh.triangles)
     n = len(vertices)
-    if vertices.ndim != 2 or vertices.shape[1] != 3 or triangles.ndim != 2 or (
-        triangles.shape[1] != 3
+    if (
+        vertices.ndim != 2
+        or vertices.shape[1] != 3
+        or triangles.ndim != 2
+        or (triangles.shape[1] != 3)
     ):
         raise ValueError("write_ply: vertices and triangles must have shape (n, 3) and (m, 3)")
     if len(triangles) and (triangles.min() < 0 or triangles.max() >= n):
@@ -315,4 +330,3 @@ def _write_ascii(f: IO[bytes], fields: list[tuple[str, str, np.ndarray]], triang
         f.write((" ".join(str(c[i]) for c in columns) + "\n").encode())
     for t in np.asarray(triangles):
         f.write(f"3 {t[0]} {t[1]} {t[2]}\n".encode())
-
