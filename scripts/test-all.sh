@@ -19,6 +19,10 @@
 #      small whole-pipeline tests (bad_input, worker_threads: every stage on small clouds, in
 #      seconds), so the pipeline's debug assertions run too. The reconstructions of real scans
 #      in tests/ are left to step 7: in this profile they would take far longer.
+#   9. the Python package (.ci/python.sh: its wheel built, installed into a fresh virtual
+#      environment and tested there with pytest, against the psr program bit for bit; pip
+#      install ./python and the package's example; ruff and mypy --strict). It installs
+#      python3-venv when missing and pytest, tqdm, trimesh, ruff and mypy into its own venvs.
 # Step 0 installs what steps 1-4 need when it is missing: rustfmt, clippy (rustup components) and
 # the minimum toolchain (rustup toolchain install --profile minimal).
 # Real-scan tests read ../shared/data (or $PSR_DATA_DIR); they skip with a visible message when
@@ -66,6 +70,9 @@ cargo test --release --workspace --all-targets 2>&1 | tee -a "$rust_log"
 
 heading "8. with debug assertions: cargo test -p psr --lib --test bad_input --test worker_threads"
 cargo test -p psr --lib --test bad_input --test worker_threads 2>&1 | tee -a "$rust_log"
+
+heading "9. the Python package (.ci/python.sh)"
+bash .ci/python.sh
 
 heading "all steps passed"
 # One closing line over every Rust test run above (steps 7 and 8).

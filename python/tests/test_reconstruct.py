@@ -254,7 +254,8 @@ def test_ply_round_trip(tmp_path: Path, ball: tuple[np.ndarray, np.ndarray]) -> 
         assert (
             cloud.colors is not None and np.abs(cloud.colors - m.colors).max() <= 0.5 / 255 + 1e-6
         )
-        assert set(cloud.channels) == {"value", "t"}
+        assert set(cloud.channels) == {"t"}
+        assert cloud.confidence is not None and np.array_equal(cloud.confidence, m.densities)
 
 
 def test_read_ply_kitten_and_errors(tmp_path: Path) -> None:

@@ -876,7 +876,7 @@ def _unpack_cloud(
             cloud.points,
             normals if normals is not None else cloud.normals,
             colors if colors is not None else cloud.colors,
-            confidence if confidence is not None else cloud.confidence,
+            confidence,  # as the psr program: the file's confidence only when asked for
             channels if channels is not None else (cloud.channels or None),
         )
     if type(points).__module__.startswith("open3d") and hasattr(points, "points"):

@@ -52,8 +52,11 @@ class PointCloud:
 
     ``points`` (n, 3) float32 (float64 when the file stores doubles); ``normals`` (n, 3) or
     None; ``colors`` (n, 3 or 4) float32 in 0..1 (integer colours are divided by their full
-    scale) or None; ``confidence`` (n,) or None; ``channels``: every other scalar vertex
-    property by name, as float32 (x, y, z-named sensor properties excepted).
+    scale) or None; ``confidence`` (n,) from a ``confidence`` (or else ``value``) property, or
+    None; ``channels``: every other scalar vertex property by name, as float32 (sensor
+    positions excepted). Passed whole to :func:`psr.reconstruct`, the cloud gives its normals,
+    colours and channels, as the psr program does; its confidence is used only when passed
+    as ``confidence=`` (the program's ``--confidence``).
     """
 
     points: np.ndarray
@@ -218,15 +221,22 @@ def read_ply(path: PathLike) -> PointCloud:
     if all(k in names for k in ("nx", "ny", "nz")):
         cloud.normals = _stack(v, ("nx", "ny", "nz"), np.float32)
         used |= {"nx", "ny", "nz"}
-    if all(k in names for k in _COLORS[:3]):
-        comps = _COLORS if "alpha" in names else _COLORS[:3]
-        t = v.dtype["red"]
+    # The colour names the psr program reads: red green blue [alpha], diffuse_red ..., r g b [a].
+    candidates = [_COLORS, tuple("diffuse_" + c for c in _COLORS), ("r", "g", "b", "a")]
+    found = [c for c in candidates if all(name in names for name in c[:3])]
+    if found:
+        comps = found[0] if found[0][3] in names else found[0][:3]
+        t = v.dtype[comps[0]]
         full = {np.dtype("u2"): 65535.0}.get(t, 1.0 if t.kind == "f" else 255.0)
         cloud.colors = (_stack(v, comps, np.float64) / full).astype(np.float32)
         used |= set(comps)
-    if "confidence" in names:
-        cloud.confidence = v["confidence"].astype(np.float32)
-        used.add("confidence")
+    for name in ("confidence", "value"):
+        if name in names:
+            # As the psr program reads it; reconstruct() uses it only when passed explicitly
+            # (the program's --confidence).
+            if cloud.confidence is None:
+                cloud.confidence = v[name].astype(np.float32)
+            used.add(name)
     for name in names:
         if name not in used:
             cloud.channels[name] = v[name].astype(np.float32)
