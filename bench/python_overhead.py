@@ -94,10 +94,7 @@ class CallTimer:
 
 def machine() -> str:
     lscpu = subprocess.run(["lscpu"], capture_output=True, text=True).stdout.splitlines()[:10]
-    return (
-        f"`nproc` = {os.cpu_count()}; load average before: "
-        f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}\n\n```\n" + "\n".join(lscpu) + "\n```"
-    )
+    return f"`nproc` = {os.cpu_count()}; `lscpu | head`:\n\n```\n" + "\n".join(lscpu) + "\n```"
 
 
 def main() -> int:
