@@ -14,9 +14,10 @@ import time
 
 import numpy as np
 import pytest
-from conftest import same_mesh, sphere
 
 import psr
+
+from conftest import same_mesh, sphere
 
 
 def test_progress_reports_every_stage_in_order(ball: tuple[np.ndarray, np.ndarray]) -> None:

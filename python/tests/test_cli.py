@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import KITTEN, need
 
 import psr
+
+from conftest import KITTEN, need
 
 
 def run_cli(cli: Path, cloud: Path, out: Path, *args: str) -> psr.PlyMesh:

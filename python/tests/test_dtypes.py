@@ -7,10 +7,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import same_mesh
 
 import psr
 from psr import _arrays
+
+from conftest import same_mesh
 
 
 @pytest.fixture(scope="module")

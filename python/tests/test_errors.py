@@ -7,10 +7,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import sphere
 
 import psr
 from psr import Status
+
+from conftest import sphere
 
 P, N = sphere(400, seed=3)
 

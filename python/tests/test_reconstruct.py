@@ -8,9 +8,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import KITTEN, need, same_mesh, sphere
 
 import psr
+
+from conftest import KITTEN, need, same_mesh, sphere
 
 
 def euler_characteristic(mesh: psr.Mesh) -> int:

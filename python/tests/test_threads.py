@@ -7,9 +7,10 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from conftest import same_mesh, sphere
 
 import psr
+
+from conftest import same_mesh, sphere
 
 
 def test_two_threads_reconstruct_at_once() -> None:
