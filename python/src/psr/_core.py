@@ -765,7 +765,7 @@ class Reconstructor:
         The GIL is released while psr runs. Called from the main thread, the solve runs on a
         worker thread (where the progress callback is then called) while the main thread waits,
         so that Ctrl-C raises KeyboardInterrupt at once: psr is told to stop at its next
-        progress report, and if it has not stopped within 0.3 s it is left to finish
+        progress report, and if it has not stopped within 0.2 s it is left to finish
         in the background (its results are freed) while the exception propagates. From other
         threads the solve runs on the calling thread.
         """
@@ -861,7 +861,7 @@ class Reconstructor:
 _POLL_SECONDS = 0.05
 #: How long a solve interrupted by Ctrl-C may take to reach psr's next progress report before
 #: KeyboardInterrupt propagates without it.
-_CANCEL_GRACE_SECONDS = 0.3
+_CANCEL_GRACE_SECONDS = 0.2
 
 
 def _unpack_cloud(
