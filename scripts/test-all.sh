@@ -19,7 +19,11 @@
 #      small whole-pipeline tests (bad_input, worker_threads: every stage on small clouds, in
 #      seconds), so the pipeline's debug assertions run too. The reconstructions of real scans
 #      in tests/ are left to step 7: in this profile they would take far longer;
-#   9. the fuzz targets (fuzz/, their own workspace): formatting, clippy with warnings as errors,
+#   9. the Python package (.ci/python.sh: its wheel built, installed into a fresh virtual
+#      environment and tested there with pytest, against the psr program bit for bit; pip
+#      install ./python and the package's example; ruff and mypy --strict). It installs
+#      python3-venv when missing and pytest, tqdm, trimesh, ruff and mypy into its own venvs;
+#  10. the fuzz targets (fuzz/, their own workspace): formatting, clippy with warnings as errors,
 #      and every committed corpus input replayed through its target on stable Rust
 #      (fuzz/tests/replay.rs), so that past findings stay fixed; fuzzing itself is
 #      scripts/fuzz.sh (nightly, libFuzzer), run by hand and recorded in docs/reliability.md.
@@ -71,12 +75,15 @@ cargo test --release --workspace --all-targets 2>&1 | tee -a "$rust_log"
 heading "8. with debug assertions: cargo test -p psr --lib --test bad_input --test worker_threads"
 cargo test -p psr --lib --test bad_input --test worker_threads 2>&1 | tee -a "$rust_log"
 
-heading "9. fuzz corpora replayed: cargo test --release --manifest-path fuzz/Cargo.toml"
+heading "9. the Python package (.ci/python.sh)"
+bash .ci/python.sh
+
+heading "10. fuzz corpora replayed: cargo test --release --manifest-path fuzz/Cargo.toml"
 cargo fmt --manifest-path fuzz/Cargo.toml -- --check
 cargo clippy --manifest-path fuzz/Cargo.toml --all-targets --target-dir target/fuzz -- -D warnings
 cargo test --release --manifest-path fuzz/Cargo.toml --target-dir target/fuzz 2>&1 | tee -a "$rust_log"
 
 heading "all steps passed"
-# One closing line over every Rust test run above (steps 7, 8 and 9).
+# One closing line over every Rust test run above (steps 7, 8 and 10).
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($(i) ~ /^passed;?$/) p += $(i - 1); if ($(i) ~ /^failed;?$/) f += $(i - 1) } }
      END { printf "%d passed, %d failed\n", p, f }' "$rust_log"

@@ -1,0 +1,306 @@
+"""Round trips through psr: parameters, meshes, attributes, implicit function, trimming, PLY."""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import psr
+
+from conftest import KITTEN, need, same_mesh, sphere
+
+
+def euler_characteristic(mesh: psr.Mesh) -> int:
+    t = mesh.triangles.astype(np.int64)
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    e = len(np.unique(edges, axis=0))
+    return len(mesh.vertices) - e + len(t)
+
+
+def test_sphere_is_a_closed_sphere(ball_mesh: psr.Mesh) -> None:
+    m = ball_mesh
+    assert m.vertices.dtype == np.float32 and m.vertices.shape[1] == 3
+    assert m.triangles.dtype == np.uint32 and m.triangles.shape[1] == 3
+    assert m.densities.shape == (len(m.vertices),) and m.densities.dtype == np.float32
+    assert len(m.triangles) > 500
+    assert int(m.triangles.max()) == len(m.vertices) - 1
+    radii = np.linalg.norm(m.vertices, axis=1)
+    assert abs(float(radii.mean()) - 1.0) < 0.02
+    assert euler_characteristic(m) == 2
+    # Counter-clockwise seen from outside: the enclosed volume is positive.
+    v = m.vertices.astype(np.float64)[m.triangles.astype(np.int64)]
+    volume = np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6
+    assert volume == pytest.approx(4 / 3 * np.pi, rel=0.05)
+    assert m.normals is None and m.colors is None and m.channels == {}
+    assert not m.vertices.flags.writeable
+
+
+def test_defaults_are_the_c_apis() -> None:
+    with psr.Reconstructor() as r:
+        c_defaults = {name: getattr(r, name) for name in psr.DEFAULTS}
+    for name, value in psr.DEFAULTS.items():
+        assert np.float32(c_defaults[name]) == np.float32(value), name
+    for fn in (psr.reconstruct, psr.Reconstructor.__init__):
+        params = inspect.signature(fn).parameters
+        for name, value in psr.DEFAULTS.items():
+            assert params[name].default == value, (fn.__name__, name)
+            assert params[name].kind is inspect.Parameter.KEYWORD_ONLY
+
+
+CHANGED: dict[str, Any] = {
+    "depth": 9,
+    "width": 0.25,
+    "full_depth": 3,
+    "kernel_depth": 4,
+    "samples_per_node": 2.0,
+    "scale": 1.25,
+    "point_weight": 0.0,
+    "threads": 2,
+    "max_solver_iterations": 30,
+    "solver_tolerance": 1e-4,
+    "boundary": psr.Boundary.DIRICHLET,
+    "splatting": psr.Splatting.TRILINEAR,
+    "vertex_placement": psr.VertexPlacement.ON_ISOSURFACE,
+    "min_component_samples": 0,
+    "vertex_normals": True,
+    "normal_neighbors": 12,
+    "normal_orientation": psr.Orientation.SENSORS,
+}
+
+
+def test_every_parameter_reaches_psr_and_reads_back() -> None:
+    assert set(CHANGED) == set(psr.DEFAULTS)
+    r = psr.Reconstructor(**CHANGED)
+    assert r.parameters() == {**CHANGED, "viewpoint": None}
+    r2 = psr.Reconstructor()
+    for name, value in CHANGED.items():
+        setattr(r2, name, value)
+        assert getattr(r2, name) == value
+    r2.boundary = "free"  # type: ignore[assignment]
+    assert r2.boundary is psr.Boundary.FREE
+    r2.viewpoint = (1, 2, 3)
+    assert r2.viewpoint == (1.0, 2.0, 3.0)
+    assert r2.normal_orientation is psr.Orientation.VIEWPOINT
+
+
+def test_parameters_change_the_result(
+    ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh
+) -> None:
+    coarse = psr.reconstruct(*ball, depth=4)
+    assert coarse.depth == 4 and ball_mesh.depth == 6
+    assert len(coarse.triangles) < len(ball_mesh.triangles) / 2
+    on_iso = psr.reconstruct(*ball, depth=6, vertex_placement="on_isosurface")
+    assert len(on_iso.vertices) == len(ball_mesh.vertices)
+    assert not np.array_equal(on_iso.vertices, ball_mesh.vertices)
+    by_width = psr.reconstruct(*ball, width=2.2 / 32)
+    assert by_width.depth == 5
+
+
+def test_reconstructor_reuse_and_batches(
+    ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh
+) -> None:
+    p, n = ball
+    r = psr.Reconstructor(depth=6)
+    r.add_points(p[:1000], n[:1000])
+    r.add_points(p[1000:], n[1000:])
+    assert len(r) == r.point_count == len(p)
+    first = r.solve()
+    assert same_mesh(first, ball_mesh)
+    assert same_mesh(r.solve(), first)
+    r.clear_points()
+    assert len(r) == 0
+    p2, n2 = sphere(2000, seed=7, radius=2.0)
+    r.add_points(p2, n2)
+    other = r.solve()
+    assert np.linalg.norm(other.vertices, axis=1).mean() == pytest.approx(2.0, rel=0.02)
+    assert "2000 points" in repr(r)
+    r.close()
+    with pytest.raises(ValueError, match="closed"):
+        r.solve()
+
+
+def test_mesh_outlives_its_reconstructor(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    r = psr.Reconstructor(depth=5)
+    r.add_points(*ball)
+    m = r.solve()
+    del r
+    assert m.depth == 5 and len(m.trim().vertices) > 0
+
+
+def test_statistics(ball_mesh: psr.Mesh) -> None:
+    m = ball_mesh
+    assert m.finest_depth <= m.depth == 6
+    counts = m.node_counts
+    assert counts.dtype == np.uint64 and len(counts) == m.finest_depth + 1 and counts[0] == 1
+    stats = m.solve_stats
+    assert [s.depth for s in stats] == list(range(len(stats)))
+    assert all(s.iterations >= 1 and s.seconds >= 0 for s in stats)
+    assert np.isfinite(m.isovalue)
+    assert m.origin == (0.0, 0.0, 0.0)
+    assert m.unsupported_components == 0
+    assert np.isnan(m.trim_density) and np.isnan(m.trim_depth)
+
+
+def test_vertex_normals_point_outward(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    m = psr.reconstruct(*ball, depth=6, vertex_normals=True)
+    assert m.normals is not None and m.normals.shape == m.vertices.shape
+    assert np.allclose(np.linalg.norm(m.normals, axis=1), 1, atol=1e-4)
+    radial = m.vertices / np.linalg.norm(m.vertices, axis=1, keepdims=True)
+    assert np.einsum("ij,ij->i", radial, m.normals).min() > 0.9
+
+
+def test_colors_channels_and_confidence(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    p, n = ball
+    colors = np.where(p[:, :1] > 0, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]]).astype(np.float32)
+    m = psr.reconstruct(
+        p, n, depth=6, colors=colors, channels={"height": p[:, 2]}, confidence=np.full(len(p), 2.0)
+    )
+    assert m.colors is not None and m.colors.shape == (len(m.vertices), 3)
+    far = np.abs(m.vertices[:, 0]) > 0.3
+    red = m.colors[:, 0] > m.colors[:, 2]
+    assert np.array_equal(red[far], (m.vertices[:, 0] > 0)[far])
+    assert list(m.channels) == ["height"]
+    assert np.abs(m.channels["height"] - m.vertices[:, 2]).max() < 0.1
+    rgba = psr.reconstruct(p, n, depth=5, colors=np.ones((len(p), 4)))
+    assert rgba.colors is not None and rgba.colors.shape[1] == 4
+
+
+def test_implicit_function(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    m = psr.reconstruct(*ball, depth=6, keep_implicit=True)
+    f = m.implicit
+    assert f is not None and f.isovalue == pytest.approx(m.isovalue)
+    values = f.evaluate(np.array([[0, 0, 0], [0, 0, 1.05], [0.5, 0, 0]], np.float64))
+    assert values.shape == (3,)
+    assert values[0] < f.isovalue < values[1] and values[2] < f.isovalue
+    g = f.gradient([[0.0, 0.0, 1.0]])
+    assert g.shape == (1, 3) and g[0, 2] > abs(g[0, 0]) + abs(g[0, 1])
+    origin, size = f.cube
+    assert size == pytest.approx(2 * 1.1, rel=0.01) and origin[0] == pytest.approx(-1.1, rel=0.02)
+    grid = f.sample_grid(8)
+    assert grid.shape == (8, 8, 8) and grid[4, 4, 4] < f.isovalue < grid[0, 0, 0]
+    assert psr.reconstruct(*ball, depth=4).implicit is None
+
+
+def test_trim(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    p, n = ball
+    cap = p[:, 2] < 0.5  # a sphere with its top cut off: the lid is invented far from samples
+    m = psr.reconstruct(p[cap], n[cap], depth=6)
+    t = m.trim()
+    assert 0 < len(t.triangles) < len(m.triangles)
+    assert t.vertices[:, 2].max() < m.vertices[:, 2].max()
+    assert np.isfinite(t.trim_density) and np.isfinite(t.trim_depth)
+    everything = m.trim(threshold=psr.TrimThreshold.DENSITY, threshold_value=0.0)
+    assert len(everything.triangles) == len(m.triangles)
+    half = m.trim(threshold="quantile", threshold_value=0.5)
+    assert len(half.triangles) < len(t.triangles)
+
+
+def test_points_without_normals(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    p, _ = ball
+    m = psr.reconstruct(p, depth=6)
+    assert euler_characteristic(m) == 2
+    assert np.linalg.norm(m.vertices, axis=1).mean() == pytest.approx(1.0, abs=0.03)
+    for kwargs in (
+        {"sensor": (0.0, 0.0, 0.0)},
+        {"sensors": np.zeros_like(p)},
+        {"viewpoint": (0.0, 0.0, 0.0)},
+    ):
+        # Normals facing the centre: the surface is the same sphere, turned inside out.
+        inside_out = psr.reconstruct(p, depth=5, **kwargs)
+        assert np.linalg.norm(inside_out.vertices, axis=1).mean() == pytest.approx(1.0, abs=0.05)
+
+
+def test_transform_and_far_from_the_origin(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    p, n = ball
+    shift = np.array([1e6, -2e6, 5e5])
+    far = psr.reconstruct(p.astype(np.float64) + shift, n, depth=6)
+    assert far.vertices.dtype == np.float64 and far.origin != (0.0, 0.0, 0.0)
+    assert np.linalg.norm(far.vertices - shift, axis=1).mean() == pytest.approx(1.0, rel=0.02)
+    m = np.eye(4)
+    m[:3, 3] = shift
+    moved = psr.reconstruct(p, n, depth=6, transform=m)
+    assert moved.vertices.dtype == np.float64
+    assert np.abs(moved.vertices - far.vertices).max() < 1e-3  # 1e-9 of the coordinates
+
+
+def test_ply_round_trip(tmp_path: Path, ball: tuple[np.ndarray, np.ndarray]) -> None:
+    p, n = ball
+    m = psr.reconstruct(
+        p,
+        n,
+        depth=5,
+        vertex_normals=True,
+        colors=np.tile([0.2, 0.4, 1.0], (len(p), 1)),
+        channels={"t": p[:, 0]},
+    )
+    for ascii in (False, True):
+        path = tmp_path / f"m{ascii}.ply"
+        m.write_ply(path, ascii=ascii)
+        back = psr.read_ply_mesh(path)
+        assert np.array_equal(back.vertices, m.vertices)
+        assert np.array_equal(back.triangles, m.triangles)
+        assert np.array_equal(back.properties["value"], m.densities)
+        assert np.array_equal(back.properties["t"], m.channels["t"])
+        assert m.normals is not None
+        assert np.array_equal(
+            np.stack([back.properties[c] for c in ("nx", "ny", "nz")], 1), m.normals
+        )
+        assert back.properties["red"].dtype == np.uint8
+        cloud = psr.read_ply(path)
+        assert np.array_equal(cloud.points, m.vertices) and cloud.normals is not None
+        assert (
+            cloud.colors is not None and np.abs(cloud.colors - m.colors).max() <= 0.5 / 255 + 1e-6
+        )
+        assert set(cloud.channels) == {"t"}
+        assert cloud.confidence is not None and np.array_equal(cloud.confidence, m.densities)
+
+
+def test_read_ply_kitten_and_errors(tmp_path: Path) -> None:
+    cloud = psr.read_ply(need(KITTEN, "examples/data/kitten_cgal.ply"))
+    assert len(cloud) == 5210 and cloud.points.dtype == np.float32
+    assert cloud.normals is not None and cloud.colors is None and cloud.channels == {}
+    mesh = psr.reconstruct(cloud, depth=6)
+    assert len(mesh.triangles) > 1000
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"not a ply\n")
+    with pytest.raises(psr.PlyError, match="not a PLY"):
+        psr.read_ply(bad)
+    bad.write_bytes(KITTEN.read_bytes()[:2000])
+    with pytest.raises(psr.PlyError, match="ends inside"):
+        psr.read_ply(bad)
+    with pytest.raises(OSError):
+        psr.read_ply(tmp_path / "missing.ply")
+
+
+def test_trimesh_interop(ball_mesh: psr.Mesh) -> None:
+    trimesh = pytest.importorskip("trimesh", reason="trimesh is not installed")
+    t = ball_mesh.to_trimesh()
+    assert isinstance(t, trimesh.Trimesh)
+    assert np.array_equal(t.faces, ball_mesh.triangles) and t.is_watertight
+    assert np.array_equal(t.vertex_attributes["density"], ball_mesh.densities)
+
+
+def test_open3d_interop(ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh) -> None:
+    o3d = pytest.importorskip("open3d", reason="open3d is not installed")
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(ball[0].astype(np.float64)))
+    pcd.normals = o3d.utility.Vector3dVector(ball[1].astype(np.float64))
+    m = psr.reconstruct(pcd, depth=6)
+    assert np.abs(m.vertices - ball_mesh.vertices).max() < 1e-6
+    tm = m.to_open3d()
+    assert isinstance(tm, o3d.geometry.TriangleMesh)
+    assert len(tm.triangles) == len(m.triangles) and tm.is_watertight()
+
+
+def test_conversions_say_what_is_missing(
+    ball_mesh: psr.Mesh, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sys
+
+    for module, method in (("trimesh", "to_trimesh"), ("open3d", "to_open3d")):
+        monkeypatch.setitem(sys.modules, module, None)
+        with pytest.raises(ImportError, match=f"pip install {module}"):
+            getattr(ball_mesh, method)()
