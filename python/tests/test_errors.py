@@ -120,6 +120,8 @@ def test_attribute_lengths_and_values() -> None:
         ("scale", 0.9),
         ("scale", float("inf")),
         ("point_weight", -1.0),
+        ("degree", 0),
+        ("degree", 3),
         ("threads", 5000),
         ("max_solver_iterations", 0),
         ("solver_tolerance", 1.0),

@@ -47,7 +47,9 @@ def test_defaults_are_the_c_apis() -> None:
     for fn in (psr.reconstruct, psr.Reconstructor.__init__):
         params = inspect.signature(fn).parameters
         for name, value in psr.DEFAULTS.items():
-            assert params[name].default == value, (fn.__name__, name)
+            # point_weight's None is 2 x degree, as for a fresh handle: 4 at the default degree.
+            expected = None if name == "point_weight" else value
+            assert params[name].default == expected, (fn.__name__, name)
             assert params[name].kind is inspect.Parameter.KEYWORD_ONLY
 
 
@@ -58,6 +60,7 @@ CHANGED: dict[str, Any] = {
     "kernel_depth": 4,
     "samples_per_node": 2.0,
     "scale": 1.25,
+    "degree": 1,
     "point_weight": 0.0,
     "threads": 2,
     "max_solver_iterations": 30,
@@ -98,6 +101,21 @@ def test_parameters_change_the_result(
     assert not np.array_equal(on_iso.vertices, ball_mesh.vertices)
     by_width = psr.reconstruct(*ball, width=2.2 / 32)
     assert by_width.depth == 5
+
+
+def test_degree_one(ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh) -> None:
+    r = psr.Reconstructor(depth=6, degree=1)
+    assert r.degree == 1 and r.point_weight == 2.0  # 2 x degree, like the C API and the CLI
+    r.add_points(*ball)
+    linear = r.solve()
+    assert euler_characteristic(linear) == 2
+    assert not np.array_equal(linear.vertices, ball_mesh.vertices)
+    radii = np.linalg.norm(linear.vertices, axis=1)
+    assert abs(float(radii.mean()) - 1.0) < 0.02
+    assert psr.Reconstructor(degree=1, point_weight=8.0).point_weight == 8.0
+    r.degree = 2
+    assert r.point_weight == 4.0
+    assert same_mesh(r.solve(), ball_mesh)
 
 
 def test_reconstructor_reuse_and_batches(

@@ -239,6 +239,7 @@ DEFAULTS: dict[str, Any] = {
     "kernel_depth": -1,
     "samples_per_node": 1.5,
     "scale": 1.1,
+    "degree": 2,
     "point_weight": 4.0,
     "threads": 0,
     "max_solver_iterations": 60,
@@ -367,11 +368,18 @@ class Reconstructor:
         float,
         "Ratio of the reconstruction cube to the points' bounding box, 1 to 100 (default 1.1).",
     )
+    degree = _Param[int](
+        ctypes.c_int32,
+        _i32,
+        int,
+        "B-spline degree of the node functions, 2 (default) or 1 (PoissonRecon's --degree 1); "
+        "setting it also sets point_weight to 2 x degree.",
+    )
     point_weight = _Param[float](
         ctypes.c_float,
         _real,
         float,
-        "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 4).",
+        "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 2 x degree: 4).",
     )
     threads = _Param[int](
         ctypes.c_uint32, _u32, int, "Worker threads of a solve; 0 (default) is one per core."
@@ -438,7 +446,8 @@ class Reconstructor:
         kernel_depth: int = -1,
         samples_per_node: float = 1.5,
         scale: float = 1.1,
-        point_weight: float = 4.0,
+        degree: int = 2,
+        point_weight: float | None = None,
         threads: int = 0,
         max_solver_iterations: int = 60,
         solver_tolerance: float = 1e-2,
@@ -474,7 +483,9 @@ class Reconstructor:
         self.kernel_depth = kernel_depth
         self.samples_per_node = samples_per_node
         self.scale = scale
-        self.point_weight = point_weight
+        self.degree = degree  # (sets point_weight to 2 x degree)
+        if point_weight is not None:
+            self.point_weight = point_weight
         self.threads = threads
         self.max_solver_iterations = max_solver_iterations
         self.solver_tolerance = solver_tolerance
@@ -1224,7 +1235,8 @@ def reconstruct(
     kernel_depth: int = -1,
     samples_per_node: float = 1.5,
     scale: float = 1.1,
-    point_weight: float = 4.0,
+    degree: int = 2,
+    point_weight: float | None = None,
     threads: int = 0,
     max_solver_iterations: int = 60,
     solver_tolerance: float = 1e-2,
@@ -1269,6 +1281,7 @@ def reconstruct(
         kernel_depth=kernel_depth,
         samples_per_node=samples_per_node,
         scale=scale,
+        degree=degree,
         point_weight=point_weight,
         threads=threads,
         max_solver_iterations=max_solver_iterations,

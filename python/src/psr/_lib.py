@@ -110,6 +110,8 @@ _PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "psr_reconstructor_get_samples_per_node": (_S, [_R, POINTER(c_float)]),
     "psr_reconstructor_set_scale": (_S, [_R, c_float]),
     "psr_reconstructor_get_scale": (_S, [_R, POINTER(c_float)]),
+    "psr_reconstructor_set_degree": (_S, [_R, c_int32]),
+    "psr_reconstructor_get_degree": (_S, [_R, POINTER(c_int32)]),
     "psr_reconstructor_set_point_weight": (_S, [_R, c_float]),
     "psr_reconstructor_get_point_weight": (_S, [_R, POINTER(c_float)]),
     "psr_reconstructor_set_threads": (_S, [_R, c_uint32]),
