@@ -10,9 +10,10 @@
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
+use std::cell::RefCell;
 use std::ops::Deref;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
-use std::sync::mpsc;
+use std::sync::{mpsc, Arc};
 use std::time::Duration;
 
 /// Elements per parallel task in the per-node loops: fixed, so that every reduction adds the
@@ -165,14 +166,15 @@ pub(crate) const SLICE: Duration = Duration::from_millis(20);
 
 /// What a job run by [`watched`] shares with the thread waiting for it: the fraction of the job
 /// done (set by the job, read by the waiting thread) and the cancel flag (raised by the waiting
-/// thread, checked by the job between its pieces of work). Both are atomics, so the job may set
-/// and check them from any of its threads; neither changes what the job computes.
+/// thread, checked by the job between its pieces of work, and by the innermost loops through
+/// [`stop_requested`]). Both are atomics, so the job may set and check them from any of its
+/// threads; neither changes what the job computes.
 #[derive(Debug, Default)]
 pub(crate) struct Watch {
     /// The f32 bits of the fraction done, only ever raised (non-negative floats order as their
     /// bits), so the fractions reported never go back.
     fraction: AtomicU32,
-    cancelled: AtomicBool,
+    cancelled: Arc<AtomicBool>,
 }
 
 impl Watch {
@@ -227,6 +229,42 @@ impl Watch {
     }
 }
 
+thread_local! {
+    /// On each worker thread of a pool running a [`watched`] job: that job's cancel flag (for
+    /// [`stop_requested`]). Set on every thread of the pool when the job starts and cleared
+    /// when it ends; a reconstruction's pool runs nothing but its own jobs, one at a time.
+    static JOB_CANCELLED: RefCell<Option<Arc<AtomicBool>>> = const { RefCell::new(None) };
+}
+
+/// Whether the [`watched`] job this thread is working for was cancelled: the cancel point of
+/// the innermost parallel loops (a brick's passes, a chunk of a splat), which the job's
+/// [`Watch`] does not reach. Such a loop skips its remaining items when this is true; its
+/// output is then incomplete, which is harmless because the job stops at its next
+/// [`Watch::check`] (in the same step) and nothing reads it. False outside a watched job (unit
+/// tests, the calling thread, other pools).
+pub(crate) fn stop_requested() -> bool {
+    JOB_CANCELLED.with(|flag| {
+        flag.borrow()
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
+    })
+}
+
+/// Publishes `flag` as the cancel flag of the job on every thread of `pool` (None: no job), for
+/// [`stop_requested`].
+fn publish_cancel_flag(pool: &rayon::ThreadPool, flag: Option<&Arc<AtomicBool>>) {
+    pool.broadcast(|_| JOB_CANCELLED.with(|slot| *slot.borrow_mut() = flag.cloned()));
+}
+
+/// Clears the published cancel flag when a watched job ends, whether it returns or unwinds.
+struct PublishedCancelFlag<'p>(&'p rayon::ThreadPool);
+
+impl Drop for PublishedCancelFlag<'_> {
+    fn drop(&mut self) {
+        publish_cancel_flag(self.0, None);
+    }
+}
+
 /// Runs `job` on `pool` while the calling thread waits for it in slices of at most [`SLICE`],
 /// calling `report(fraction done)` after each slice on the calling thread (so the caller's
 /// callback is never called from a worker, nor concurrently). When `report` returns false the
@@ -242,6 +280,8 @@ pub(crate) fn watched<R: Send>(
     job: impl FnOnce(&Watch) -> Result<R> + Send,
 ) -> Result<R> {
     let watch = Watch::new();
+    publish_cancel_flag(pool, Some(&watch.cancelled));
+    let _published = PublishedCancelFlag(pool);
     let (done, finished) = mpsc::sync_channel::<Result<R>>(1);
     pool.in_place_scope(|scope| {
         let watch = &watch;
@@ -411,6 +451,41 @@ mod tests {
         assert_eq!(result, Err(Error::Cancelled));
         let failed: Result<()> = watched(&pool(), &mut |_| true, |_| Err(Error::EmptyInput));
         assert_eq!(failed, Err(Error::EmptyInput));
+    }
+
+    /// Proves: the innermost loops of a watched job see its stop through `stop_requested` on
+    /// every worker thread (so a loop that never reaches the job's `Watch` still ends early),
+    /// and nothing outside a job, or after it, sees a stop.
+    #[test]
+    fn inner_loops_see_the_stop_of_their_job_only() {
+        let pool = pool();
+        let result: Result<usize> = watched(&pool, &mut |_| false, |watch| {
+            // 10^7 items of 1 ms (hours were every item done); a stopped item takes no time.
+            let done: usize = pool.install(|| {
+                (0..10_000_000usize)
+                    .into_par_iter()
+                    .with_max_len(1)
+                    .map(|_| {
+                        if stop_requested() {
+                            0
+                        } else {
+                            std::thread::sleep(Duration::from_millis(1));
+                            1
+                        }
+                    })
+                    .sum()
+            });
+            watch.check()?;
+            Ok(done)
+        });
+        assert_eq!(result, Err(Error::Cancelled));
+        assert!(!stop_requested());
+        let after: Vec<bool> = pool.broadcast(|_| stop_requested());
+        assert_eq!(after, vec![false, false]);
+        let unstopped = watched(&pool, &mut |_| true, |_| {
+            Ok(pool.broadcast(|_| stop_requested()))
+        });
+        assert_eq!(unstopped, Ok(vec![false, false]));
     }
 
     #[test]

@@ -21,7 +21,7 @@ use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::grid::cell_of;
 use crate::octree::{brick_local, fill_mirrors_field, BrickCursor, Level};
-use crate::parallel::scatter_by_chunk;
+use crate::parallel::{scatter_by_chunk, stop_requested};
 use crate::points::Samples;
 use crate::{Params, Splatting};
 use glam::DVec3;
@@ -99,6 +99,10 @@ fn splat_depth(
     ];
     let [fx, fy, fz] = &mut field;
     scatter_by_chunk(&level.core, [fx, fy, fz], &mut [], |_, writer, _| {
+        // (A cancelled splat skips its remaining chunks; see `stop_requested`.)
+        if stop_requested() {
+            return;
+        }
         let mut cursor = BrickCursor::default();
         let mut window = SampleWindow::default();
         for (k, &node) in writer.indices().iter().enumerate() {

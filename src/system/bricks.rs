@@ -10,7 +10,7 @@
 use super::screening::{Proxies, ScreeningCells, PADDED};
 use crate::bspline::Tables;
 use crate::octree::{brick_local, BrickIndex, Level};
-use crate::parallel::split_parts;
+use crate::parallel::{split_parts, stop_requested};
 use rayon::prelude::*;
 
 /// The nodes of one brick in key order, as (node index, brick-local coordinates): a node's
@@ -379,6 +379,10 @@ impl CoreBricks {
                     )
                 },
                 |(windows, scratch), (cb, (out, part))| {
+                    // (A cancelled solve skips the remaining bricks; see `stop_requested`.)
+                    if stop_requested() {
+                        return;
+                    }
                     fill(cb, windows, scratch);
                     let mask = &self.core_mask[cb];
                     let positions = mask.iter().enumerate().flat_map(|(word, &bits)| {

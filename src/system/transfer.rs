@@ -5,7 +5,7 @@
 use super::bricks::{BrickNodes, BrickScratch, CoreBricks, WINDOW};
 use crate::bspline::{Degree, REFINE};
 use crate::octree::{axis_interval_masks, brick_local, AxisStep, Level, NONE};
-use crate::parallel::split_parts;
+use crate::parallel::{split_parts, stop_requested};
 use rayon::prelude::*;
 
 /// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
@@ -322,6 +322,10 @@ fn prolong_by_brick<const C: usize>(
         .for_each_init(
             || std::array::from_fn::<_, C, _>(|_| vec![0.0; 512]),
             |window, (b, mut out)| {
+                // (A cancelled solve skips the remaining bricks; see `stop_requested`.)
+                if stop_requested() {
+                    return;
+                }
                 let origin = fine.bricks().origin(b);
                 let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
                 coarse_window(coarse, coarse_origin, fields, window);
