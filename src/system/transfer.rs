@@ -459,6 +459,11 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
     let coarse_index = coarse.bricks();
     let mut window = [NONE; SIDE * SIDE * SIDE];
     for b in 0..fine_index.brick_count() {
+        // (One thread walks every brick: a cancelled solve skips the rest; see
+        // `stop_requested`.)
+        if b % 64 == 0 && stop_requested() {
+            return;
+        }
         let walk = BrickNodes::new(fine_index, b);
         if walk
             .clone()
