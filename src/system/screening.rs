@@ -6,6 +6,7 @@ use super::bricks::{CoreBricks, WINDOW};
 use crate::bspline::Degree;
 use crate::grid::{cell_of, morton_nested};
 use crate::octree::{brick_local, Level, NEAR, NONE};
+use crate::parallel::stop_requested;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -82,6 +83,11 @@ impl Proxies {
         let pieces: Vec<Proxies> = cuts
             .par_windows(2)
             .map(|piece| {
+                // (A cancelled solve skips the remaining pieces, leaving fewer proxies: a
+                // valid set nothing reads; see `stop_requested`.)
+                if stop_requested() {
+                    return Proxies::default();
+                }
                 let range = piece[0]..piece[1];
                 Self::build_piece(
                     level,
