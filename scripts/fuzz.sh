@@ -7,8 +7,9 @@
 #
 # Needs the nightly toolchain and cargo-fuzz (installed here when missing). A crash, leak,
 # timeout or out-of-memory leaves its input in fuzz/artifacts/TARGET/ and makes this script
-# fail; fix the cause, then copy the input into fuzz/corpus/TARGET/ so that the replay test
-# (fuzz/tests/replay.rs, run by CI) keeps it fixed. Record the run in docs/reliability.md.
+# fail; fix the cause, then copy the input into fuzz/regressions/TARGET/ under a name that says
+# what it found, so that the replay test (fuzz/tests/replay.rs, run by CI) keeps it fixed (the
+# corpus is minimised after every run and may drop it). Record the run in docs/reliability.md.
 set -euo pipefail
 target=${1:?usage: scripts/fuzz.sh TARGET SECONDS [JOBS]}
 seconds=${2:?usage: scripts/fuzz.sh TARGET SECONDS [JOBS]}

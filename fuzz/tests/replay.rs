@@ -1,26 +1,40 @@
-//! Replays every committed corpus file (`corpus/<target>/`, the seeds and every input a
-//! fuzzing run found interesting or failing) through its target, on stable Rust: what CI runs
-//! so that a fixed finding stays fixed. A target fails by panicking.
+//! Replays every committed input through its target, on stable Rust: what CI runs so that a
+//! fixed finding stays fixed. Two directories per target: `corpus/<target>/`, the seeds and
+//! what fuzzing found interesting (scripts/fuzz.sh minimises it after each run, so it may drop
+//! any file), and `regressions/<target>/`, the inputs of past findings, named for what they
+//! found and never minimised away. A target fails by panicking.
 
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-fn replay(target: &str, run: fn(&[u8])) {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("corpus")
-        .join(target);
-    let mut files: Vec<_> = fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+/// The files of `dir` in name order (none when it does not exist: not every target has had a
+/// finding).
+fn inputs(dir: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut files: Vec<_> = entries
         .map(|entry| entry.expect("a directory entry").path())
         .collect();
     files.sort();
-    assert!(!files.is_empty(), "{}: no corpus to replay", dir.display());
-    for file in &files {
+    files
+}
+
+fn replay(target: &str, run: fn(&[u8])) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let corpus = inputs(&root.join("corpus").join(target));
+    assert!(!corpus.is_empty(), "corpus/{target}: no corpus to replay");
+    let regressions = inputs(&root.join("regressions").join(target));
+    for file in corpus.iter().chain(&regressions) {
         let data = fs::read(file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
         eprintln!("{target}: {}", file.display());
         run(&data);
     }
-    eprintln!("{target}: {} inputs replayed", files.len());
+    eprintln!(
+        "{target}: {} corpus and {} regression inputs replayed",
+        corpus.len(),
+        regressions.len()
+    );
 }
 
 #[test]
