@@ -243,8 +243,9 @@ pub(crate) struct DepthSample {
 }
 
 /// The samples splatted at each depth (§4.5): a sample of fractional depth δ goes to ⌊δ⌋ with
-/// weight 1 − frac(δ) and to ⌊δ⌋ + 1 with frac(δ), times its area and confidence. Consumes the
-/// depths (spent here; the areas stay for the isovalue).
+/// weight 1 − frac(δ) and to ⌊δ⌋ + 1 with frac(δ), times its area and confidence; δ is first
+/// raised to `coarsest` (`Octree::coarsest_depth`: a depth with no node inside the cube cannot
+/// take a splat). Consumes the depths (spent here; the areas stay for the isovalue).
 ///
 /// Index d of the result holds depth d's samples, up to the finest depth that has any but not
 /// above `full_depth`: when the density puts no sample at the deepest depths (sparse scans at a
@@ -255,11 +256,12 @@ pub(crate) fn samples_by_depth(
     confidence: &[f64],
     max_depth: u32,
     full_depth: u32,
+    coarsest: u32,
 ) -> Vec<Vec<DepthSample>> {
     let mut at_depth: Vec<Vec<DepthSample>> = vec![Vec::new(); max_depth as usize + 1];
     for (s, &depth) in density.depth.iter().enumerate() {
         let mass = density.area[s] * confidence[s];
-        for (d, w) in depth_split(depth) {
+        for (d, w) in depth_split(depth.max(coarsest as f64)) {
             if w > 0.0 {
                 at_depth[d as usize].push(DepthSample {
                     sample: s as u32,

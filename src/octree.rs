@@ -468,12 +468,7 @@ impl Octree {
         let mut cores: Vec<Vec<u64>> = vec![Vec::new(); sample_cells.len()];
         for d in (0..=max_depth).rev() {
             let n = 1i32 << d;
-            let (lo, hi) = match (mirror_sign, degree) {
-                (None, _) => (-1, n),
-                (Some(_), Degree::Two) => (0, n - 1),
-                (Some(sign), Degree::One) if sign > 0.0 => (0, n),
-                (Some(_), Degree::One) => (1, n - 1),
-            };
+            let (lo, hi) = core_range(d, boundary, degree);
             let clip = |keys: Vec<u64>| -> Vec<u64> {
                 keys.into_iter()
                     .filter(|&k| unpack(k).iter().all(|v| (lo..=hi).contains(v)))
@@ -557,6 +552,19 @@ impl Octree {
         Ok(Octree { levels })
     }
 
+    /// The coarsest depth whose core can hold a node: 1 for degree 1 with Dirichlet boundaries
+    /// (depth 0's nodes are the cube's corners, all on its faces, where χ is 0), else 0. No
+    /// sample may be splatted coarser (see `density::samples_by_depth`): its cell would have
+    /// no node to find.
+    pub(crate) fn coarsest_depth(boundary: Boundary, degree: Degree) -> u32 {
+        (0..)
+            .find(|&d| {
+                let (lo, hi) = core_range(d, boundary, degree);
+                lo <= hi
+            })
+            .expect("depth 1 has an interior node whatever the basis")
+    }
+
     /// The tree around the samples splatted at each depth (`at_depth[d]`, see
     /// [`crate::density::samples_by_depth`]), at `positions` in the unit cube; cancelled
     /// through `watch` (see [`Octree::build`]).
@@ -583,6 +591,20 @@ impl Octree {
 
     pub fn max_depth(&self) -> u32 {
         self.levels.len() as u32 - 1
+    }
+}
+
+/// The node coordinates (per axis, inclusive) a core at depth `d` may hold: one node beyond the
+/// cube on each side with free boundaries (their functions still overlap it); with mirrors,
+/// the cells inside the cube (degree 2) or the corners in it (degree 1), less the faces' under
+/// Dirichlet (χ is 0 there) and including them under Neumann.
+fn core_range(d: u32, boundary: Boundary, degree: Degree) -> (i32, i32) {
+    let n = 1i32 << d;
+    match (boundary.mirror_sign(), degree) {
+        (None, _) => (-1, n),
+        (Some(_), Degree::Two) => (0, n - 1),
+        (Some(sign), Degree::One) if sign > 0.0 => (0, n),
+        (Some(_), Degree::One) => (1, n - 1),
     }
 }
 

@@ -209,6 +209,7 @@ pub(crate) fn run(
         &samples.confidence,
         params.depth,
         params.effective_full_depth(),
+        Octree::coarsest_depth(params.boundary, params.node_degree()),
     );
     let tree = clock.watch(Stage::Octree, pool, |watch| {
         Octree::around_samples(

@@ -174,3 +174,30 @@ fn bad_degrees_are_refused_and_the_point_weight_follows_the_degree() {
     let p = Params::default().with_degree(1).with_point_weight(4.0);
     assert_eq!((p.degree, p.point_weight), (1, 4.0));
 }
+
+/// Proves: samples so sparse that the density puts them at depth 0 reconstruct with degree 1
+/// and Dirichlet boundaries, whose depth 0 has no node inside the cube (its corners are all on
+/// the faces): they are splatted at depth 1 instead. Found by the `reconstruct` fuzz target
+/// (`fuzz/regressions/reconstruct/`): the splat looked for a node depth 0 does not have and
+/// panicked. With mirrors (Dirichlet, Neumann) both degrees give a closed mesh on the same cloud.
+#[test]
+fn samples_too_sparse_for_any_depth_reconstruct_with_degree_one_and_dirichlet() {
+    // 24 points of the unit sphere, with the cube hugging them (scale 1): every sample's
+    // density is below samples_per_node down to depth 0.
+    let (positions, normals) = sample_sphere(24, 1.0, [0.0; 3], 17);
+    let points = point_set(&positions, &normals);
+    for degree in [1, 2] {
+        for boundary in [Boundary::Dirichlet, Boundary::Neumann] {
+            let params = Params::default()
+                .with_degree(degree)
+                .with_boundary(boundary)
+                .with_depth(3)
+                .with_scale(1.0)
+                .with_threads(1);
+            let label = format!("sparse sphere, degree {degree}, {boundary:?}");
+            let mesh = run(&points, &params, &label);
+            let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
+            assert!(topo.is_closed_manifold(), "{label}: {topo}");
+        }
+    }
+}
