@@ -75,6 +75,7 @@ enum Param {
     NormalOrientation(i32),
     Viewpoint(f64, f64, f64),
     VertexNormals(bool),
+    Degree(i32),
 }
 
 /// Points of one batch: small integer coordinates (so duplicates and degenerate sets come
@@ -435,6 +436,7 @@ unsafe fn set_param(r: *mut psr_reconstructor, param: Param) {
             Param::NormalOrientation(v) => psr_reconstructor_set_normal_orientation(r, v),
             Param::Viewpoint(x, y, z) => psr_reconstructor_set_viewpoint(r, x, y, z),
             Param::VertexNormals(v) => psr_reconstructor_set_vertex_normals(r, v),
+            Param::Degree(v) => psr_reconstructor_set_degree(r, v),
         }
     };
     check(status, "a setter");
@@ -465,6 +467,7 @@ unsafe fn get_params(r: *mut psr_reconstructor, null_out: bool) {
     get!(psr_reconstructor_get_normal_neighbors, u32);
     get!(psr_reconstructor_get_normal_orientation, i32);
     get!(psr_reconstructor_get_vertex_normals, bool);
+    get!(psr_reconstructor_get_degree, i32);
 }
 
 /// A batch laid out as the C API takes it: `floats` per point (positions, then normals or

@@ -128,7 +128,9 @@ impl BoundingCube {
 
 /// Parameters, valid or not (invalid ones must be refused with an error).
 fn params(u: &mut Unstructured<'_>) -> Result<Params> {
+    // The degree first: it also sets the point weight, which is then chosen below.
     Ok(Params::default()
+        .with_degree(*u.choose(&[2u8, 1, 0, 3])?)
         .with_depth(u.int_in_range(0..=7)?)
         .with_full_depth(u.int_in_range(0..=8)?)
         .with_kernel_depth(if u.arbitrary()? {
