@@ -111,7 +111,7 @@ pub fn reconstruct_with_progress(
 /// counting the points given, the octree, the system, the solver and the extraction with the
 /// mesh (`docs/architecture.md`, "Memory budget"). The depth a [`Params::width`] picks is
 /// found from the points' bounding box. It is meant as an upper bound for scanned surfaces:
-/// measured on the bunny and the Happy Buddha at depths 9–11 it is 1.7–2.3 times the
+/// measured on the bunny and the Happy Buddha at depths 9–12 it is 1.8–2.5 times the
 /// reconstruction's peak resident memory (`docs/benchmarks.md`, issue 19); an input far from
 /// a sampled surface (a volume full of points) can need more. With [`Params::max_memory`] set,
 /// the reconstruction itself checks a finer figure, from its octree's node counts

@@ -21,7 +21,7 @@
 //! The per-node constants are measured, not derived: fitted (least squares on the three node
 //! terms, then rounded up) so that the figure from the octree's node counts is above the peak
 //! resident memory of the whole `psr` process on the bunny and the Happy Buddha scans at
-//! depths 9–11, by 17–45 %; the estimate before the octree ([`predicted_nodes`]) is 1.7–2.3
+//! depths 9–12, by 14–49 %; the estimate before the octree ([`predicted_nodes`]) is 1.8–2.5
 //! times those peaks (`docs/benchmarks.md`, issue 19).
 //!
 //! **Where it is checked** (`pipeline.rs`): before the points are copied, with what the points
@@ -54,9 +54,9 @@ const PER_NODE_KEPT: u64 = 28;
 /// splat's V and ρ, or the solver's vectors and operator, or the extraction's tables and the
 /// mesh, whichever is largest.
 const PER_HEAVIEST_NODE: u64 = 32;
-/// Bytes per node of the kernel depth's halo: the density field (kept for the mesh's
-/// per-vertex densities) and what grows with the depth the samples are split between.
-const PER_KERNEL_NODE: u64 = 48;
+/// Bytes per slot of the density field's tables (a key, a count and the hash table's control
+/// byte; kept for the mesh's per-vertex densities).
+const PER_DENSITY_SLOT: u64 = 24;
 /// What a reconstruction needs whatever its size (tables, thread stacks, small buffers).
 const FIXED: u64 = 32 << 20;
 
@@ -84,28 +84,30 @@ impl Footprint {
     /// a lower bound of every reconstruction of `points` points, checked before anything is
     /// allocated.
     pub(crate) fn at_least(points: u64, attribute_width: u64, full_depth: u32) -> Footprint {
-        let grid: Vec<u64> = (0..=full_depth).map(complete_grid).collect();
+        // The cores of the complete depths alone: (2^d)³ nodes inside the cube.
+        let grid: Vec<u64> = (0..=full_depth.min(MAX_DEPTH))
+            .map(|d| 1u64 << (3 * d))
+            .collect();
         Footprint::with_nodes(points, attribute_width, &grid, 0)
     }
 
-    /// The footprint of a reconstruction whose depths have `nodes[d]` halo nodes each, with the
-    /// density estimated at `kernel_depth`.
+    /// The footprint of a reconstruction whose depths have `nodes[d]` halo nodes each and
+    /// whose density field has `density_slots` table slots.
     pub(crate) fn with_nodes(
         points: u64,
         attribute_width: u64,
         nodes: &[u64],
-        kernel_depth: u32,
+        density_slots: u64,
     ) -> Footprint {
         let total = nodes.iter().fold(0u64, |a, &n| a.saturating_add(n));
         let heaviest = nodes.iter().copied().max().unwrap_or(0);
-        let kernel = nodes.get(kernel_depth as usize).copied().unwrap_or(0);
         Footprint {
             points: points.saturating_mul(
                 PER_POINT.saturating_add(PER_ATTRIBUTE_VALUE.saturating_mul(attribute_width)),
             ),
             tree: total
                 .saturating_mul(PER_NODE_KEPT)
-                .saturating_add(kernel.saturating_mul(PER_KERNEL_NODE)),
+                .saturating_add(density_slots.saturating_mul(PER_DENSITY_SLOT)),
             stage: heaviest.saturating_mul(PER_HEAVIEST_NODE),
         }
     }
@@ -123,14 +125,30 @@ impl Footprint {
             points,
             attribute_width,
             &predicted_nodes(points, depth, full_depth),
-            kernel_depth,
+            predicted_density_slots(points, kernel_depth),
         )
     }
 }
 
-/// Nodes of a complete grid at depth `d` with its one-node halo: (2^d + 2)³.
+/// The density field's table slots for `points` points at `kernel_depth`, predicted: its
+/// finest table holds the nodes the samples' trilinear splats touch, at most the surface's or
+/// the points' count of core nodes ([`predicted_nodes`]'s rule without the saturation: the
+/// kernel depth takes every sample), times [`HALO_PER_CORE`] for the 8 nodes around each
+/// sample; the coarser tables a third of that; and a hash table's capacity is up to twice its
+/// entries.
+fn predicted_density_slots(points: u64, kernel_depth: u32) -> u64 {
+    let d = kernel_depth.min(MAX_DEPTH);
+    let surface = CORE_PER_SURFACE_CELL.saturating_mul(1u64 << (2 * d));
+    let entries = complete_grid(d)
+        .min(surface.min(CORE_PER_POINT.saturating_mul(points)))
+        .saturating_mul(HALO_PER_CORE);
+    entries.saturating_add(entries / 3).saturating_mul(2)
+}
+
+/// Nodes of a complete grid at depth `d` with its halo, two nodes beyond the cube on every
+/// side (the mirrors of Neumann and Dirichlet): (2^d + 4)³.
 fn complete_grid(d: u32) -> u64 {
-    let side = (1u64 << d.min(MAX_DEPTH)) + 2;
+    let side = (1u64 << d.min(MAX_DEPTH)) + 4;
     side.saturating_mul(side).saturating_mul(side)
 }
 

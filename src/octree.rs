@@ -464,9 +464,9 @@ impl Octree {
     /// Neumann the core reaches the far face's nodes n, with Dirichlet it leaves out both faces'
     /// nodes (χ is 0 there), and every face node is listed in [`Level::faces`].
     ///
-    /// `budget` is called with every depth's core node count once the core sets are known,
-    /// before the halos are built (most of the tree's memory), and may refuse with
-    /// [`crate::Error::OutOfMemory`].
+    /// `budget` is called with every depth's core node count (0 for the depths not yet built)
+    /// after each depth's core set is built, finest first, and so before the halos (most of
+    /// the tree's memory); it may refuse with [`crate::Error::OutOfMemory`].
     fn build_watched(
         sample_cells: Vec<Vec<Coord>>,
         full_depth: u32,
@@ -534,11 +534,13 @@ impl Octree {
                 keys = clip(dilate(&keys, 1));
             }
             cores[d as usize] = keys;
+            // The budget sees each depth's core as soon as it exists (the finest, usually the
+            // largest, first), the depths not yet built counted as empty.
+            budget(&cores.iter().map(|c| c.len() as u64).collect::<Vec<_>>())?;
             // The finest depths are most of the work: count them as such.
             let done = (max_depth - d + 1) as usize;
             watch.step(done, max_depth as usize + 1, 0.0, 0.5)?;
         }
-        budget(&cores.iter().map(|c| c.len() as u64).collect::<Vec<_>>())?;
         // The levels are independent: built side by side (the widening of one level's bricks
         // is serial).
         let mut levels: Vec<Level> = cores

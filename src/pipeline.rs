@@ -222,6 +222,8 @@ pub(crate) fn run(
         Ok((field, sample_density))
     })?;
     clock.stats.kernel_depth = kernel_depth;
+    let density_slots = field.slots() as u64;
+    clock.stats.density_slots = field.slots();
     clock.stats.sample_density_quantiles = std::mem::take(&mut sample_density.quantiles);
     clock.done(Stage::Density)?;
 
@@ -244,7 +246,8 @@ pub(crate) fn run(
             &|cores| {
                 budget.check(
                     "the octree's nodes, the system and the solve",
-                    Footprint::with_nodes(point_count, attribute_width, cores, kernel_depth).peak(),
+                    Footprint::with_nodes(point_count, attribute_width, cores, density_slots)
+                        .peak(),
                 )
             },
         )
@@ -255,7 +258,7 @@ pub(crate) fn run(
     // Precisely, with the halos' node counts, before the system allocates anything.
     let halos: Vec<u64> = tree.levels.iter().map(|l| l.len() as u64).collect();
     budget.estimate =
-        Footprint::with_nodes(point_count, attribute_width, &halos, kernel_depth).peak();
+        Footprint::with_nodes(point_count, attribute_width, &halos, density_slots).peak();
     clock.stats.estimated_memory = budget.estimate;
     budget.check(
         "the octree's nodes, the system and the solve",

@@ -294,7 +294,7 @@ fn prolongation_reproduces_coarse_quadratics_and_restriction_is_its_transpose() 
             f(p) - 0.25 * h * h // the −¼ correction of the x² term
         })
     };
-    let got = prolong(coarse, fine, &at(coarse).unwrap(), 1.0);
+    let got = prolong(coarse, fine, &at(coarse), 1.0).unwrap();
     let want = at(fine);
     for &c in &fine.core {
         assert!((got[c as usize] - want[c as usize]).abs() < 1e-12);
@@ -568,7 +568,7 @@ fn degree_one_prolongation_reproduces_affine_functions_and_restriction_is_its_tr
                 .map(|i| f(level.coord(i).map(|c| c as f64 * h)))
                 .collect()
         };
-        let got = prolong(coarse, fine, &at(coarse).unwrap(), 1.0);
+        let got = prolong(coarse, fine, &at(coarse), 1.0).unwrap();
         let want = at(fine);
         for &c in &fine.core {
             assert!(
