@@ -1876,7 +1876,7 @@ psr_status psr_reconstructor_get_max_memory(const psr_reconstructor *r, uint64_t
  * second. It counts the points r holds, the octree, the system, the solver, the extraction
  * and the mesh; not the host's own memory, the mesh after the solve returns, nor, for points
  * without normals, the normal estimation. Meant as an upper bound for scanned surfaces:
- * measured on the bunny and the Happy Buddha scans at depths 9 to 11 it is 1.7 to 2.3 times
+ * measured on the bunny and the Happy Buddha scans at depths 9 to 12 it is 1.8 to 2.5 times
  * the peak resident memory of the whole process (docs/benchmarks.md, issue 19). A limit set to
  * it with psr_reconstructor_set_max_memory lets that solve through, since the solve checks
  * the finer count from its octree. With no points the estimate is that of the smallest
