@@ -54,6 +54,11 @@
  *     psr_reconstructor_last_error and psr_reconstructor_free returns
  *     PSR_STATUS_HANDLE_POISONED.
  *   - Setters check their value alone (any order works); solve checks that they agree.
+ *   - Running out of memory is an error, never an abort: when the solve would need more than
+ *     psr_reconstructor_set_max_memory allows (checked before the memory is allocated), or the
+ *     system refuses one of its big allocations, it returns PSR_STATUS_OUT_OF_MEMORY (17), the
+ *     message names what needed how many bytes and the limit, and the handle stays usable.
+ *     psr_reconstructor_estimate_memory says beforehand how much a solve is expected to need.
  *
  * THREADING
  *   - psr keeps no global state. A handle may be moved between threads, but one handle must not
@@ -214,6 +219,15 @@ typedef enum {
      * name (the message gives the count): reconstruct at a lower depth or in pieces.
      */
     PSR_STATUS_TOO_LARGE = 16,
+    /**
+     * The solve needs more memory than psr_reconstructor_set_max_memory allows (checked
+     * before the memory is allocated: from the point count, then from the octree's node
+     * counts), or the system refused an allocation. The message names what was being
+     * allocated, the bytes needed, the limit and, when known, the smallest limit that would
+     * do. Nothing was kept and the handle stays usable: raise the limit, lower the depth or
+     * free memory, and solve again (the same mesh as a handle that never failed).
+     */
+    PSR_STATUS_OUT_OF_MEMORY = 17,
 } psr_status;
 
 /**
@@ -1822,6 +1836,76 @@ psr_status psr_implicit_gradient(const psr_implicit *f, const float *points, siz
  * floats.
  */
 psr_status psr_implicit_sample_grid(const psr_implicit *f, size_t resolution, float *out, size_t capacity_floats);
+
+/**
+ * Sets the most memory a solve on r may use, in bytes; 0 (the default) means no limit. psr
+ * counts the big arrays of a reconstruction (the points, the octree, the system, the solver,
+ * the extraction and the mesh; see psr_reconstructor_estimate_memory) and checks the count
+ * against the limit before allocating them: first from the point count, before anything is
+ * copied (a limit far too small fails within milliseconds), then from the octree's node
+ * counts, before the system is built. A solve that would need more returns
+ * PSR_STATUS_OUT_OF_MEMORY, naming what needed how much, the limit and the smallest limit that
+ * would do, and keeps nothing; the handle stays usable. Any value is accepted (0 or 1 to
+ * 2^64 - 1). The limit covers psr's own big arrays, not the memory the host holds, the
+ * thread stacks or the allocator's overhead. Without a limit, the system's refusal of one of
+ * the big allocations is PSR_STATUS_OUT_OF_MEMORY too. No PoissonRecon, PCL or Open3D
+ * equivalent.
+ *
+ * r must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress callback)
+ * or PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_max_memory(psr_reconstructor *r, uint64_t bytes);
+
+/**
+ * Writes the memory limit in bytes (0: no limit, the default) to *out. r and out must not be
+ * NULL. Returns the statuses of psr_reconstructor_get_depth; *out is written only on success.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_max_memory(const psr_reconstructor *r, uint64_t *out);
+
+/**
+ * Writes to *out the memory, in bytes, a solve of r's points with r's parameters is estimated
+ * to need at its peak, before solving: computed from the point count and the depth (the depth
+ * psr_reconstructor_set_width picks is found from the points' bounding box) in well under a
+ * second. It counts the points r holds, the octree, the system, the solver, the extraction
+ * and the mesh; not the host's own memory, the mesh after the solve returns, nor, for points
+ * without normals, the normal estimation. Meant as an upper bound for scanned surfaces:
+ * measured on the bunny and the Happy Buddha scans at depths 9 to 12 it is 1.8 to 2.5 times
+ * the peak resident memory of the whole process (docs/benchmarks.md, issue 19). A limit set to
+ * it with psr_reconstructor_set_max_memory lets that solve through, since the solve checks
+ * the finer count from its octree. With no points the estimate is that of the smallest
+ * reconstruction (the complete octree down to the full depth).
+ *
+ * r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_PARAMETER (two parameters disagree, as psr_reconstructor_solve would
+ * report), PSR_STATUS_HANDLE_POISONED, PSR_STATUS_INVALID_ARGUMENT (called from r's progress
+ * callback) or PSR_STATUS_INTERNAL_ERROR; *out is written only on success.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_estimate_memory(const psr_reconstructor *r, uint64_t *out);
+
+/**
+ * Writes to *out the memory, in bytes, a reconstruction of point_count points (position and
+ * normal) at depth is estimated to need at its peak, every other parameter at its default:
+ * the estimate of psr_reconstructor_estimate_memory, for a host that has no reconstructor
+ * yet (e.g. to choose the depth for the memory it has). depth must be 1 to 16.
+ *
+ * out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_PARAMETER (depth out of range; *out untouched) or
+ * PSR_STATUS_INTERNAL_ERROR.
+ *
+ * # Safety
+ * `out` is NULL or valid for writes.
+ */
+psr_status psr_estimate_memory(uint32_t depth, uint64_t point_count, uint64_t *out);
 
 #ifdef __cplusplus
 }  // extern "C"

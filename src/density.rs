@@ -85,6 +85,11 @@ impl DensityField {
     }
 
     /// W(q) = Σ_o count_o B_o(q) at the kernel depth.
+    /// The capacity of its tables, all depths: what the memory budget counts for it.
+    pub(crate) fn slots(&self) -> usize {
+        self.levels.iter().map(|l| l.capacity()).sum()
+    }
+
     pub fn evaluate(&self, q: DVec3) -> f64 {
         self.evaluate_at(self.depth, q)
     }

@@ -135,6 +135,20 @@ pub enum Error {
         /// the most there may be
         limit: usize,
     },
+    /// The reconstruction needs more memory than [`crate::Params::max_memory`] allows, or the
+    /// system refused an allocation. Nothing is kept: free memory, raise the limit (at least
+    /// to `enough` when it is known) or lower the depth, and try again with the same points.
+    OutOfMemory {
+        /// what was about to be allocated, e.g. "the octree's nodes and the solve"
+        what: &'static str,
+        /// the bytes it needed (for a check against the limit: the reconstruction's estimate
+        /// as known at that point, [`crate::estimate_memory`]'s accounting)
+        needed: u64,
+        /// the limit it exceeded; `None` when the system refused the allocation
+        limit: Option<u64>,
+        /// the smallest limit the accounting accepts for this reconstruction, when known
+        enough: Option<u64>,
+    },
     /// A bug in psr: please report it with the input that triggered it.
     Internal(String),
 }
@@ -212,6 +226,25 @@ impl fmt::Display for Error {
                 f,
                 "{count} {what} is more than {limit}, the most 32-bit indices can name: reconstruct at a lower depth or in pieces"
             ),
+            Error::OutOfMemory { what, needed, limit, enough } => {
+                let needed = crate::memory::human(*needed);
+                match limit {
+                    Some(limit) => write!(
+                        f,
+                        "out of memory: {what} need {needed}, more than the memory limit of {}",
+                        crate::memory::human(*limit)
+                    )?,
+                    None => write!(f, "out of memory: the system refused {needed} for {what}")?,
+                }
+                match enough {
+                    Some(enough) => write!(
+                        f,
+                        ": allow at least {} (max_memory), or lower the depth",
+                        crate::memory::human(*enough)
+                    ),
+                    None => write!(f, ": free memory, set a lower depth or a memory limit"),
+                }
+            }
             Error::Internal(msg) => write!(f, "internal error in psr (a bug, please report it): {msg}"),
         }
     }

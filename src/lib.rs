@@ -24,7 +24,8 @@
 
 // Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment saying
 // why it holds, also inside `unsafe fn` bodies; unsafe code lives in `ffi/` (the C API),
-// `parallel.rs` (disjoint parallel writes) and `system/simd.rs` (SIMD kernels) only.
+// `parallel.rs` (disjoint parallel writes), `memory.rs` (zeroed allocation that may fail) and
+// `system/simd.rs` (SIMD kernels) only.
 #![deny(unsafe_op_in_unsafe_fn, clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
@@ -39,6 +40,7 @@ pub mod ffi;
 mod grid;
 mod implicit;
 mod isovalue;
+mod memory;
 mod mesh;
 mod normals;
 pub mod npts;
@@ -102,6 +104,65 @@ pub fn reconstruct_with_progress(
     progress: Progress<'_>,
 ) -> Result<Mesh> {
     run(points, params, progress, false).map(|(mesh, _)| mesh)
+}
+
+/// The memory a reconstruction of `points` with `params` is estimated to need at its peak, in
+/// bytes, from the point count and the depth alone (before any work: it takes milliseconds),
+/// counting the points given, the octree, the system, the solver and the extraction with the
+/// mesh (`docs/architecture.md`, "Memory budget"). The depth a [`Params::width`] picks is
+/// found from the points' bounding box. It is meant as an upper bound for scanned surfaces:
+/// measured on the bunny and the Happy Buddha at depths 9–12 it is 1.8–2.5 times the
+/// reconstruction's peak resident memory (`docs/benchmarks.md`, issue 19); an input far from
+/// a sampled surface (a volume full of points) can need more. With [`Params::max_memory`] set,
+/// the reconstruction itself checks a finer figure, from its octree's node counts
+/// ([`Stats::estimated_memory`]), and fails with [`Error::OutOfMemory`] only when that
+/// exceeds the limit; so setting `max_memory` to this estimate does not refuse a reconstruction
+/// the estimate was made for.
+pub fn estimate_memory(points: &PointSet, params: &Params) -> Result<u64> {
+    params.validate()?;
+    let depth = match params.width {
+        None => params.depth,
+        Some(_) if points.is_empty() => return Ok(0),
+        Some(_) => {
+            let map = match points.positions_f64() {
+                Some(exact) => points::UnitCubeMap::fit_f64(exact, params.scale as f64),
+                None => points::UnitCubeMap::fit(points.positions(), params.scale as f64),
+            };
+            params.depth_for_cube(map.size)
+        }
+    };
+    let params = params.clone().with_depth(depth).with_width(None);
+    Ok(memory::Footprint::predicted(
+        points.len() as u64,
+        points.attributes().width() as u64,
+        depth,
+        params.effective_full_depth(),
+        params.effective_kernel_depth(),
+    )
+    .peak())
+}
+
+/// [`estimate_memory`] for `point_count` points with position and normal only, reconstructed
+/// with `params` (at [`Params::depth`]: a [`Params::width`] needs the points, so it is refused
+/// here with [`Error::InvalidParameter`]; use [`estimate_memory`]).
+pub fn estimate_memory_for(point_count: usize, params: &Params) -> Result<u64> {
+    params.validate()?;
+    if let Some(width) = params.width {
+        return Err(Error::InvalidParameter {
+            name: "width",
+            value: width.to_string(),
+            expected:
+                "no width: the depth a width picks depends on the points (use estimate_memory)",
+        });
+    }
+    Ok(memory::Footprint::predicted(
+        point_count as u64,
+        0,
+        params.depth,
+        params.effective_full_depth(),
+        params.effective_kernel_depth(),
+    )
+    .peak())
 }
 
 /// The reconstruction behind the public functions: χ is kept only when asked for.

@@ -63,6 +63,15 @@ pub struct Stats {
     pub unsupported_components: usize,
     /// The triangles of [`Stats::unsupported_components`].
     pub unsupported_triangles: usize,
+    /// Halo nodes per depth (every node a depth's vectors hold: the unknowns and the nodes
+    /// around them), index = depth.
+    pub halo_nodes_per_depth: Vec<usize>,
+    /// The memory accounting's estimate of this reconstruction's peak, in bytes, from its
+    /// octree's node counts: what [`crate::Params::max_memory`] was checked against before the
+    /// system was built (`docs/benchmarks.md`, issue 19, compares it with measured peaks).
+    pub estimated_memory: u64,
+    /// Table slots of the density field (all its depths), which the memory accounting counts.
+    pub density_slots: usize,
 }
 
 /// What [`crate::trim`] did: the threshold it cut at, in both of its units, and what it kept.

@@ -444,7 +444,15 @@ impl Octree {
         degree: Degree,
     ) -> Octree {
         let unwatched = Watch::new();
-        match Octree::build_watched(sample_cells, full_depth, boundary, degree, &unwatched) {
+        let unlimited = |_: &[u64]| Ok(());
+        match Octree::build_watched(
+            sample_cells,
+            full_depth,
+            boundary,
+            degree,
+            &unwatched,
+            &unlimited,
+        ) {
             Ok(tree) => tree,
             Err(e) => unreachable!("a watch nobody cancels stopped the build: {e}"),
         }
@@ -455,12 +463,17 @@ impl Octree {
     /// corners, so with mirrors the nodes inside the cube are 0..=n per axis (n = 2^d): with
     /// Neumann the core reaches the far face's nodes n, with Dirichlet it leaves out both faces'
     /// nodes (χ is 0 there), and every face node is listed in [`Level::faces`].
+    ///
+    /// `budget` is called with every depth's core node count (0 for the depths not yet built)
+    /// after each depth's core set is built, finest first, and so before the halos (most of
+    /// the tree's memory); it may refuse with [`crate::Error::OutOfMemory`].
     fn build_watched(
         sample_cells: Vec<Vec<Coord>>,
         full_depth: u32,
         boundary: Boundary,
         degree: Degree,
         watch: &Watch,
+        budget: &(dyn Fn(&[u64]) -> Result<()> + Sync),
     ) -> Result<Octree> {
         let mirror_sign = boundary.mirror_sign();
         let max_depth = sample_cells.len() as u32 - 1;
@@ -491,7 +504,8 @@ impl Octree {
                 keys = merge_unique(&keys, &parents);
             }
             if d <= full_depth {
-                let mut grid = Vec::with_capacity((n as usize).pow(3));
+                let mut grid =
+                    crate::memory::with_capacity((n as usize).pow(3), "a complete octree depth")?;
                 // Every node inside the cube: the cells (degree 2) or the corners in the core's
                 // range (degree 1 with mirrors).
                 let range = match (mirror_sign, degree) {
@@ -515,6 +529,9 @@ impl Octree {
                 keys = clip(dilate(&keys, 1));
             }
             cores[d as usize] = keys;
+            // The budget sees each depth's core as soon as it exists (the finest, usually the
+            // largest, first), the depths not yet built counted as empty.
+            budget(&cores.iter().map(|c| c.len() as u64).collect::<Vec<_>>())?;
             // The finest depths are most of the work: count them as such.
             let done = (max_depth - d + 1) as usize;
             watch.step(done, max_depth as usize + 1, 0.0, 0.5)?;
@@ -575,6 +592,7 @@ impl Octree {
         boundary: Boundary,
         degree: Degree,
         watch: &Watch,
+        budget: &(dyn Fn(&[u64]) -> Result<()> + Sync),
     ) -> Result<Octree> {
         let sample_cells: Vec<Vec<Coord>> = at_depth
             .iter()
@@ -586,7 +604,7 @@ impl Octree {
                     .collect()
             })
             .collect();
-        Octree::build_watched(sample_cells, full_depth, boundary, degree, watch)
+        Octree::build_watched(sample_cells, full_depth, boundary, degree, watch, budget)
     }
 
     pub fn max_depth(&self) -> u32 {

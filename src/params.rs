@@ -184,6 +184,14 @@ pub struct Params {
     /// [`crate::Stats::unsupported_components`]. No PoissonRecon equivalent (its output keeps
     /// them; its SurfaceTrimmer's `--aRatio` drops small pieces by area instead).
     pub min_component_samples: u32,
+    /// The most memory this reconstruction may use, in bytes: its accounting of the big arrays
+    /// (points, octree, system, solver, extraction, mesh; [`crate::estimate_memory`]) is
+    /// checked against it before they are allocated, first from the point count, then with the
+    /// octree's node counts before the system is built, and a reconstruction that would need
+    /// more fails with [`crate::Error::OutOfMemory`] instead of growing past it. Default `None`
+    /// (no limit: only the system's refusal, which is also `OutOfMemory`); range: at least 1
+    /// byte. No PoissonRecon, Open3D or PCL equivalent.
+    pub max_memory: Option<u64>,
 }
 
 impl Default for Params {
@@ -205,6 +213,7 @@ impl Default for Params {
             vertex_placement: VertexPlacement::Fitted,
             vertex_normals: false,
             min_component_samples: 8,
+            max_memory: None,
         }
     }
 }
@@ -320,6 +329,12 @@ impl Params {
     /// component).
     pub fn with_min_component_samples(mut self, samples: u32) -> Self {
         self.min_component_samples = samples;
+        self
+    }
+
+    /// These parameters with [`Params::max_memory`] set to `bytes` (`None`: no limit).
+    pub fn with_max_memory(mut self, bytes: Option<u64>) -> Self {
+        self.max_memory = bytes;
         self
     }
 
@@ -439,6 +454,9 @@ impl Params {
                 self.solver_tolerance,
                 "a number in [1e-12, 1)",
             ));
+        }
+        if self.max_memory == Some(0) {
+            return Err(bad("max_memory", 0, "a number of bytes > 0 (or no limit)"));
         }
         Ok(())
     }

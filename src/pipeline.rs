@@ -10,6 +10,7 @@ use crate::evaluate::Indicator;
 use crate::extract;
 use crate::implicit::ImplicitFunction;
 use crate::isovalue;
+use crate::memory::{Budget, Footprint};
 use crate::mesh::{self, Mesh, Stats};
 use crate::octree::Octree;
 use crate::parallel::{self, Watch};
@@ -179,6 +180,27 @@ pub(crate) fn run(
     let origin = points.positions_f64().map(|_| map.nearby_origin());
     let params = &params.for_cube(map.size);
     clock.stats.depth = params.depth;
+
+    // The memory budget, first from the point count (before anything is copied): the points'
+    // arrays and the octree's complete depths are the least any reconstruction of them needs.
+    let point_count = points.len() as u64;
+    let attribute_width = points.attributes().width() as u64;
+    let full_depth = params.effective_full_depth();
+    let mut budget = Budget {
+        limit: params.max_memory,
+        estimate: Footprint::predicted(
+            point_count,
+            attribute_width,
+            params.depth,
+            full_depth,
+            params.effective_kernel_depth(),
+        )
+        .peak(),
+    };
+    budget.check(
+        "the points' arrays and the octree's complete depths",
+        Footprint::at_least(point_count, attribute_width, full_depth).peak(),
+    )?;
     let mut samples = clock.watch(Stage::Points, pool, |_| {
         Samples::in_morton_order(points, &map, params.depth)
     })?;
@@ -200,6 +222,8 @@ pub(crate) fn run(
         Ok((field, sample_density))
     })?;
     clock.stats.kernel_depth = kernel_depth;
+    let density_slots = field.slots() as u64;
+    clock.stats.density_slots = field.slots();
     clock.stats.sample_density_quantiles = std::mem::take(&mut sample_density.quantiles);
     clock.done(Stage::Density)?;
 
@@ -219,10 +243,28 @@ pub(crate) fn run(
             params.boundary,
             params.node_degree(),
             watch,
+            // Once the core sets are known, before the halos: each halo holds its core at least.
+            &|cores| {
+                budget.check(
+                    "the octree's nodes, the system and the solve",
+                    Footprint::with_nodes(point_count, attribute_width, cores, density_slots)
+                        .peak(),
+                )
+            },
         )
     })?;
     let finest = tree.max_depth() as usize;
     clock.stats.nodes_per_depth = tree.levels.iter().map(|l| l.core.len()).collect();
+    clock.stats.halo_nodes_per_depth = tree.levels.iter().map(|l| l.len()).collect();
+    // Precisely, with the halos' node counts, before the system allocates anything.
+    let halos: Vec<u64> = tree.levels.iter().map(|l| l.len() as u64).collect();
+    budget.estimate =
+        Footprint::with_nodes(point_count, attribute_width, &halos, density_slots).peak();
+    clock.stats.estimated_memory = budget.estimate;
+    budget.check(
+        "the octree's nodes, the system and the solve",
+        budget.estimate,
+    )?;
     clock.done(Stage::Octree)?;
 
     // 4. Splat: V at each sample's one or two depths (§4.2, §4.5), finest depth first.
@@ -233,16 +275,16 @@ pub(crate) fn run(
     // Cancel points between the depths (the finest splat and its divergence are about half
     // of the work).
     let (rho_finest, field_v, finest_system) = clock.watch(Stage::Splat, pool, |watch| {
-        let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params);
+        let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)?;
         watch.step(1, 4, 0.0, 1.0)?;
         let finest_system = Instant::now();
-        let mut rho_finest = divergence(&tree.levels[finest], v_finest);
+        let mut rho_finest = divergence(&tree.levels[finest], v_finest)?;
         fill_mirrors(&tree.levels[finest], &mut rho_finest);
         let finest_system = finest_system.elapsed().as_secs_f64();
         watch.step(2, 4, 0.0, 1.0)?;
         let mut field_v: Vec<[Vec<f64>; 3]> = Vec::with_capacity(finest);
         for (level, at) in tree.levels.iter().zip(&at_depth).take(finest) {
-            field_v.push(splat_level(level, &samples, at, params));
+            field_v.push(splat_level(level, &samples, at, params)?);
             watch.step(field_v.len(), finest, 0.5, 1.0)?;
         }
         Ok((rho_finest, field_v, finest_system))

@@ -10,6 +10,7 @@
 //! is the same bit for bit whatever the number of threads.
 
 use crate::error::{Error, Result};
+use crate::memory::zeroed;
 use crate::octree::{Level, Octree};
 use crate::parallel::{scatter_by_chunk, CHUNK};
 use crate::system::{
@@ -96,19 +97,20 @@ pub(crate) fn cascade(
         let rho_here = std::mem::take(&mut rho[d]);
         // The coarser solution, represented at this depth (stored: it is part of this depth's
         // coefficients).
-        let y = pool.install(|| {
+        let y = pool.install(|| -> Result<Vec<f64>> {
             if d == 0 {
-                vec![0.0; level.len()]
+                zeroed(level.len(), "the coefficients")
             } else {
-                let mut y = prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0);
+                let mut y = prolong(&tree.levels[d - 1], level, &coefficients[d - 1], 1.0)?;
                 fill_mirrors(level, &mut y);
-                y
+                Ok(y)
             }
-        });
+        })?;
         go_on()?;
-        let coarse_div = next_coarse_div
-            .take()
-            .unwrap_or_else(|| vec![0.0; level.core.len()]);
+        let coarse_div = match next_coarse_div.take() {
+            Some(div) => div,
+            None => zeroed(level.core.len(), "a coarse right-hand side")?,
+        };
         if !is_finest {
             // V of this depth and all coarser ones (accumulated here by the depth above) is
             // read for the last time, before this depth's vectors are allocated: prolonged to
@@ -124,7 +126,7 @@ pub(crate) fn cascade(
                 field: [&field[0], &field[1], &field[2]],
                 scale: 0.125,
             };
-            next_coarse_div = Some(pool.install(|| divergence_of_prolonged(&prolonged)));
+            next_coarse_div = Some(pool.install(|| divergence_of_prolonged(&prolonged))?);
             go_on()?;
             if d + 1 < max_depth as usize {
                 pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
@@ -132,8 +134,8 @@ pub(crate) fn cascade(
             }
         }
         // b − A·y on the core, computed in A·y's vector.
-        let rhs = pool.install(|| {
-            let mut rhs = vec![0.0; level.core.len()];
+        let rhs = pool.install(|| -> Result<Vec<f64>> {
+            let mut rhs = zeroed(level.core.len(), "the solver's vectors")?;
             op.apply(&y, &mut rhs);
             rhs.par_iter_mut()
                 .zip(level.core.par_iter().zip(&coarse_div))
@@ -146,8 +148,8 @@ pub(crate) fn cascade(
             if let Some(target) = params.boundary.screening_target() {
                 op.add_screening_target(target, &mut rhs);
             }
-            rhs
-        });
+            Ok(rhs)
+        })?;
         drop(rho_here);
         drop(coarse_div);
         go_on()?;
@@ -164,7 +166,7 @@ pub(crate) fn cascade(
                 params.max_solver_iterations,
                 params.solver_tolerance,
                 &mut keep_going,
-            )
+            )?
         };
         if outcome.cancelled {
             return Err(Error::Cancelled);
@@ -264,44 +266,45 @@ fn conjugate_gradients(
     max_iterations: u32,
     tolerance: f64,
     keep_going: &mut dyn FnMut(f32) -> bool,
-) -> CgOutcome {
+) -> Result<CgOutcome> {
     let n = b.len();
     let b_norm = pool.install(|| dot(&b, &b)).sqrt();
     if b_norm == 0.0 || n == 0 {
-        return CgOutcome {
+        return Ok(CgOutcome {
             iterations: 0,
             relative_residual: 0.0,
             cancelled: false,
-        };
+        });
     }
     // The Jacobi preconditioner in single precision (a preconditioner only steers the
     // iteration; half the memory of a core-sized vector).
-    let inv_diag: Vec<f32> = pool.install(|| {
-        op.diagonal()
-            .into_par_iter()
-            .map(|d| (1.0 / d) as f32)
-            .collect()
+    let mut inv_diag: Vec<f32> = zeroed(n, "the solver's vectors")?;
+    pool.install(|| {
+        inv_diag
+            .par_iter_mut()
+            .zip(op.diagonal().into_par_iter())
+            .for_each(|(w, d)| *w = (1.0 / d) as f32)
     });
     let level = op.level;
     let mut r = b;
     // The search direction lives on K_d (zero beyond the core and its mirrors), the layout the
     // operator reads, so it is never copied there; the preconditioned residual z = r/diag is
     // not stored but recomputed where it is used.
-    let mut p = vec![0.0; level.len()];
+    let mut p = zeroed(level.len(), "the solver's vectors")?;
     let mut rz = pool.install(|| {
         update_on_core(level, &mut p, |i, _| r[i] * inv_diag[i] as f64);
         weighted_dot(&r, &inv_diag)
     });
-    let mut ap = vec![0.0; n];
+    let mut ap = zeroed(n, "the solver's vectors")?;
     let mut iterations = 0;
     let mut residual = 1.0;
     while iterations < max_iterations {
         if !keep_going(iterations as f32 / max_iterations as f32) {
-            return CgOutcome {
+            return Ok(CgOutcome {
                 iterations,
                 relative_residual: residual,
                 cancelled: true,
-            };
+            });
         }
         pool.install(|| op.apply(&p, &mut ap));
         let pap = pool.install(|| dot_on_core(level, &p, &ap));
@@ -320,11 +323,11 @@ fn conjugate_gradients(
         rz = rz_new;
         pool.install(|| update_on_core(level, &mut p, |i, p| r[i] * inv_diag[i] as f64 + beta * p));
     }
-    CgOutcome {
+    Ok(CgOutcome {
         iterations,
         relative_residual: residual,
         cancelled: false,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -366,7 +369,8 @@ mod tests {
         op.apply(&x_true, &mut b);
         let mut x = vec![0.0; level.len()];
         let pool = pool(threads);
-        let outcome = conjugate_gradients(&pool, &mut op, b, &mut x, 2000, 1e-10, &mut |_| true);
+        let outcome =
+            conjugate_gradients(&pool, &mut op, b, &mut x, 2000, 1e-10, &mut |_| true).unwrap();
         (x, x_true, outcome)
     }
 
@@ -415,7 +419,8 @@ mod tests {
         let outcome = conjugate_gradients(&pool(1), &mut op, b, &mut x, 100, 1e-12, &mut |_| {
             calls += 1;
             calls < 3
-        });
+        })
+        .unwrap();
         assert!(outcome.cancelled);
         assert_eq!(outcome.iterations, 2);
     }

@@ -20,10 +20,11 @@
 use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::grid::cell_of;
+use crate::memory::zeroed;
 use crate::octree::{brick_local, fill_mirrors_field, BrickCursor, Level};
 use crate::parallel::{scatter_by_chunk, stop_requested};
 use crate::points::Samples;
-use crate::{Params, Splatting};
+use crate::{Params, Result, Splatting};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -35,7 +36,7 @@ pub(crate) fn splat_level(
     samples: &Samples,
     at_depth: &[DepthSample],
     params: &Params,
-) -> [Vec<f64>; 3] {
+) -> Result<[Vec<f64>; 3]> {
     let mut v = splat_depth(
         level,
         &samples.positions,
@@ -43,9 +44,9 @@ pub(crate) fn splat_level(
         at_depth,
         params.splatting,
         params.boundary.mirror_sign().is_some(),
-    );
+    )?;
     fill_mirrors_field(level, &mut v);
-    v
+    Ok(v)
 }
 
 /// The coefficients of V at one depth (x, y and z, one value per node of the level; zero
@@ -57,7 +58,7 @@ fn splat_depth(
     at_depth: &[DepthSample],
     splatting: Splatting,
     fold: bool,
-) -> [Vec<f64>; 3] {
+) -> Result<[Vec<f64>; 3]> {
     let inv_h = (level.depth as f64).exp2();
     let n = 1i32 << level.depth;
     let linear = level.degree == Degree::One;
@@ -93,9 +94,9 @@ fn splat_depth(
 
     // Each core node's sum goes straight into the field: no per-node list of sums beside it.
     let mut field = [
-        vec![0.0; level.len()],
-        vec![0.0; level.len()],
-        vec![0.0; level.len()],
+        zeroed(level.len(), "the splatted normals (V)")?,
+        zeroed(level.len(), "the splatted normals (V)")?,
+        zeroed(level.len(), "the splatted normals (V)")?,
     ];
     let [fx, fy, fz] = &mut field;
     scatter_by_chunk(&level.core, [fx, fy, fz], &mut [], |_, writer, _| {
@@ -146,7 +147,7 @@ fn splat_depth(
             }
         }
     });
-    field
+    Ok(field)
 }
 
 /// The cells holding samples at one depth (cell index, range of its samples), grouped by brick.

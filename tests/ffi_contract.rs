@@ -1005,7 +1005,8 @@ fn status_strings_take_any_int() {
     assert_eq!(name(14), "PSR_STATUS_INVALID_WEIGHT");
     assert_eq!(name(15), "PSR_STATUS_INVALID_TRANSFORM");
     assert_eq!(name(16), "PSR_STATUS_TOO_LARGE");
-    assert_eq!(name(17), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(17), "PSR_STATUS_OUT_OF_MEMORY");
+    assert_eq!(name(18), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(-1), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
 }
@@ -1063,6 +1064,7 @@ fn status_numbers_are_stable() {
         (psr_status::InvalidWeight, 14),
         (psr_status::InvalidTransform, 15),
         (psr_status::TooLarge, 16),
+        (psr_status::OutOfMemory, 17),
     ];
     for (status, number) in expected {
         assert_eq!(status as i32, number, "{status:?}");
@@ -3741,5 +3743,123 @@ fn double_points_far_away_give_the_mesh_near_zero() {
     unsafe {
         psr_mesh_free(near_mesh);
         psr_reconstructor_free(near);
+    }
+}
+
+/// Proves (issue 19): the memory limit defaults to 0 (none), round-trips, and NULLs are
+/// refused with out-parameters untouched; the estimates are written only on success; a limit
+/// far too small gives PSR_STATUS_OUT_OF_MEMORY with no mesh and a message naming the limit,
+/// the handle is not poisoned, and its next solve without a limit gives the mesh of a handle
+/// that never failed, bit for bit.
+#[test]
+fn a_memory_limit_fails_typed_and_leaves_the_handle_usable() {
+    let r = new_handle();
+    let fresh = new_handle();
+    add_sphere(r, 2000);
+    add_sphere(fresh, 2000);
+    let mut bytes = 99u64;
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_get_max_memory(r, &mut bytes),
+            psr_status::Ok
+        );
+        assert_eq!(bytes, 0);
+        assert_eq!(
+            psr_reconstructor_set_max_memory(ptr::null_mut(), 5),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_max_memory(r, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        let mut estimate = 7u64;
+        assert_eq!(
+            psr_reconstructor_estimate_memory(ptr::null(), &mut estimate),
+            psr_status::NullArgument
+        );
+        assert_eq!(estimate, 7);
+        assert_eq!(
+            psr_reconstructor_estimate_memory(r, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_estimate_memory(r, &mut estimate),
+            psr_status::Ok
+        );
+        assert!(estimate > 1 << 20, "{estimate}");
+        let mut free_estimate = 7u64;
+        assert_eq!(
+            psr_estimate_memory(0, 2000, &mut free_estimate),
+            psr_status::InvalidParameter
+        );
+        assert_eq!(free_estimate, 7);
+        assert_eq!(
+            psr_estimate_memory(8, 2000, ptr::null_mut()),
+            psr_status::NullArgument
+        );
+        // The handle's default depth is 8, so the free estimate at depth 8 is the same.
+        assert_eq!(
+            psr_estimate_memory(8, 2000, &mut free_estimate),
+            psr_status::Ok
+        );
+        assert_eq!(free_estimate, estimate);
+
+        assert_eq!(psr_reconstructor_set_max_memory(r, 1000), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_get_max_memory(r, &mut bytes),
+            psr_status::Ok
+        );
+        assert_eq!(bytes, 1000);
+        let mut mesh = sentinel_ptr::<psr_mesh>();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut mesh),
+            psr_status::OutOfMemory
+        );
+        assert_eq!(mesh, sentinel_ptr(), "out-parameter untouched on failure");
+        let message = last_error(r);
+        assert!(
+            message.contains("memory limit of 1000 bytes") && message.contains("allow at least"),
+            "{message}"
+        );
+        let name = CStr::from_ptr(psr_status_string(psr_status::OutOfMemory as i32));
+        assert_eq!(name.to_str().unwrap(), "PSR_STATUS_OUT_OF_MEMORY");
+
+        assert_eq!(psr_reconstructor_set_max_memory(r, 0), psr_status::Ok);
+        let mut after = ptr::null_mut();
+        let mut expected = ptr::null_mut();
+        assert_eq!(psr_reconstructor_solve(r, &mut after), psr_status::Ok);
+        assert_eq!(
+            psr_reconstructor_solve(fresh, &mut expected),
+            psr_status::Ok
+        );
+        let nv = psr_mesh_vertex_count(after);
+        let nt = psr_mesh_triangle_count(after);
+        assert_eq!(nv, psr_mesh_vertex_count(expected));
+        assert_eq!(nt, psr_mesh_triangle_count(expected));
+        assert_eq!(
+            std::slice::from_raw_parts(psr_mesh_positions(after), 3 * nv),
+            std::slice::from_raw_parts(psr_mesh_positions(expected), 3 * nv)
+        );
+        assert_eq!(
+            std::slice::from_raw_parts(psr_mesh_triangles(after), 3 * nt),
+            std::slice::from_raw_parts(psr_mesh_triangles(expected), 3 * nt)
+        );
+        // A limit of the estimate lets the same solve through.
+        assert_eq!(
+            psr_reconstructor_set_max_memory(r, estimate),
+            psr_status::Ok
+        );
+        let mut again = ptr::null_mut();
+        assert_eq!(
+            psr_reconstructor_solve(r, &mut again),
+            psr_status::Ok,
+            "{}",
+            last_error(r)
+        );
+        psr_mesh_free(again);
+        psr_mesh_free(after);
+        psr_mesh_free(expected);
+        psr_reconstructor_free(r);
+        psr_reconstructor_free(fresh);
     }
 }

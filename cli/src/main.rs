@@ -9,7 +9,7 @@
 //!     [--no-density] [--no-attributes] [--vertex-normals] [--min-component-samples 8]
 //!     [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
 //!     [--min-piece-area F] [--min-piece-triangles N] [--colors] [--ascii] [--quiet] [--verbose]
-//!     [--grid FILE.npy|FILE.raw [--grid-resolution N]]
+//!     [--grid FILE.npy|FILE.raw [--grid-resolution N]] [--max-memory SIZE] [--estimate-memory]
 //! ```
 //!
 //! The input's colours and every other vertex property (but the ones psr interprets) are
@@ -25,7 +25,8 @@
 //! (`tests/cli.rs` checks that every option has one).
 //!
 //! Exit status: 0 on success, 2 for a usage or parameter error, 1 for an input/output or
-//! reconstruction error.
+//! reconstruction error, 3 when the reconstruction needs more memory than `--max-memory` (or
+//! the system) allows.
 
 use std::ffi::OsString;
 use std::io::{IsTerminal, Write};
@@ -306,6 +307,23 @@ struct Args {
     #[arg(long, value_name = "N", requires = "grid")]
     grid_resolution: Option<usize>,
 
+    /// The most memory the reconstruction may use: a number of bytes with an optional unit,
+    /// K, M, G, T or KiB, MiB, GiB, TiB (powers of 1024), kB, MB, GB, TB (powers of 1000), B;
+    /// e.g. 8G, 512M, 1.5GiB, 2000000000. psr counts its big arrays and checks them against the
+    /// limit before allocating them (from the point count, then from the octree's node counts),
+    /// and stops with exit status 3 and a message naming what needed how much, and the least
+    /// limit that would do, rather than grow past it. 0 = no limit (the default). The limit
+    /// covers the reconstruction, not reading the input or writing the mesh. PoissonRecon:
+    /// none.
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    max_memory: Option<u64>,
+
+    /// Print the memory the reconstruction is estimated to need (from the point count and the
+    /// depth: an upper bound for scanned surfaces, see docs/benchmarks.md) and exit without
+    /// reconstructing; --out is checked but not written. PoissonRecon: none.
+    #[arg(long)]
+    estimate_memory: bool,
+
     /// Print nothing but errors. PoissonRecon: none (it is quiet unless --verbose).
     #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
@@ -468,6 +486,7 @@ impl Args {
             })
             .with_vertex_normals(self.vertex_normals)
             .with_min_component_samples(self.min_component_samples)
+            .with_max_memory(self.max_memory.filter(|&bytes| bytes > 0))
     }
 
     /// The trimming the options ask for, or `None` (the untrimmed mesh) when none does.
@@ -549,6 +568,8 @@ enum Failure {
     Usage(String),
     /// Input, output or reconstruction failed (exit 1).
     Run(String),
+    /// The reconstruction needed more memory than --max-memory or the system allowed (exit 3).
+    OutOfMemory(String),
 }
 
 fn main() -> ExitCode {
@@ -563,6 +584,10 @@ fn main() -> ExitCode {
         Err(Failure::Run(message)) => {
             eprintln!("psr: error: {message}");
             ExitCode::from(1)
+        }
+        Err(Failure::OutOfMemory(message)) => {
+            eprintln!("psr: error: {message}");
+            ExitCode::from(3)
         }
     }
 }
@@ -774,6 +799,18 @@ fn run(args: &Args) -> Result<(), Failure> {
         eprintln!("psr: {params:?}");
     }
 
+    if args.estimate_memory {
+        let bytes = psr::estimate_memory(&points, &params).map_err(in_input)?;
+        println!(
+            "{bytes} bytes ({:.1} MiB): estimated peak memory of reconstructing {} points at \
+             depth {}",
+            bytes as f64 / (1u64 << 20) as f64,
+            points.len(),
+            params.depth
+        );
+        return Ok(());
+    }
+
     let mut peaks: Vec<(Stage, u64)> = Vec::new();
     let start = Instant::now();
     let mut on_progress = |stage: Stage, fraction: f32| {
@@ -797,8 +834,12 @@ fn run(args: &Args) -> Result<(), Failure> {
         psr::reconstruct_with_progress(&points, &params, &mut on_progress).map(|m| (m, None))
     };
     progress.clear();
-    let (mut mesh, implicit) =
-        result.map_err(|e| Failure::Run(format!("reconstruction failed: {e}")))?;
+    let (mut mesh, implicit) = result.map_err(|e| match e {
+        psr::Error::OutOfMemory { .. } => {
+            Failure::OutOfMemory(format!("reconstruction failed: {e} (option --max-memory)"))
+        }
+        e => Failure::Run(format!("reconstruction failed: {e}")),
+    })?;
     let reconstruct_seconds = start.elapsed().as_secs_f64();
     if let (Some(path), Some(implicit)) = (&args.grid, implicit) {
         write_grid(args, path, &implicit, mesh.stats.depth)?;
@@ -1007,6 +1048,40 @@ fn peak_resident_kib() -> Option<u64> {
 }
 
 /// The command-line option that sets the [`Params`] field `name`.
+/// A --max-memory SIZE: a number (digits, an optional fraction) and an optional unit; see the
+/// option's help.
+fn parse_size(text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let value: f64 = number.parse().map_err(|_| {
+        format!("{text:?} is not a size: give a number of bytes, e.g. 8G, 512M, 1.5GiB")
+    })?;
+    let factor: f64 = match unit.trim() {
+        "" | "B" | "b" => 1.0,
+        "K" | "k" | "KiB" => 1024.0,
+        "M" | "m" | "MiB" => 1024f64.powi(2),
+        "G" | "g" | "GiB" => 1024f64.powi(3),
+        "T" | "t" | "TiB" => 1024f64.powi(4),
+        "kB" | "KB" => 1e3,
+        "MB" => 1e6,
+        "GB" => 1e9,
+        "TB" => 1e12,
+        other => {
+            return Err(format!(
+                "unknown unit {other:?} in {text:?}: use B, K/KiB, M/MiB, G/GiB, T/TiB (1024s) or kB, MB, GB, TB (1000s)"
+            ))
+        }
+    };
+    let bytes = (value * factor).round();
+    if !(bytes.is_finite() && bytes < u64::MAX as f64) {
+        return Err(format!("{text:?} is too large a size"));
+    }
+    Ok(bytes as u64)
+}
+
 fn option_of(name: &str) -> String {
     match name {
         "max_solver_iterations" => "iters".to_string(),
@@ -1099,6 +1174,14 @@ fn print_details(mesh: &Mesh) {
             None => out.push_str(&format!(" {:>11} {:>14} {:>8}\n", "-", "-", "-")),
         }
     }
+    out.push_str(&format!(
+        "psr: memory accounting: {} bytes ({:.1} MiB) from the octree's {} nodes ({:?} per depth) and {} density slots\n",
+        stats.estimated_memory,
+        stats.estimated_memory as f64 / (1u64 << 20) as f64,
+        stats.halo_nodes_per_depth.iter().sum::<usize>(),
+        stats.halo_nodes_per_depth,
+        stats.density_slots
+    ));
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
     out.push_str(&format!(
         "\npsr: {} unsupported components left out ({} triangles; --min-component-samples)",

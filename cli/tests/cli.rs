@@ -284,6 +284,8 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--verbose", "--verbose"),
         ("--grid", "--grid"),
         ("--grid-resolution", "none"),
+        ("--max-memory", "none"),
+        ("--estimate-memory", "none"),
     ];
     for (ours, theirs) in expected {
         let (_, text) = entries
@@ -1232,4 +1234,55 @@ fn min_component_samples_leaves_out_pieces_with_fewer_samples() {
         stderr(&bad)
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves (issue 19): --max-memory takes sizes with units (and refuses a bad unit as a usage
+/// error, exit 2); a limit far too small stops the run with exit status 3, a message naming
+/// the limit and the option, and no output file; a sufficient limit writes the same mesh as no
+/// limit, byte for byte; --estimate-memory prints a figure and writes nothing.
+#[test]
+fn max_memory_refuses_with_exit_3_and_estimate_memory_prints_a_figure() {
+    let input = kitten();
+    let dir = scratch("memory");
+    let small = dir.join("small.ply");
+    let out = psr_on(&input, &small, &["--depth", "5", "--max-memory", "64K"]);
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    let text = stderr(&out);
+    assert!(
+        text.contains("memory limit of 64.00 KiB") && text.contains("--max-memory"),
+        "{text}"
+    );
+    assert!(!small.exists(), "nothing written on failure");
+
+    let out = psr_on(
+        &input,
+        &small,
+        &["--depth", "5", "--max-memory", "12 parsecs"],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("unknown unit"), "{}", stderr(&out));
+
+    let limited = dir.join("limited.ply");
+    let unlimited = dir.join("unlimited.ply");
+    for (path, extra) in [
+        (&limited, &["--max-memory", "1.5GiB"][..]),
+        (&unlimited, &["--max-memory", "0"][..]),
+    ] {
+        let mut args = vec!["--depth", "5"];
+        args.extend_from_slice(extra);
+        let out = psr_on(&input, path, &args);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    assert_eq!(
+        std::fs::read(&limited).unwrap(),
+        std::fs::read(&unlimited).unwrap()
+    );
+
+    let estimate = dir.join("estimate.ply");
+    let out = psr_on(&input, &estimate, &["--depth", "8", "--estimate-memory"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let bytes: u64 = stdout.split_whitespace().next().unwrap().parse().unwrap();
+    assert!(bytes > 1 << 20 && stdout.contains("depth 8"), "{stdout}");
+    assert!(!estimate.exists());
 }

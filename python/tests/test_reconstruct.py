@@ -69,6 +69,7 @@ CHANGED: dict[str, Any] = {
     "splatting": psr.Splatting.TRILINEAR,
     "vertex_placement": psr.VertexPlacement.ON_ISOSURFACE,
     "min_component_samples": 0,
+    "max_memory": 8 << 30,
     "vertex_normals": True,
     "normal_neighbors": 12,
     "normal_orientation": psr.Orientation.SENSORS,
@@ -322,3 +323,27 @@ def test_conversions_say_what_is_missing(
         monkeypatch.setitem(sys.modules, module, None)
         with pytest.raises(ImportError, match=f"pip install {module}"):
             getattr(ball_mesh, method)()
+
+
+def test_max_memory_out_of_memory_and_estimate(
+    ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh
+) -> None:
+    r = psr.Reconstructor(depth=6, max_memory=4096)
+    assert r.max_memory == 4096
+    r.add_points(*ball)
+    estimate = r.estimate_memory()
+    assert estimate > 1 << 20
+    with pytest.raises(psr.OutOfMemoryError) as caught:
+        r.solve()
+    assert caught.value.status is psr.Status.OUT_OF_MEMORY
+    assert isinstance(caught.value, MemoryError)
+    assert "memory limit of 4.00 KiB" in str(caught.value)
+    # The reconstructor stays usable: no limit, or the estimate, give the same mesh.
+    r.max_memory = 0
+    assert same_mesh(r.solve(), ball_mesh)
+    r.max_memory = estimate
+    assert same_mesh(r.solve(), ball_mesh)
+    with pytest.raises(psr.OutOfMemoryError):
+        psr.reconstruct(*ball, depth=6, max_memory=4096)
+    with pytest.raises(ValueError):
+        psr.Reconstructor(max_memory=-1)

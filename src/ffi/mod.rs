@@ -52,6 +52,8 @@
 //! - `implicit.rs`: the `psr_implicit` handle, the solved χ kept by
 //!   psr_reconstructor_solve_implicit: psr_implicit_evaluate, _gradient, _sample_grid,
 //!   _isovalue, _cube and _free.
+//! - `memory.rs`: the memory limit (psr_reconstructor_set_max_memory, _get_max_memory) and
+//!   the estimates before a solve (psr_reconstructor_estimate_memory, psr_estimate_memory).
 
 // The C names (psr_status, psr_mesh, ...) are the header's, not Rust's.
 #![allow(non_camel_case_types)]
@@ -91,6 +93,8 @@ mod attributes;
 mod stats;
 // The solved implicit function χ: evaluated, differentiated, sampled on a grid.
 mod implicit;
+// The memory limit and the estimates.
+mod memory;
 
 pub use self::attributes::{
     psr_mesh_channel, psr_mesh_channel_count, psr_mesh_channel_name, psr_mesh_color_components,
@@ -102,6 +106,10 @@ pub use self::implicit::{
     psr_implicit, psr_implicit_cube, psr_implicit_evaluate, psr_implicit_free,
     psr_implicit_gradient, psr_implicit_isovalue, psr_implicit_sample_grid,
     psr_reconstructor_solve_implicit,
+};
+pub use self::memory::{
+    psr_estimate_memory, psr_reconstructor_estimate_memory, psr_reconstructor_get_max_memory,
+    psr_reconstructor_set_max_memory,
 };
 pub use self::mesh::{
     psr_mesh, psr_mesh_copy_densities, psr_mesh_copy_positions, psr_mesh_copy_positions_f64,

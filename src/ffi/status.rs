@@ -56,6 +56,13 @@ pub enum psr_status {
     /// The mesh would have more vertices, or the input more points, than 32-bit indices can
     /// name (the message gives the count): reconstruct at a lower depth or in pieces.
     TooLarge = 16,
+    /// The solve needs more memory than psr_reconstructor_set_max_memory allows (checked
+    /// before the memory is allocated: from the point count, then from the octree's node
+    /// counts), or the system refused an allocation. The message names what was being
+    /// allocated, the bytes needed, the limit and, when known, the smallest limit that would
+    /// do. Nothing was kept and the handle stays usable: raise the limit, lower the depth or
+    /// free memory, and solve again (the same mesh as a handle that never failed).
+    OutOfMemory = 17,
 }
 
 /// The name of a status, e.g. "PSR_STATUS_ZERO_NORMAL", as a static NUL-terminated string
@@ -80,6 +87,7 @@ pub extern "C" fn psr_status_string(status: c_int) -> *const c_char {
         14 => "PSR_STATUS_INVALID_WEIGHT\0",
         15 => "PSR_STATUS_INVALID_TRANSFORM\0",
         16 => "PSR_STATUS_TOO_LARGE\0",
+        17 => "PSR_STATUS_OUT_OF_MEMORY\0",
         _ => "PSR_STATUS_UNKNOWN\0",
     };
     name.as_ptr().cast()
@@ -133,6 +141,7 @@ impl Failure {
             Error::InvalidChannelName { .. } => psr_status::InvalidArgument,
             Error::InvalidTransform { .. } => psr_status::InvalidTransform,
             Error::TooLarge { .. } => psr_status::TooLarge,
+            Error::OutOfMemory { .. } => psr_status::OutOfMemory,
             Error::Internal(_) => psr_status::InternalError,
         };
         Failure::new(status, format!("{function}: {error}"))
@@ -175,13 +184,14 @@ mod tests {
             (psr_status::InvalidWeight, "PSR_STATUS_INVALID_WEIGHT"),
             (psr_status::InvalidTransform, "PSR_STATUS_INVALID_TRANSFORM"),
             (psr_status::TooLarge, "PSR_STATUS_TOO_LARGE"),
+            (psr_status::OutOfMemory, "PSR_STATUS_OUT_OF_MEMORY"),
         ];
         for (status, name) in all {
             // SAFETY: psr_status_string returns a static NUL-terminated string, never NULL.
             let got = unsafe { CStr::from_ptr(psr_status_string(status as c_int)) };
             assert_eq!(got.to_str().unwrap(), name);
         }
-        for unknown in [-1, 17, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 18, c_int::MAX, c_int::MIN] {
             // SAFETY: as above.
             let got = unsafe { CStr::from_ptr(psr_status_string(unknown)) };
             assert_eq!(got.to_str().unwrap(), "PSR_STATUS_UNKNOWN");

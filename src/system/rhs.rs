@@ -5,6 +5,7 @@
 use super::bricks::CoreBricks;
 use super::transfer::{restrict_into, ProlongedField};
 use crate::error::Result;
+use crate::memory::zeroed;
 use crate::octree::{fill_mirrors, Level, Octree};
 use crate::parallel::for_each_indexed;
 
@@ -18,7 +19,7 @@ pub fn update_on_core(level: &Level, x: &mut [f64], f: impl Fn(usize, f64) -> f6
 /// ⟨∇B_o, V_d⟩ for every node of K_d, where V_d = Σ v_o′ B_o′/h³ (unit-integral node
 /// functions, §4.1) has coefficients `v` (x, y, z components) on K_d, which is dropped when it
 /// returns; [`divergence_of`] for a field that is kept.
-pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
+pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Result<Vec<f64>> {
     divergence_of(level, &v)
 }
 
@@ -26,9 +27,9 @@ pub fn divergence(level: &Level, v: [Vec<f64>; 3]) -> Vec<f64> {
 /// windows of the three components gathered from the 27 bricks around (values beyond K_d are
 /// zero), as (1/h)·(G_x(M_y M_z v_x) + M_x(G_y M_z v_y + M_y G_z v_z)): one sweep and no
 /// halo-sized scratch, where nine axis passes over the whole halo read and wrote it 18 times.
-pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
+pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Result<Vec<f64>> {
     let bricks = CoreBricks::whole_level(level);
-    let mut out = vec![0.0; level.len()];
+    let mut out = zeroed(level.len(), "a right-hand side")?;
     bricks.divergence(
         |cb, windows, _| {
             for (window, component) in windows.iter_mut().zip(v) {
@@ -39,24 +40,24 @@ pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Vec<f64> {
         1.0 / level.width(),
         &mut out,
     );
-    out
+    Ok(out)
 }
 
 /// ⟨∇B_o, V⟩ at every core node of `field.fine` (in core order) for V a coarser field prolonged
 /// to that depth ([`divergence`] restricted to the core, brick by brick): each core brick's
 /// window computes the prolongation from the coarse nodes under it, instead of every window
 /// node finding its eight parents (every node lies in about 3.4 windows).
-pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Vec<f64> {
+pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Result<Vec<f64>> {
     let level = field.fine;
     let bricks = CoreBricks::new(level);
-    let mut out = vec![0.0; level.core.len()];
+    let mut out = zeroed(level.core.len(), "a coarse right-hand side")?;
     bricks.divergence(
         |cb, windows, scratch| bricks.gather_prolonged(field, cb, windows, scratch),
         level.degree.tables(),
         1.0 / level.width(),
         &mut out,
     );
-    out
+    Ok(out)
 }
 
 /// ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo K_d (index d), finest first: each depth's own
@@ -75,7 +76,7 @@ pub(crate) fn right_hand_sides(
     rho.push(rho_finest);
     for d in (0..max_depth).rev() {
         let level = &tree.levels[d];
-        let mut r = pool.install(|| divergence_of(level, &field_v[d]));
+        let mut r = pool.install(|| divergence_of(level, &field_v[d]))?;
         let finer: &Vec<f64> = rho.last().expect("finer level computed first");
         restrict_into(level, &tree.levels[d + 1], finer, &mut r);
         fill_mirrors(level, &mut r);

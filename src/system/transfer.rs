@@ -4,6 +4,8 @@
 
 use super::bricks::{BrickNodes, BrickScratch, CoreBricks, WINDOW};
 use crate::bspline::{Degree, REFINE};
+use crate::error::Result;
+use crate::memory::zeroed;
 use crate::octree::{axis_interval_masks, brick_local, AxisStep, Level, NONE};
 use crate::parallel::{split_parts, stop_requested};
 use rayon::prelude::*;
@@ -90,10 +92,10 @@ impl ProlongedField<'_> {
 
 /// Prolongs coarse coefficients (on K_{d−1}) to the fine halo K_d, exactly: the fine
 /// combination represents the same function wherever the coarse one is complete.
-pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Vec<f64> {
-    let mut out = vec![0.0; fine.len()];
+pub fn prolong(coarse: &Level, fine: &Level, x: &[f64], scale: f64) -> Result<Vec<f64>> {
+    let mut out = zeroed(fine.len(), "the coefficients")?;
     prolong_by_brick(coarse, fine, [x], scale, None, [&mut out], |_, v| v);
-    out
+    Ok(out)
 }
 
 impl CoreBricks {

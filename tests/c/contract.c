@@ -435,6 +435,68 @@ static void test_mesh(void) {
     psr_mesh_free(m);
 }
 
+/* The memory budget: the limit set and read back, the estimates (NULL checks, out-parameters
+ * untouched on failure), a limit far too small refused with PSR_STATUS_OUT_OF_MEMORY and no
+ * mesh, and the same handle then solving, with no limit, the mesh of a handle that never
+ * failed, byte for byte. */
+static void test_memory(void) {
+    psr_reconstructor *r = new_with_sphere(1000, 5);
+    psr_reconstructor *fresh = new_with_sphere(1000, 5);
+    psr_mesh *m = NULL, *expected = NULL;
+    uint64_t bytes = 12345, estimate = 0, small = 0, large = 0;
+
+    section("memory budget: limit, estimates, out of memory, the handle reusable");
+    CHECK(strcmp(psr_status_string(PSR_STATUS_OUT_OF_MEMORY), "PSR_STATUS_OUT_OF_MEMORY") == 0);
+    CHECK(PSR_STATUS_OUT_OF_MEMORY == 17);
+    CHECK_STATUS(psr_reconstructor_set_max_memory(NULL, 1), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_max_memory(NULL, &bytes), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_max_memory(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_max_memory(r, &bytes), PSR_STATUS_OK);
+    CHECK(bytes == 0);
+    CHECK_STATUS(psr_reconstructor_estimate_memory(NULL, &estimate), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_estimate_memory(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_estimate_memory(r, &estimate), PSR_STATUS_OK);
+    CHECK(estimate > 1000000);
+    CHECK_STATUS(psr_estimate_memory(8, 1000, NULL), PSR_STATUS_NULL_ARGUMENT);
+    bytes = 7;
+    CHECK_STATUS(psr_estimate_memory(17, 1000, &bytes), PSR_STATUS_INVALID_PARAMETER);
+    CHECK(bytes == 7);
+    CHECK_STATUS(psr_estimate_memory(8, 100000, &small), PSR_STATUS_OK);
+    CHECK_STATUS(psr_estimate_memory(10, 100000, &large), PSR_STATUS_OK);
+    CHECK(small > 0 && large > small);
+
+    CHECK_STATUS(psr_reconstructor_set_max_memory(r, 4096), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_max_memory(r, &bytes), PSR_STATUS_OK);
+    CHECK(bytes == 4096);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OUT_OF_MEMORY);
+    CHECK(m == NULL);
+    CHECK(contains(psr_reconstructor_last_error(r), "memory limit of 4.00 KiB"));
+    CHECK(contains(psr_reconstructor_last_error(r), "allow at least"));
+
+    CHECK_STATUS(psr_reconstructor_set_max_memory(r, 0), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(fresh, &expected), PSR_STATUS_OK);
+    if (m != NULL && expected != NULL) {
+        size_t nv = psr_mesh_vertex_count(m), nt = psr_mesh_triangle_count(m);
+        CHECK(nv == psr_mesh_vertex_count(expected) && nt == psr_mesh_triangle_count(expected));
+        if (nv == psr_mesh_vertex_count(expected) && nt == psr_mesh_triangle_count(expected)) {
+            CHECK(memcmp(psr_mesh_positions(m), psr_mesh_positions(expected),
+                         3 * nv * sizeof(float)) == 0);
+            CHECK(memcmp(psr_mesh_triangles(m), psr_mesh_triangles(expected),
+                         3 * nt * sizeof(uint32_t)) == 0);
+        }
+    }
+    /* A limit of the estimate lets the same solve through. */
+    CHECK_STATUS(psr_reconstructor_set_max_memory(r, estimate), PSR_STATUS_OK);
+    psr_mesh_free(m);
+    m = NULL;
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    psr_mesh_free(m);
+    psr_mesh_free(expected);
+    psr_reconstructor_free(r);
+    psr_reconstructor_free(fresh);
+}
+
 /* The boundary kinds by their header names: each set and read back, any other value refused
  * (the setting unchanged), and a sphere solved with Dirichlet (chi = 0 on the cube's faces)
  * into a mesh. */
@@ -1306,6 +1368,7 @@ int main(void) {
     test_trim();
     test_stats();
     test_implicit();
+    test_memory();
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

@@ -18,6 +18,7 @@ __all__ = [
     "InvalidWeightError",
     "InvalidTransformError",
     "TooLargeError",
+    "OutOfMemoryError",
     "ThreadsUnavailableError",
     "InternalError",
     "HandlePoisonedError",
@@ -45,6 +46,7 @@ class Status(IntEnum):
     INVALID_WEIGHT = 14
     INVALID_TRANSFORM = 15
     TOO_LARGE = 16
+    OUT_OF_MEMORY = 17
 
 
 class PsrError(Exception):
@@ -104,6 +106,13 @@ class TooLargeError(PsrError, ValueError):
     """PSR_STATUS_TOO_LARGE: more vertices or points than 32-bit indices can name."""
 
 
+class OutOfMemoryError(PsrError, MemoryError):
+    """PSR_STATUS_OUT_OF_MEMORY: the solve needs more memory than ``max_memory`` allows
+    (checked before allocating: from the point count, then the octree's node counts), or the
+    system refused an allocation. The message names what needed how many bytes, the limit and,
+    when known, the least limit that would do. The reconstructor stays usable."""
+
+
 class ThreadsUnavailableError(PsrError, OSError):
     """PSR_STATUS_THREADS_UNAVAILABLE: the system refused to start worker threads."""
 
@@ -133,6 +142,7 @@ _CLASSES: dict[int, type[PsrError]] = {
     Status.INVALID_WEIGHT: InvalidWeightError,
     Status.INVALID_TRANSFORM: InvalidTransformError,
     Status.TOO_LARGE: TooLargeError,
+    Status.OUT_OF_MEMORY: OutOfMemoryError,
 }
 
 
