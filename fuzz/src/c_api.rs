@@ -44,6 +44,7 @@ enum Op {
     AddPointArrays(u8, Batch, Extras, u16),
     ClearPoints(u8),
     PointCount(u8),
+    EstimateMemory(u8, u8, u32),
     Progress(u8, Option<u16>),
     Solve(u8, bool),
     MeshRead(u8, u32, u8),
@@ -76,6 +77,7 @@ enum Param {
     Viewpoint(f64, f64, f64),
     VertexNormals(bool),
     Degree(i32),
+    MaxMemory(u64),
 }
 
 /// Points of one batch: small integer coordinates (so duplicates and degenerate sets come
@@ -319,6 +321,17 @@ unsafe fn apply(h: &mut Handles, op: Op) {
                 "point_count",
             );
         }
+        Op::EstimateMemory(i, depth, points) => {
+            let mut bytes = 0u64;
+            check(
+                unsafe { psr_reconstructor_estimate_memory(r_of(h, i), &mut bytes) },
+                "reconstructor_estimate_memory",
+            );
+            check(
+                unsafe { psr_estimate_memory(u32::from(depth), u64::from(points), &mut bytes) },
+                "estimate_memory",
+            );
+        }
         Op::Progress(i, cancel_after) => {
             if let Some((r, canceller)) = pick(&h.reconstructors, i).map(|(r, c)| (*r, c)) {
                 // The canceller's box stays where it is while the reconstructor lives.
@@ -437,6 +450,7 @@ unsafe fn set_param(r: *mut psr_reconstructor, param: Param) {
             Param::Viewpoint(x, y, z) => psr_reconstructor_set_viewpoint(r, x, y, z),
             Param::VertexNormals(v) => psr_reconstructor_set_vertex_normals(r, v),
             Param::Degree(v) => psr_reconstructor_set_degree(r, v),
+            Param::MaxMemory(v) => psr_reconstructor_set_max_memory(r, v),
         }
     };
     check(status, "a setter");
@@ -468,6 +482,7 @@ unsafe fn get_params(r: *mut psr_reconstructor, null_out: bool) {
     get!(psr_reconstructor_get_normal_orientation, i32);
     get!(psr_reconstructor_get_vertex_normals, bool);
     get!(psr_reconstructor_get_degree, i32);
+    get!(psr_reconstructor_get_max_memory, u64);
 }
 
 /// A batch laid out as the C API takes it: `floats` per point (positions, then normals or

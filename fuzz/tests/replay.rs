@@ -2,7 +2,10 @@
 //! fixed finding stays fixed. Two directories per target: `corpus/<target>/`, the seeds and
 //! what fuzzing found interesting (scripts/fuzz.sh minimises it after each run, so it may drop
 //! any file), and `regressions/<target>/`, the inputs of past findings, named for what they
-//! found and never minimised away. A target fails by panicking.
+//! found and never minimised away. A target fails by panicking. A regression input replays its
+//! finding exactly while the target decodes bytes as it did then (a new choice in an enum of
+//! operations changes that; new choices are best read from the input's end), so every finding
+//! also has a test of its own in the library's tests, named in the commit that fixed it.
 
 use std::fs;
 use std::path::{Path, PathBuf};
