@@ -327,6 +327,8 @@ static void solve_and_check(struct worker *w, psr_reconstructor **r, int ci) {
         if (!prog.stopped) FAIL("config %d: cancelled but the callback never said stop", ci);
         if (m != NULL) FAIL("config %d: a cancelled solve wrote a mesh", ci);
         if (prog.calls != prog.stop_at) FAIL("config %d: %d progress calls after stop at %d", ci, prog.calls, prog.stop_at);
+        if (strstr(psr_reconstructor_last_error(*r), "cancel") == NULL)
+            FAIL("config %d: last error after a cancel is \"%s\"", ci, psr_reconstructor_last_error(*r));
         /* The handle stays usable: same points, same parameters, and it solves again. */
         EXPECT_OK(psr_reconstructor_point_count(*r, &count));
         if (count != c->points) FAIL("config %d: %zu points after a cancel, want %zu", ci, count, c->points);
