@@ -26,7 +26,15 @@
 #      ffi_threads (workers joined before solve returns) and worker_threads (joined on a panic
 #      too). These run whole reconstructions at 1 to 4 worker threads, so every stage's
 #      parallel loops run under TSan. The long pipeline suites stay out: instrumented, they
-#      would take far longer than this step should.
+#      would take far longer than this step should;
+#   7. the stress program under ThreadSanitizer, 4 threads for STRESS_SECONDS seconds, with
+#      libpsr.so itself built with -Zsanitizer=thread -Zbuild-std: races between the host's
+#      threads, psr's workers and handles passed between threads. A process must hold exactly
+#      one TSan runtime, the one the library was instrumented for, and gcc 12's libtsan lacks
+#      entry points that nightly's LLVM emits (__tsan_memset, __tsan_memcpy, __tsan_memmove); so
+#      the program is compiled with gcc -fsanitize=thread (same __tsan_* calls) but linked with
+#      the nightly toolchain's own TSan runtime (librustc-nightly_rt.tsan.a), exported with
+#      -rdynamic for the library to find.
 # A run fails on a non-zero exit or any sanitizer report in its output; each prints a one-line
 # summary (counts and seconds), and all of them are repeated at the end.
 #
@@ -129,6 +137,23 @@ run "Rust threading tests (tsan)" "$work/rust-tsan.log" "$rust_counts" -- \
     env RUSTFLAGS="-Zsanitizer=thread" TSAN_OPTIONS="halt_on_error=1" \
     cargo "+$nightly" test -Zbuild-std --release -p psr --target "$host" --target-dir target/tsan \
     --lib --test ffi_contract --test ffi_threads --test worker_threads -- thread workers parallel::
+
+# --- 7. the stress program under TSan ----------------------------------------------------------
+step "the stress program under TSan (library built with -Zsanitizer=thread): 4 threads, $stress_seconds s"
+# A target dir apart from step 6's: with -Zbuild-std, `cargo test` builds the library against
+# one more sysroot crate (test) than `cargo build` does, under the same name, so in one target
+# dir each would rebuild psr (over a minute) every time the other ran.
+env RUSTFLAGS="-Zsanitizer=thread" \
+    cargo "+$nightly" build -Zbuild-std --release -p psr --target "$host" --target-dir target/tsan-lib
+tsan_lib="$root/target/tsan-lib/$host/release"
+tsan_rt="$(ls "$(rustup run "$nightly" rustc --print sysroot)/lib/rustlib/$host/lib/"librustc-*_rt.tsan.a | head -1)"
+[ -f "$tsan_rt" ] || die "no TSan runtime in the $nightly toolchain"
+cc -std=c99 -Wall -Wextra -Werror -fsanitize=thread -g -O1 -Iinclude -c tests/c/stress.c -o "$work/stress-tsan.o"
+cc "$work/stress-tsan.o" -o "$work/stress-tsan" -Wl,--whole-archive "$tsan_rt" -Wl,--no-whole-archive -rdynamic \
+    -L"$tsan_lib" -lpsr -Wl,-rpath,"$tsan_lib" -lpthread -lm -ldl -lstdc++
+run "stress, 4 threads x ${stress_seconds}s (tsan)" "$work/stress-tsan.log" \
+    'sed -n "s/^stress: [0-9]* threads x [0-9.]* s (seed [0-9]*): //p" "$log" | tr -d "\n"' \
+    -- env TSAN_OPTIONS="halt_on_error=1" "$work/stress-tsan" --threads 4 --seconds "$stress_seconds" --seed "${STRESS_SEED:-1}"
 
 printf '\n'
 printf '%s\n' "${summaries[@]}"

@@ -23,11 +23,13 @@
 #      and every committed corpus input replayed through its target on stable Rust
 #      (fuzz/tests/replay.rs), so that past findings stay fixed; fuzzing itself is
 #      scripts/fuzz.sh (nightly, libFuzzer), run by hand and recorded in docs/reliability.md;
-#  10. sanitizers (.ci/sanitizers.sh, a few minutes once built): the C contract test and the C
-#      and C++ examples under AddressSanitizer + UndefinedBehaviorSanitizer, the many-hosts
-#      stress program (tests/c/stress.c) for 20 s under ASan/UBSan/LeakSanitizer, the Rust FFI
-#      tests with the library under ASan, and the threading tests under ThreadSanitizer; it
-#      installs what it needs when missing (gcc, g++, a nightly Rust with rust-src).
+#  10. sanitizers (.ci/sanitizers.sh, about 2.5 minutes once built, 10 to 15 more for the first
+#      build of its four target dirs, std included): the C contract test and the C and C++
+#      examples under AddressSanitizer + UndefinedBehaviorSanitizer, the many-hosts stress
+#      program (tests/c/stress.c) for 20 s under ASan/UBSan/LeakSanitizer and 20 s under
+#      ThreadSanitizer, the Rust FFI tests with the library under ASan, and the threading tests
+#      under ThreadSanitizer; it installs what it needs when missing (gcc, g++, a nightly Rust
+#      with rust-src).
 # Step 0 installs what steps 1-4 need when it is missing: rustfmt, clippy (rustup components) and
 # the minimum toolchain (rustup toolchain install --profile minimal).
 # Real-scan tests read ../shared/data (or $PSR_DATA_DIR); they skip with a visible message when
