@@ -38,7 +38,8 @@
 # A run fails on a non-zero exit or any sanitizer report in its output; each prints a one-line
 # summary (counts and seconds), and all of them are repeated at the end.
 #
-#   .ci/sanitizers.sh       (KEEP=1 keeps the temporary directory; STRESS_SECONDS=N)
+#   .ci/sanitizers.sh   (KEEP=1 keeps the temporary directory; STRESS_SECONDS=N and STRESS_SEED=N
+#                        change the stress runs, PSR_NIGHTLY the toolchain)
 set -euo pipefail
 
 script=sanitizers.sh
