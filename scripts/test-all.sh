@@ -24,9 +24,16 @@
 #      install ./python and the package's example; ruff and mypy --strict). It installs
 #      python3-venv when missing and pytest, tqdm, trimesh, ruff and mypy into its own venvs;
 #  10. the fuzz targets (fuzz/, their own workspace): formatting, clippy with warnings as errors,
-#      and every committed corpus input replayed through its target on stable Rust
+#      and every committed corpus and regression input replayed through its target on stable Rust
 #      (fuzz/tests/replay.rs), so that past findings stay fixed; fuzzing itself is
-#      scripts/fuzz.sh (nightly, libFuzzer), run by hand and recorded in docs/reliability.md.
+#      scripts/fuzz.sh (nightly, libFuzzer), run by hand and recorded in docs/reliability.md;
+#  11. sanitizers (.ci/sanitizers.sh, about 2.5 minutes once built, 10 to 15 more for the first
+#      build of its four target dirs, std included): the C contract test and the C and C++
+#      examples under AddressSanitizer + UndefinedBehaviorSanitizer, the many-hosts stress
+#      program (tests/c/stress.c) for 20 s under ASan/UBSan/LeakSanitizer and 20 s under
+#      ThreadSanitizer, the Rust FFI tests with the library under ASan, and the threading tests
+#      under ThreadSanitizer; it installs what it needs when missing (gcc, g++, a nightly Rust
+#      with rust-src).
 # Step 0 installs what steps 1-4 need when it is missing: rustfmt, clippy (rustup components) and
 # the minimum toolchain (rustup toolchain install --profile minimal).
 # Real-scan tests read ../shared/data (or $PSR_DATA_DIR); they skip with a visible message when
@@ -82,6 +89,9 @@ heading "10. fuzz corpora replayed: cargo test --release --manifest-path fuzz/Ca
 cargo fmt --manifest-path fuzz/Cargo.toml -- --check
 cargo clippy --manifest-path fuzz/Cargo.toml --all-targets --target-dir target/fuzz -- -D warnings
 cargo test --release --manifest-path fuzz/Cargo.toml --target-dir target/fuzz 2>&1 | tee -a "$rust_log"
+
+heading "11. sanitizers: ASan, UBSan, LSan and TSan (.ci/sanitizers.sh)"
+bash .ci/sanitizers.sh
 
 heading "all steps passed"
 # One closing line over every Rust test run above (steps 7, 8 and 10).

@@ -2751,9 +2751,16 @@ fn point_arrays_are_checked_whole() {
     let count = 20;
     let (p, n) = sphere(count, [0.0; 3], 1.0);
     let colors: Vec<f32> = (0..3 * count).map(|i| (i % 7) as f32 / 7.0).collect();
+    // RGBA for the batch whose colours differ in kind: an array as long as the fields say, so
+    // the library may read all of it (a 3-component array described as 4 components would be
+    // read past its end, which AddressSanitizer reports).
+    let rgba: Vec<f32> = (0..4 * count).map(|i| (i % 5) as f32 / 5.0).collect();
     let values: Vec<f32> = (0..2 * count).map(|i| i as f32).collect();
     let weights = vec![1.0f32; count];
     let names = [c"intensity".as_ptr(), c"label".as_ptr()];
+    // The same names in another order, bound here: a temporary array's pointer taken inside the
+    // struct literal below would dangle once that statement ends.
+    let swapped = [c"label".as_ptr(), c"intensity".as_ptr()];
     let full = || {
         let mut a = point_arrays();
         a.count = count;
@@ -2945,6 +2952,7 @@ fn point_arrays_are_checked_whole() {
             ..full()
         },
         psr_point_arrays {
+            colors: rgba.as_ptr(),
             color_components: 4,
             ..full()
         },
@@ -2953,7 +2961,7 @@ fn point_arrays_are_checked_whole() {
             ..full()
         },
         psr_point_arrays {
-            channel_names: [c"label".as_ptr(), c"intensity".as_ptr()].as_ptr(),
+            channel_names: swapped.as_ptr(),
             ..full()
         },
     ];
