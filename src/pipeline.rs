@@ -92,10 +92,10 @@ impl Stage {
 /// each slice with the fraction done so far (never less than the call before within a stage),
 /// then once with 1 when the stage ends. After it returns `false` it is not called again: the
 /// stage stops at its next cancel point (`docs/architecture.md`, "Progress and cancellation",
-/// lists them: mostly batches of work milliseconds apart, but on a million points at depth 11
-/// up to a second in the octree and seconds inside one splat, right-hand side or solver
-/// iteration at the finest depths) and the reconstruction returns `Err(Error::Cancelled)` once
-/// its memory is freed. The output never depends on the callback.
+/// lists them: batches of work milliseconds apart, down to the bricks of the splat, the system
+/// and the solver; on a million points at depth 11 a stop returned within 0.04–0.26 s on a
+/// loaded 2-core machine) and the reconstruction returns `Err(Error::Cancelled)` once its
+/// memory is freed. The output never depends on the callback.
 pub type Progress<'a> = &'a mut dyn FnMut(Stage, f32) -> bool;
 
 /// Times stages and forwards progress; turns a "stop" from the callback into `Cancelled`.
