@@ -14,7 +14,10 @@ the total (the moment to the return, the latency a user sees); then the worst pe
 
 With --stages, each run's moment is drawn inside one of those stages instead (by the full solve's
 timeline: from the stage's first callback call, or the previous stage's last, to its last),
---runs per stage.
+--runs per stage. With --trim, the same is done for psr_mesh_trim (automatic threshold, its
+progress callback set in psr_trim_options) on the full solve's mesh, after the solves.
+
+    python3 bench/cancel.py --depth 11 --runs 8 --trim
 
 Needs numpy and a libpsr.so (`cargo build --release`); data from $PSR_DATA_DIR (default
 ../shared/data). Only the C ABI is used, so any build of the library can be measured."""
@@ -35,6 +38,14 @@ PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_bool, ctypes.c_void_p, ctypes.c_int, cty
 STATUS_OK = 0
 
 
+class TrimOptions(ctypes.Structure):
+    """psr_trim_options."""
+    _fields_ = [("struct_size", ctypes.c_size_t), ("threshold", ctypes.c_int32),
+                ("threads", ctypes.c_uint32), ("threshold_value", ctypes.c_double),
+                ("min_piece_area", ctypes.c_float), ("min_piece_triangles", ctypes.c_uint32),
+                ("progress", PROGRESS_FN), ("progress_user_data", ctypes.c_void_p)]
+
+
 def load(path):
     lib = ctypes.CDLL(path)
     r_p, m_p, st = ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int
@@ -52,6 +63,8 @@ def load(path):
         ("psr_reconstructor_solve", st, [r_p, ctypes.POINTER(m_p)]),
         ("psr_mesh_triangle_count", size_t, [m_p]),
         ("psr_mesh_free", None, [m_p]),
+        ("psr_trim_options_init", st, [ctypes.POINTER(TrimOptions), size_t]),
+        ("psr_mesh_trim", st, [m_p, ctypes.POINTER(TrimOptions), ctypes.POINTER(m_p)]),
     ]:
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = restype, argtypes
@@ -91,6 +104,7 @@ def main():
     ap.add_argument("--runs", type=int, default=8)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--stages", default="", help="comma-separated stage names (see above)")
+    ap.add_argument("--trim", action="store_true", help="also stop psr_mesh_trim (see above)")
     args = ap.parse_args()
 
     lib = load(args.lib)
@@ -120,15 +134,25 @@ def main():
     callback = PROGRESS_FN(on_progress)  # kept alive for as long as r uses it
     lib.psr_reconstructor_set_progress_callback(r, callback, None)
 
-    def solve(stop_at_offset):
+    kept = {}
+
+    def solve(stop_at_offset, trim_of=None):
         state.update(calls=[], stopped=None)
         mesh = ctypes.c_void_p()
         start = time.perf_counter()
         state["stop_at"] = None if stop_at_offset is None else start + stop_at_offset
-        status = lib.psr_reconstructor_solve(r, ctypes.byref(mesh))
+        if trim_of is None:
+            status = lib.psr_reconstructor_solve(r, ctypes.byref(mesh))
+        else:
+            opts = TrimOptions()
+            lib.psr_trim_options_init(ctypes.byref(opts), ctypes.sizeof(opts))
+            opts.threads, opts.progress = args.threads, callback
+            status = lib.psr_mesh_trim(trim_of, ctypes.byref(opts), ctypes.byref(mesh))
         end = time.perf_counter()
         triangles = lib.psr_mesh_triangle_count(mesh) if status == STATUS_OK else 0
-        if status == STATUS_OK:
+        if status == STATUS_OK and args.trim and trim_of is None and "mesh" not in kept:
+            kept["mesh"] = mesh  # the mesh the trims cut
+        elif status == STATUS_OK:
             lib.psr_mesh_free(mesh)
         return status, start, end, triangles
 
@@ -176,6 +200,32 @@ def main():
     print(f"after the cancels: status {lib.psr_status_string(status).decode()}, {again} triangles"
           f" ({'same' if again == triangles else 'DIFFERENT'})")
     lib.psr_reconstructor_free(r)
+    if args.trim:
+        trim_latency(lib, kept["mesh"], solve, state, args.runs, rng)
+        lib.psr_mesh_free(kept["mesh"])
+
+
+def trim_latency(lib, mesh, solve, state, runs, rng):
+    """The trim's timeline, gaps between callback calls and stops, as for the solve."""
+    status, start, end, triangles = solve(None, mesh)
+    assert status == STATUS_OK, lib.psr_status_string(status)
+    full = end - start
+    print(f"full trim: {full:.3f} s, {lib.psr_mesh_triangle_count(mesh)} -> {triangles} triangles")
+    print("run  stop at s  wait s  stop->return s  total s  status")
+    worst = 0.0
+    for run in range(runs):
+        offset = rng.uniform(0.0, full)
+        status, start, end, _ = solve(offset, mesh)
+        return_status = lib.psr_status_string(status).decode()
+        stopped = state["stopped"]
+        if stopped is None:
+            print(f"{run:3d}  {offset:9.3f}  (finished before the stop)  {return_status}")
+            continue
+        moment = start + offset
+        print(f"{run:3d}  {offset:9.3f}  {stopped[0] - moment:6.3f}  {end - stopped[0]:14.3f}"
+              f"  {end - moment:7.3f}  {return_status}")
+        worst = max(worst, end - moment)
+    print(f"worst total latency of the trim (s): {worst:.3f}")
 
 
 if __name__ == "__main__":

@@ -278,6 +278,11 @@ typedef enum {
      * added later).
      */
     PSR_STAGE_NORMALS = 9,
+    /**
+     * Trimming a mesh (psr_mesh_trim with psr_trim_options.progress set); never reported by
+     * psr_reconstructor_solve.
+     */
+    PSR_STAGE_TRIM = 10,
 } psr_stage;
 
 /**
@@ -413,8 +418,9 @@ typedef struct psr_reconstructor psr_reconstructor;
  * stage done (0 to 1, not necessarily reaching 1), and returns true to go on or false to cancel
  * (psr_reconstructor_solve then returns PSR_STATUS_CANCELLED and no mesh).
  *
- * It is called only from inside psr_reconstructor_solve, on the thread that called it, never
- * concurrently with itself. It is called while each stage runs, not only between stages: the
+ * It is called only from inside psr_reconstructor_solve (or psr_mesh_trim, when set in its
+ * psr_trim_options; the same rules hold there, with PSR_STAGE_TRIM), on the thread that called
+ * it, never concurrently with itself. It is called while each stage runs, not only between stages: the
  * stage's work runs on psr's worker threads while the calling thread waits in slices of at most
  * 20 ms and calls it after each slice with the fraction of the stage done so far (within a
  * stage never less than the call before), then with 1 when the stage ends; so a host that
@@ -468,6 +474,19 @@ typedef struct {
      * Pieces of fewer triangles than this are dropped too. Default 0.
      */
     uint32_t min_piece_triangles;
+    /**
+     * A progress callback for the trim, or NULL (the default) for none: called as for
+     * psr_reconstructor_solve (see psr_progress_fn) with PSR_STAGE_TRIM, on the thread that
+     * called psr_mesh_trim, at least every 20 ms while the cut runs, then with 1; returning
+     * false cancels (psr_mesh_trim returns PSR_STATUS_CANCELLED and no mesh, within a step of
+     * the cut: 9 steps, each a parallel pass over the mesh). Added in 0.1.0 after
+     * min_piece_triangles.
+     */
+    psr_progress_fn progress;
+    /**
+     * Passed as the callback's first argument; the library never reads it. Default NULL.
+     */
+    void *progress_user_data;
 } psr_trim_options;
 
 /**
@@ -599,7 +618,7 @@ const char *psr_status_string(int status);
 /**
  * The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
  * (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
- * "extract", "mesh" or "normals", in psr_stage's order. Any int is accepted: unknown values give
+ * "extract", "mesh", "normals" or "trim", in psr_stage's order. Any int is accepted: unknown values give
  * "unknown". Never NULL.
  */
 const char *psr_stage_string(int stage);
@@ -1455,8 +1474,9 @@ psr_status psr_trim_options_init(psr_trim_options *opts, size_t struct_size);
  * every piece kept). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
  * PSR_STATUS_INVALID_ARGUMENT (options->struct_size not set by psr_trim_options_init, or a
  * field this library does not know set to non-zero), PSR_STATUS_INVALID_PARAMETER (an unknown
- * threshold kind, or a value out of the range its field documents),
- * PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
+ * threshold kind, or a value out of the range its field documents), PSR_STATUS_CANCELLED
+ * (options->progress returned false), PSR_STATUS_THREADS_UNAVAILABLE or
+ * PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
  * message (there is no reconstructor to keep it on). On failure *out is left untouched.
  *
  * Runs on the calling thread with its own worker threads (options->threads). m is only read:
@@ -1464,7 +1484,8 @@ psr_status psr_trim_options_init(psr_trim_options *opts, size_t struct_size);
  *
  * # Safety
  * `m` is NULL or a live mesh; `options` is NULL or points to a psr_trim_options of
- * `options->struct_size` readable bytes; `out` is NULL or valid for writing one pointer.
+ * `options->struct_size` readable bytes, whose progress, if set, is safe to call with its
+ * progress_user_data during the call; `out` is NULL or valid for writing one pointer.
  */
 psr_status psr_mesh_trim(const psr_mesh *m, const psr_trim_options *options, psr_mesh **out);
 

@@ -67,7 +67,7 @@ pub use normals::{
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
 pub use points::PointSet;
-pub use trim::{trim, Threshold, Trimming};
+pub use trim::{trim, trim_with_progress, Threshold, Trimming};
 
 /// Reconstructs a watertight mesh from oriented points.
 pub fn reconstruct(points: &PointSet, params: &Params) -> Result<Mesh> {

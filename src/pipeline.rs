@@ -49,11 +49,14 @@ pub enum Stage {
     Extract = 7,
     /// Stage 9: The output mesh in input coordinates (`mesh.rs`).
     Mesh = 8,
+    /// After the reconstruction, when asked: cutting the mesh back to where the samples are
+    /// (`trim.rs`, [`crate::trim_with_progress`]); never reported by a reconstruction.
+    Trim = 10,
 }
 
 impl Stage {
-    /// All stages in pipeline order.
-    pub const ALL: [Stage; 10] = [
+    /// Every stage: the reconstruction's in pipeline order, then [`Stage::Trim`].
+    pub const ALL: [Stage; 11] = [
         Stage::Normals,
         Stage::Points,
         Stage::Density,
@@ -64,6 +67,7 @@ impl Stage {
         Stage::Isovalue,
         Stage::Extract,
         Stage::Mesh,
+        Stage::Trim,
     ];
 
     /// A short lower-case name ("solve").
@@ -79,6 +83,7 @@ impl Stage {
             Stage::Isovalue => "isovalue",
             Stage::Extract => "extract",
             Stage::Mesh => "mesh",
+            Stage::Trim => "trim",
         }
     }
 }

@@ -72,6 +72,8 @@ use crate::attributes::{Channel, Colors};
 use crate::components::vertex_components;
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, TrimReport};
+use crate::parallel::{self, Watch};
+use crate::pipeline::{Progress, Stage};
 use crate::Workers;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -259,15 +261,44 @@ impl Trimming {
 /// # Ok::<(), psr::Error>(())
 /// ```
 pub fn trim(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
+    trim_with_progress(mesh, trimming, &mut |_, _| true)
+}
+
+/// [`trim`] with a progress callback that may cancel, as for a reconstruction
+/// ([`crate::reconstruct_with_progress`]): it is called with [`Stage::Trim`] on the calling
+/// thread while the cut runs on the worker threads, every 20 ms at most, with the fraction done,
+/// and once with 1 at the end; when it returns `false` the cut stops at its next cancel point
+/// (between its steps, each a parallel pass over the mesh) and the result is
+/// `Err(Error::Cancelled)`. The trimmed mesh never depends on the callback.
+pub fn trim_with_progress(
+    mesh: &Mesh,
+    trimming: &Trimming,
+    progress: Progress<'_>,
+) -> Result<Mesh> {
     trimming.validate()?;
     let workers = Workers::start(trimming.threads)?;
+    let mut report = |fraction: f32| progress(Stage::Trim, fraction);
+    if !report(0.0) {
+        return Err(Error::Cancelled);
+    }
     // Everything parallel runs in this call's own pool, the mesh's checks too: a rayon call
     // outside it would start rayon's global pool, whose threads outlive the call.
-    workers.pool().install(|| {
+    let trimmed = parallel::watched(workers.pool(), &mut report, |watch| {
         check_mesh(mesh)?;
-        cut(mesh, trimming)
-    })
+        watch.step(1, STEPS, 0.0, 1.0)?;
+        cut(mesh, trimming, watch)
+    })?;
+    if report(1.0) {
+        Ok(trimmed)
+    } else {
+        Err(Error::Cancelled)
+    }
 }
+
+/// The steps of a trim between which it reports progress and may stop: the mesh's checks, the
+/// threshold, the crossings, the snapping, the new vertices, the cut triangles, the pieces,
+/// the renumbering and the carried per-vertex arrays.
+const STEPS: usize = 9;
 
 /// The checks [`trim`] makes of its mesh.
 fn check_mesh(mesh: &Mesh) -> Result<()> {
@@ -742,9 +773,11 @@ fn snap(crossings: &mut Crossings) -> (usize, usize) {
 }
 
 /// The cut itself (in the caller's pool).
-fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
+fn cut(mesh: &Mesh, trimming: &Trimming, watch: &Watch) -> Result<Mesh> {
     let started = Instant::now();
+    let step = |done: usize| watch.step(done, STEPS, 0.0, 1.0);
     let t = resolve(trimming.threshold, mesh)?;
+    step(2)?;
     let n = mesh.positions.len();
 
     let f = |v: u32| mesh.densities[v as usize] as f64;
@@ -800,9 +833,11 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
         keys,
         s,
     };
+    step(3)?;
 
     // 2. Snapping.
     let (snapped_crossings, clamped_crossings) = snap(&mut crossings);
+    step(4)?;
 
     // 3. The new vertices of the crossings left inside their edges, clamped away from the
     // ends, with interpolated positions and densities (and, below, every other per-vertex
@@ -825,6 +860,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
             (position, (f(p) + s * (f(m) - f(p))) as f32)
         })
         .collect();
+    step(5)?;
     let position = |v: u32| -> [f64; 3] {
         if (v as usize) < n {
             f64x3(mesh.positions[v as usize])
@@ -870,6 +906,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
             out.into_iter().take(count)
         })
         .collect();
+    step(6)?;
 
     // 4. Pieces: components by shared vertices, their areas, the size rule.
     let vertices = n + crossings.keys.len();
@@ -900,6 +937,8 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
             pieces_dropped += small(r) as usize;
         }
     }
+
+    step(7)?;
 
     // 5. The vertices the kept triangles use, renumbered in order (old vertices, then new).
     const UNUSED: u32 = u32::MAX;
@@ -945,6 +984,7 @@ fn cut(mesh: &Mesh, trimming: &Trimming) -> Result<Mesh> {
         .collect::<Vec<f64>>()
         .iter()
         .sum();
+    step(8)?;
     // Every other per-vertex array, `width` values a vertex, carried the same way.
     let carry = |values: &[f32], width: usize| -> Vec<f32> {
         kept.par_iter()

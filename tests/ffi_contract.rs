@@ -1031,6 +1031,7 @@ fn stage_strings_name_each_stage_and_take_any_int() {
         (psr_stage::Extract, "extract"),
         (psr_stage::Mesh, "mesh"),
         (psr_stage::Normals, "normals"),
+        (psr_stage::Trim, "trim"),
     ];
     for (stage, text) in expected {
         assert_eq!(name(stage as i32), text, "{stage:?}");
@@ -1038,7 +1039,7 @@ fn stage_strings_name_each_stage_and_take_any_int() {
     for stage in psr::Stage::ALL {
         assert_eq!(name(stage as i32), stage.name());
     }
-    for unknown in [-1, 10, i32::MAX, i32::MIN] {
+    for unknown in [-1, 11, i32::MAX, i32::MIN] {
         assert_eq!(name(unknown), "unknown");
     }
 }
@@ -2303,6 +2304,7 @@ fn trim_options_init_gives_the_defaults_and_null_is_refused() {
     assert_eq!(opts.min_piece_area, d.min_piece_area);
     assert_eq!(opts.min_piece_triangles, d.min_piece_triangles);
     assert_eq!(opts.threads as usize, d.threads);
+    assert!(opts.progress.is_none() && opts.progress_user_data.is_null());
     unsafe {
         assert_eq!(
             psr_trim_options_init(ptr::null_mut(), 32),
@@ -2499,6 +2501,66 @@ fn a_newer_larger_options_struct_works_while_its_unknown_fields_are_zero() {
     unsafe {
         psr_mesh_free(trimmed);
         psr_mesh_free(m);
+    }
+}
+
+/// What a trim's progress callback saw (its user pointer points here).
+#[derive(Default)]
+struct TrimCalls {
+    seen: Vec<(psr_stage, f32)>,
+    /// Return false from this call on (counting from 0); None: never.
+    stop_at: Option<usize>,
+}
+
+unsafe extern "C" fn record_trim_progress(user: *mut c_void, stage: psr_stage, f: f32) -> bool {
+    // SAFETY: the tests pass a TrimCalls that outlives psr_mesh_trim as the user pointer.
+    let calls = unsafe { &mut *user.cast::<TrimCalls>() };
+    calls.seen.push((stage, f));
+    calls.stop_at.is_none_or(|at| calls.seen.len() <= at)
+}
+
+/// Proves: psr_trim_options.progress is called with PSR_STAGE_TRIM and its user pointer, from 0
+/// to 1, and does not change the mesh; returning false gives PSR_STATUS_CANCELLED, no mesh and
+/// no call after; a struct that ends before the progress fields (an older header's) trims
+/// without calling anything.
+#[test]
+fn the_trim_reports_progress_through_its_options_and_can_be_cancelled() {
+    let (_, m) = hemisphere_mesh();
+    let (_, plain) = trim_with(m, &trim_options());
+    let mut calls = TrimCalls::default();
+    let mut opts = trim_options();
+    opts.progress = Some(record_trim_progress);
+    opts.progress_user_data = ptr::from_mut(&mut calls).cast();
+    let (status, reported) = trim_with(m, &opts);
+    assert_eq!(status, psr_status::Ok);
+    assert!(mesh_arrays(reported) == mesh_arrays(plain));
+    assert!(calls.seen.iter().all(|&(s, _)| s == psr_stage::Trim));
+    assert_eq!(calls.seen.first().map(|c| c.1), Some(0.0));
+    assert_eq!(calls.seen.last().map(|c| c.1), Some(1.0));
+
+    let mut stopping = TrimCalls {
+        stop_at: Some(0),
+        ..TrimCalls::default()
+    };
+    opts.progress_user_data = ptr::from_mut(&mut stopping).cast();
+    assert_eq!(trim_with(m, &opts).0, psr_status::Cancelled);
+    assert_eq!(stopping.seen.len(), 1, "called after the stop");
+
+    // The fields before the progress callback only: the callback after them is not read.
+    let mut older = opts;
+    older.struct_size = std::mem::offset_of!(psr_trim_options, progress);
+    let (status, old) = trim_with(m, &older);
+    assert_eq!(status, psr_status::Ok);
+    assert_eq!(
+        stopping.seen.len(),
+        1,
+        "an older struct's trim called the callback"
+    );
+    assert!(mesh_arrays(old) == mesh_arrays(plain));
+    unsafe {
+        for mesh in [plain, reported, old, m] {
+            psr_mesh_free(mesh);
+        }
     }
 }
 

@@ -873,3 +873,70 @@ fn bad_parameters_and_meshes_give_clear_errors() {
         "{e}"
     );
 }
+
+/// A grid of 2 million triangles whose density rises and falls in waves, so that the cut
+/// crosses many edges and takes long enough for the progress callback to be called inside it.
+fn wavy_grid() -> Mesh {
+    grid(1000, |x, y| (x * 0.05).sin() + (y * 0.07).cos())
+}
+
+/// Proves trim_with_progress reports only Stage::Trim, with fractions in 0..=1 that never go
+/// back, calls inside the cut (fractions strictly between 0 and 1), ends with 1, and gives the
+/// mesh trim gives.
+#[test]
+fn trimming_reports_its_progress_and_the_mesh_does_not_depend_on_it() {
+    let mesh = wavy_grid();
+    let trimming = Trimming::default()
+        .with_threshold(Threshold::Density(0.3))
+        .with_threads(2);
+    let mut seen: Vec<(psr::Stage, f32)> = Vec::new();
+    let reported = psr::trim_with_progress(&mesh, &trimming, &mut |stage, fraction| {
+        seen.push((stage, fraction));
+        true
+    })
+    .expect("trim with progress");
+    assert!(seen.iter().all(|&(s, _)| s == psr::Stage::Trim), "{seen:?}");
+    let fractions: Vec<f32> = seen.iter().map(|&(_, f)| f).collect();
+    assert_eq!(fractions.first(), Some(&0.0));
+    assert_eq!(fractions.last(), Some(&1.0));
+    assert!(fractions.windows(2).all(|w| w[0] <= w[1]), "{fractions:?}");
+    assert!(
+        fractions.iter().any(|&f| f > 0.0 && f < 1.0),
+        "no call inside the cut: {fractions:?}"
+    );
+    let plain = psr::trim(&mesh, &trimming).expect("trim");
+    assert_eq!(reported.triangles, plain.triangles);
+    assert_eq!(reported.positions, plain.positions);
+    assert_eq!(reported.densities, plain.densities);
+}
+
+/// Proves a "stop" from the callback, at its first call (before the cut) and at its first call
+/// inside the cut, gives Error::Cancelled, is the last call, and leaves nothing behind: a trim
+/// afterwards gives the same mesh.
+#[test]
+fn a_stop_from_the_callback_cancels_the_trim() {
+    let mesh = wavy_grid();
+    let trimming = Trimming::default().with_threshold(Threshold::Density(0.3));
+    let reference = psr::trim(&mesh, &trimming).expect("trim");
+    for inside in [false, true] {
+        let mut stopped = false;
+        let mut calls_after_stop = 0;
+        let result = psr::trim_with_progress(&mesh, &trimming, &mut |_, fraction| {
+            if stopped {
+                calls_after_stop += 1;
+            }
+            let stop_here = !inside || (fraction > 0.0 && fraction < 1.0);
+            stopped |= stop_here;
+            !stop_here
+        });
+        assert_eq!(calls_after_stop, 0, "called after the stop");
+        if stopped {
+            assert_eq!(result.unwrap_err(), Error::Cancelled, "inside: {inside}");
+        } else {
+            // A machine fast enough to cut in less than one 20 ms slice: no call inside.
+            assert!(result.is_ok(), "{result:?}");
+        }
+    }
+    let again = psr::trim(&mesh, &trimming).expect("trim");
+    assert_eq!(again.triangles, reference.triangles);
+}

@@ -845,8 +845,14 @@ fn run(args: &Args) -> Result<(), Failure> {
         write_grid(args, path, &implicit, mesh.stats.depth)?;
     }
     if let Some(trimming) = &trimming {
-        mesh = psr::trim(&mesh, trimming)
-            .map_err(|e| Failure::Run(format!("trimming failed: {e}")))?;
+        let trimmed = psr::trim_with_progress(&mesh, trimming, &mut |stage, fraction| {
+            if show_progress {
+                progress.update(stage, fraction);
+            }
+            true
+        });
+        progress.clear();
+        mesh = trimmed.map_err(|e| Failure::Run(format!("trimming failed: {e}")))?;
     }
 
     if args.no_density {

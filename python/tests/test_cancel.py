@@ -144,3 +144,33 @@ def test_sigint_in_process_leaves_the_reconstructor_usable() -> None:
     assert started.is_set() and took < 1.3
     r.depth = 5  # waits for a solve left running, if any, then works
     assert len(r.solve().triangles) > 0
+
+
+def test_trim_reports_progress_and_cancels(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    p, n = ball
+    cap = p[:, 2] < 0.5
+    m = psr.reconstruct(p[cap], n[cap], depth=6)
+    seen: list[tuple[psr.Stage, float]] = []
+    t = m.trim(progress=lambda s, f: seen.append((s, f)))
+    assert {s for s, _ in seen} == {psr.Stage.TRIM} and str(psr.Stage.TRIM) == "trim"
+    assert seen[0][1] == 0.0 and seen[-1][1] == 1.0
+    assert same_mesh(t, m.trim())
+    calls: list[float] = []
+
+    def stop(s: psr.Stage, f: float) -> bool:
+        calls.append(f)
+        return False
+
+    with pytest.raises(psr.CancelledError):
+        m.trim(progress=stop)
+    assert calls == [0.0]  # no call after the "stop"
+
+    class Stop(Exception):
+        pass
+
+    def fail(s: psr.Stage, f: float) -> None:
+        raise Stop("from the trim's callback")
+
+    with pytest.raises(Stop, match="trim's callback"):
+        m.trim(progress=fail)
+    assert same_mesh(m.trim(), t)  # the mesh is unchanged and trims again alike

@@ -34,6 +34,9 @@ pub enum psr_stage {
     /// psr_reconstructor_add_positions, before all the others (numbered last because it was
     /// added later).
     Normals = 9,
+    /// Trimming a mesh (psr_mesh_trim with psr_trim_options.progress set); never reported by
+    /// psr_reconstructor_solve.
+    Trim = 10,
 }
 
 impl From<Stage> for psr_stage {
@@ -49,6 +52,7 @@ impl From<Stage> for psr_stage {
             Stage::Isovalue => psr_stage::Isovalue,
             Stage::Extract => psr_stage::Extract,
             Stage::Mesh => psr_stage::Mesh,
+            Stage::Trim => psr_stage::Trim,
         }
     }
 }
@@ -63,7 +67,7 @@ static UNKNOWN_STAGE: &CStr = c"unknown";
 
 /// The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
 /// (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
-/// "extract", "mesh" or "normals", in psr_stage's order. Any int is accepted: unknown values give
+/// "extract", "mesh", "normals" or "trim", in psr_stage's order. Any int is accepted: unknown values give
 /// "unknown". Never NULL.
 #[no_mangle]
 pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
@@ -82,8 +86,9 @@ pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
 /// stage done (0 to 1, not necessarily reaching 1), and returns true to go on or false to cancel
 /// (psr_reconstructor_solve then returns PSR_STATUS_CANCELLED and no mesh).
 ///
-/// It is called only from inside psr_reconstructor_solve, on the thread that called it, never
-/// concurrently with itself. It is called while each stage runs, not only between stages: the
+/// It is called only from inside psr_reconstructor_solve (or psr_mesh_trim, when set in its
+/// psr_trim_options; the same rules hold there, with PSR_STAGE_TRIM), on the thread that called
+/// it, never concurrently with itself. It is called while each stage runs, not only between stages: the
 /// stage's work runs on psr's worker threads while the calling thread waits in slices of at most
 /// 20 ms and calls it after each slice with the fraction of the stage done so far (within a
 /// stage never less than the call before), then with 1 when the stage ends; so a host that
@@ -128,6 +133,7 @@ mod tests {
             (psr_stage::Extract, "extract"),
             (psr_stage::Mesh, "mesh"),
             (psr_stage::Normals, "normals"),
+            (psr_stage::Trim, "trim"),
         ];
         for (stage, text) in expected {
             assert_eq!(name(stage as c_int), text);
@@ -139,7 +145,7 @@ mod tests {
             psr_stage_string(psr_stage::Solve as c_int),
             psr_stage_string(psr_stage::Solve as c_int)
         );
-        for unknown in [-1, 10, 11, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 11, 12, c_int::MAX, c_int::MIN] {
             assert_eq!(name(unknown), "unknown");
         }
     }

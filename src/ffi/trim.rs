@@ -10,9 +10,11 @@
 
 use super::mesh::psr_mesh;
 use super::panic_boundary::{guard_no_handle, guard_value, require_out, write_out};
+use super::stage::{psr_progress_fn, psr_stage};
 use super::status::{psr_status, Failure, Outcome};
 use super::MAX_STRUCT_SIZE;
-use crate::{Error, Threshold, Trimming};
+use crate::{Error, Stage, Threshold, Trimming};
+use std::ffi::c_void;
 use std::mem::{offset_of, size_of};
 use std::ptr;
 
@@ -42,7 +44,7 @@ pub enum psr_trim_threshold {
 /// a later program with this library as long as it leaves the fields this header lacks at
 /// their defaults (zero).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 pub struct psr_trim_options {
     /// The size of this struct as your header defines it (sizeof(psr_trim_options)); set by
     /// psr_trim_options_init. It tells the library which fields you have.
@@ -61,6 +63,15 @@ pub struct psr_trim_options {
     pub min_piece_area: f32,
     /// Pieces of fewer triangles than this are dropped too. Default 0.
     pub min_piece_triangles: u32,
+    /// A progress callback for the trim, or NULL (the default) for none: called as for
+    /// psr_reconstructor_solve (see psr_progress_fn) with PSR_STAGE_TRIM, on the thread that
+    /// called psr_mesh_trim, at least every 20 ms while the cut runs, then with 1; returning
+    /// false cancels (psr_mesh_trim returns PSR_STATUS_CANCELLED and no mesh, within a step of
+    /// the cut: 9 steps, each a parallel pass over the mesh). Added in 0.1.0 after
+    /// min_piece_triangles.
+    pub progress: psr_progress_fn,
+    /// Passed as the callback's first argument; the library never reads it. Default NULL.
+    pub progress_user_data: *mut c_void,
 }
 
 /// The default options, as psr_trim_options_init writes them (the Rust API's defaults).
@@ -73,7 +84,16 @@ fn defaults() -> psr_trim_options {
         threshold_value: 0.0,
         min_piece_area: d.min_piece_area,
         min_piece_triangles: d.min_piece_triangles,
+        progress: None,
+        progress_user_data: ptr::null_mut(),
     }
+}
+
+/// The progress callback psr_trim_options carries, with its user pointer.
+#[derive(Clone, Copy)]
+struct TrimProgress {
+    callback: psr_progress_fn,
+    user: *mut c_void,
 }
 
 /// Checks a struct_size given by C.
@@ -149,10 +169,14 @@ unsafe fn field<T: Copy>(base: *const u8, size: usize, offset: usize) -> Option<
 unsafe fn read_options(
     function: &str,
     options: *const psr_trim_options,
-) -> Result<Trimming, Failure> {
+) -> Result<(Trimming, TrimProgress), Failure> {
     let mut trimming = Trimming::default();
+    let mut progress = TrimProgress {
+        callback: None,
+        user: ptr::null_mut(),
+    };
     if options.is_null() {
-        return Ok(trimming);
+        return Ok((trimming, progress));
     }
     let base = options.cast::<u8>();
     // SAFETY: a non-NULL `options` starts with its struct_size (this function's contract).
@@ -216,7 +240,19 @@ unsafe fn read_options(
     if let Some(count) = count {
         trimming.min_piece_triangles = count;
     }
-    Ok(trimming)
+    // SAFETY: as above; a function pointer's bits, NULL (None) or a function the caller gave.
+    let callback: Option<psr_progress_fn> =
+        unsafe { field(base, size, offset_of!(psr_trim_options, progress)) };
+    if let Some(callback) = callback {
+        progress.callback = callback;
+    }
+    // SAFETY: as above.
+    let user: Option<*mut c_void> =
+        unsafe { field(base, size, offset_of!(psr_trim_options, progress_user_data)) };
+    if let Some(user) = user {
+        progress.user = user;
+    }
+    Ok((trimming, progress))
 }
 
 /// psr_mesh_trim's body, returning its failure's message (which C does not see; the tests
@@ -236,8 +272,15 @@ unsafe fn try_trim(
     require_out(F, "out", out)?;
     // SAFETY: `options` is NULL or points to its struct_size readable bytes (this function's
     // contract).
-    let trimming = unsafe { read_options(F, options) }?;
-    let trimmed = crate::trim(&mesh.mesh, &trimming).map_err(|e| Failure::from_error(F, e))?;
+    let (trimming, progress) = unsafe { read_options(F, options) }?;
+    let mut report = |stage: Stage, fraction: f32| match progress.callback {
+        // SAFETY: the caller promised the callback is safe to call with its user pointer
+        // during psr_mesh_trim (this function's contract); it is called on this thread only.
+        Some(callback) => unsafe { callback(progress.user, psr_stage::from(stage), fraction) },
+        None => true,
+    };
+    let trimmed = crate::trim_with_progress(&mesh.mesh, &trimming, &mut report)
+        .map_err(|e| Failure::from_error(F, e))?;
     let trimmed = Box::into_raw(Box::new(psr_mesh::new(trimmed)));
     // SAFETY: `out` is not NULL (checked) and valid for writing one pointer (this function's
     // contract).
@@ -257,8 +300,9 @@ unsafe fn try_trim(
 /// every piece kept). Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
 /// PSR_STATUS_INVALID_ARGUMENT (options->struct_size not set by psr_trim_options_init, or a
 /// field this library does not know set to non-zero), PSR_STATUS_INVALID_PARAMETER (an unknown
-/// threshold kind, or a value out of the range its field documents),
-/// PSR_STATUS_THREADS_UNAVAILABLE or PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
+/// threshold kind, or a value out of the range its field documents), PSR_STATUS_CANCELLED
+/// (options->progress returned false), PSR_STATUS_THREADS_UNAVAILABLE or
+/// PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
 /// message (there is no reconstructor to keep it on). On failure *out is left untouched.
 ///
 /// Runs on the calling thread with its own worker threads (options->threads). m is only read:
@@ -266,7 +310,8 @@ unsafe fn try_trim(
 ///
 /// # Safety
 /// `m` is NULL or a live mesh; `options` is NULL or points to a psr_trim_options of
-/// `options->struct_size` readable bytes; `out` is NULL or valid for writing one pointer.
+/// `options->struct_size` readable bytes, whose progress, if set, is safe to call with its
+/// progress_user_data during the call; `out` is NULL or valid for writing one pointer.
 #[no_mangle]
 pub unsafe extern "C" fn psr_mesh_trim(
     m: *const psr_mesh,
@@ -318,10 +363,11 @@ mod tests {
     /// the end changes it.
     #[test]
     fn options_have_no_padding() {
-        let fields = size_of::<usize>() + 4 + 4 + 8 + 4 + 4;
+        let pointer = size_of::<usize>();
+        let fields = pointer + 4 + 4 + 8 + 4 + 4 + pointer + pointer;
         assert_eq!(size_of::<psr_trim_options>(), fields);
         assert_eq!(
-            offset_of!(psr_trim_options, min_piece_triangles) + 4,
+            offset_of!(psr_trim_options, progress_user_data) + pointer,
             size_of::<psr_trim_options>()
         );
     }
@@ -378,12 +424,12 @@ mod tests {
             "{message}"
         );
         // A newer caller's larger struct with a later field set.
-        let mut newer = [0u64; 6];
-        // SAFETY: `newer` has 48 writable bytes.
-        unsafe { psr_trim_options_init(newer.as_mut_ptr().cast(), 48) };
-        newer[5] = 1;
+        let mut newer = [0u64; 8];
+        // SAFETY: `newer` has 64 writable bytes.
+        unsafe { psr_trim_options_init(newer.as_mut_ptr().cast(), 64) };
+        newer[7] = 1;
         let (status, message) = failure(&m, newer.as_ptr().cast());
         assert_eq!(status, psr_status::InvalidArgument);
-        assert!(message.contains("byte 40 is not zero"), "{message}");
+        assert!(message.contains("byte 56 is not zero"), "{message}");
     }
 }

@@ -7,8 +7,8 @@
  * alone on failure, the names of statuses and stages, cancellation from the callback, a forced
  * internal panic (when the library was built with the test hook), two handles on two threads
  * matching sequential runs, and trimming: psr_trim_options from this header, from an older
- * (smaller) and a newer (larger) one, bad sizes and values, and the trimmed mesh outliving its
- * source; the target width, and the mesh's figures (depths, nodes per depth, psr_depth_solve
+ * (smaller) and a newer (larger) one, bad sizes and values, its progress callback and cancel,
+ * and the trimmed mesh outliving its source; the target width, and the mesh's figures (depths, nodes per depth, psr_depth_solve
  * from this header and from a newer one, bad sizes and indices); the implicit function
  * (psr_implicit: evaluation, gradient, grid, bad arguments).
  *
@@ -342,9 +342,10 @@ static void test_order_and_parameters(void) {
     CHECK(strcmp(psr_stage_string(PSR_STAGE_EXTRACT), "extract") == 0);
     CHECK(strcmp(psr_stage_string(PSR_STAGE_MESH), "mesh") == 0);
     CHECK(strcmp(psr_stage_string(PSR_STAGE_NORMALS), "normals") == 0);
+    CHECK(strcmp(psr_stage_string(PSR_STAGE_TRIM), "trim") == 0);
     CHECK(psr_stage_string(PSR_STAGE_MESH) == psr_stage_string(PSR_STAGE_MESH)); /* static */
     CHECK(strcmp(psr_stage_string(-1), "unknown") == 0);
-    CHECK(strcmp(psr_stage_string(10), "unknown") == 0);
+    CHECK(strcmp(psr_stage_string(11), "unknown") == 0);
     CHECK(strcmp(psr_stage_string(1000), "unknown") == 0);
     CHECK(psr_version_major() == PSR_VERSION_MAJOR && psr_version_minor() == PSR_VERSION_MINOR &&
           psr_version_patch() == PSR_VERSION_PATCH);
@@ -992,6 +993,22 @@ static int same_triangles(const psr_mesh *a, const psr_mesh *b) {
     return same;
 }
 
+/* A trim's progress callback: counts its calls, remembers the last stage and fraction, and says
+ * stop from call stop_at on (0: never). */
+typedef struct {
+    int calls, stop_at, stage;
+    float first, last;
+} trim_progress;
+
+static bool on_trim_progress(void *user, psr_stage stage, float fraction) {
+    trim_progress *tp = user;
+    if (tp->calls == 0) tp->first = fraction;
+    tp->calls++;
+    tp->stage = (int)stage;
+    tp->last = fraction;
+    return tp->stop_at == 0 || tp->calls < tp->stop_at;
+}
+
 static void test_trim(void) {
     enum { N = 6000 };
     float *p = malloc(3 * N * sizeof(float)), *nr = malloc(3 * N * sizeof(float));
@@ -1031,6 +1048,7 @@ static void test_trim(void) {
     CHECK(opts.struct_size == sizeof opts && opts.threshold == PSR_TRIM_THRESHOLD_AUTOMATIC);
     CHECK(opts.threads == 0 && opts.threshold_value == 0.0 && opts.min_piece_area == 0.0f);
     CHECK(opts.min_piece_triangles == 0);
+    CHECK(opts.progress == NULL && opts.progress_user_data == NULL);
     CHECK_STATUS(psr_mesh_trim(NULL, &opts, &out), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_trim(m, &opts, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK(out == sentinel);
@@ -1050,6 +1068,27 @@ static void test_trim(void) {
     CHECK_STATUS(psr_mesh_trim(m, NULL, &out), PSR_STATUS_OK); /* NULL: the defaults */
     if (out != sentinel && t != NULL) CHECK(same_triangles(out, t));
     if (out != sentinel) psr_mesh_free(out);
+
+    /* Progress: PSR_STAGE_TRIM from 0 to 1 with the user pointer, the same mesh; a stop at the
+     * first call cancels, with no call after it and *out untouched. */
+    {
+        trim_progress tp = {0, 0, -1, -1.0f, -1.0f};
+        opts.progress = on_trim_progress;
+        opts.progress_user_data = &tp;
+        out = sentinel;
+        CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_OK);
+        CHECK(tp.calls >= 2 && tp.stage == PSR_STAGE_TRIM && tp.first == 0.0f && tp.last == 1.0f);
+        if (out != sentinel && t != NULL) CHECK(same_triangles(out, t));
+        if (out != sentinel) psr_mesh_free(out);
+        tp.calls = 0;
+        tp.stop_at = 1;
+        out = sentinel;
+        CHECK_STATUS(psr_mesh_trim(m, &opts, &out), PSR_STATUS_CANCELLED);
+        CHECK(tp.calls == 1 && out == sentinel);
+        CHECK(strcmp(psr_stage_string(PSR_STAGE_TRIM), "trim") == 0);
+        opts.progress = NULL;
+        opts.progress_user_data = NULL;
+    }
 
     /* Bad values: INVALID_PARAMETER, *out untouched. */
     out = sentinel;

@@ -53,6 +53,7 @@ class Stage(IntEnum):
     EXTRACT = 7
     MESH = 8
     NORMALS = 9
+    TRIM = 10
 
     def __str__(self) -> str:
         name: bytes = LIB.psr_stage_string(int(self))
@@ -1103,6 +1104,7 @@ class Mesh:
         threads: int = 0,
         min_piece_area: float = 0.0,
         min_piece_triangles: int = 0,
+        progress: ProgressCallback | str | None = None,
     ) -> Mesh:
         """A new mesh cut back to where the sampling density is at least a threshold
         (psr_mesh_trim, PoissonRecon's SurfaceTrimmer); this mesh is unchanged.
@@ -1112,7 +1114,18 @@ class Mesh:
         [0, 1]) or DEPTH (PoissonRecon's depth-like value, 0 to 32). Pieces left with less than
         ``min_piece_area`` of the area (a fraction) or fewer than ``min_piece_triangles`` are
         dropped. ``threads``: 0 is one per core.
+
+        ``progress``: a callable ``(stage, fraction)``, called with ``Stage.TRIM`` as the cut
+        advances (returning ``False`` cancels with :class:`psr.CancelledError`; an exception it
+        raises cancels too and propagates from here), or ``"tqdm"`` for a bar. The GIL is
+        released while psr works; on the main thread Ctrl-C stops the cut at its next step and
+        raises KeyboardInterrupt.
         """
+        close_bar: Callable[[], None] | None = None
+        if progress == "tqdm":
+            progress, close_bar = _tqdm_progress()
+        elif isinstance(progress, str):
+            raise ValueError(f'progress must be a callable, "tqdm" or None, not {progress!r}')
         opts = TrimOptions()
         _check(LIB.psr_trim_options_init(ctypes.byref(opts), ctypes.sizeof(opts)))
         opts.threshold = int(_enum(TrimThreshold, "threshold", threshold))
@@ -1120,13 +1133,27 @@ class Mesh:
         opts.threads = _u32("threads", threads)
         opts.min_piece_area = _real("min_piece_area", min_piece_area)
         opts.min_piece_triangles = _u32("min_piece_triangles", min_piece_triangles)
+        # The callback runs on this thread between psr's steps, so a Ctrl-C on the main thread
+        # is raised inside it (and handed back here) even when nobody asked for progress.
+        state = _SolveState(progress)
+        if progress is not None or threading.current_thread() is threading.main_thread():
+            opts.progress = PROGRESS_FN(state.on_progress)
         out = ctypes.c_void_p()
-        status = LIB.psr_mesh_trim(self._live(), ctypes.byref(opts), ctypes.byref(out))
+        try:
+            status = LIB.psr_mesh_trim(self._live(), ctypes.byref(opts), ctypes.byref(out))
+        finally:
+            if close_bar is not None:
+                close_bar()
+        if state.error is not None:
+            LIB.psr_mesh_free(out)
+            raise state.error
         if status != Status.OK:
             raise error_for(
                 status,
                 "psr_mesh_trim refused the options: threshold_value, min_piece_area or the "
-                "threshold kind is out of its range",
+                "threshold kind is out of its range"
+                if status != Status.CANCELLED
+                else "the trim was cancelled by its progress callback",
             )
         return Mesh._own(out, self._double)
 

@@ -66,6 +66,8 @@ class TrimOptions(Structure):
         ("threshold_value", c_double),
         ("min_piece_area", c_float),
         ("min_piece_triangles", c_uint32),
+        ("progress", PROGRESS_FN),
+        ("progress_user_data", c_void_p),
     ]
 
 
