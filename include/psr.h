@@ -29,6 +29,9 @@
  *     psr_reconstructor_solve_implicit (with the mesh): evaluate it and its gradient at points,
  *     sample it on a grid. One psr_implicit_free each (NULL accepted); independent of the
  *     reconstructor and the mesh.
+ *   - A fourth, psr_ply, is what psr_ply_read read of a PLY file (the psr program's reader):
+ *     its vertices with every property and its faces as triangles, borrowed through its views
+ *     until psr_ply_free. psr_mesh_write_ply writes a mesh with the program's writer.
  *   - psr_reconstructor_add_points, psr_reconstructor_add_point_arrays,
  *     psr_reconstructor_add_positions and its _seen_from and _with_sensors variants copy their
  *     input (positions, normals, weights, colours, channels and their names, sensors): free
@@ -45,7 +48,9 @@
  *   - Results go to trailing out-parameters, written only on success: on failure they keep
  *     whatever they held.
  *   - psr_reconstructor_last_error(r) explains the last failed call on r in words: which
- *     argument was NULL, which point index was NaN, which parameter was out of range.
+ *     argument was NULL, which point index was NaN, which parameter was out of range. The
+ *     file functions (psr_ply_read, psr_mesh_write_ply) write their message into a buffer you
+ *     pass instead, as no reconstructor is involved.
  *   - Input is checked at the boundary: NULL with a non-zero count, strides below one element,
  *     sizes that overflow, NaN or infinite coordinates, zero normals. A rejected batch of points
  *     is not appended at all; earlier batches stay.
@@ -124,6 +129,26 @@
  * Patch version of the header you compiled against.
  */
 #define PSR_VERSION_PATCH 0
+
+/**
+ * psr_mesh_write_ply flag: write the body as text (`format ascii`) instead of binary
+ * little-endian. PoissonRecon: --ascii.
+ */
+#define PSR_PLY_ASCII 1
+
+/**
+ * psr_mesh_write_ply flag: write binary big-endian instead of little-endian (not with
+ * PSR_PLY_ASCII).
+ */
+#define PSR_PLY_BIG_ENDIAN 2
+
+/**
+ * psr_mesh_write_ply flag: write x y z as double: psr_mesh_origin + each position, added in
+ * double. Without it they are written as float, unless the mesh's origin is not (0, 0, 0)
+ * (points added in double far from 0), where float would lose what the origin keeps.
+ * PoissonRecon: --double.
+ */
+#define PSR_PLY_DOUBLE_POSITIONS 4
 
 /**
  * Crossings closer than this fraction of an edge to an end are moved onto the end, or where
@@ -228,6 +253,18 @@ typedef enum {
      * free memory, and solve again (the same mesh as a handle that never failed).
      */
     PSR_STATUS_OUT_OF_MEMORY = 17,
+    /**
+     * A file could not be opened, read, created or written (psr_ply_read, psr_mesh_write_ply):
+     * the message has the path and the system's reason (no such file, permission denied, disk
+     * full).
+     */
+    PSR_STATUS_IO_ERROR = 18,
+    /**
+     * A file was read but is not what it should be (psr_ply_read): not PLY, a malformed header
+     * or value, a truncated body, no vertex element or no x y z, a face index out of range. The
+     * message says where (line, element, entry).
+     */
+    PSR_STATUS_INVALID_FILE = 19,
 } psr_status;
 
 /**
@@ -405,6 +442,14 @@ typedef struct psr_implicit psr_implicit;
  * made it. Opaque to C.
  */
 typedef struct psr_mesh psr_mesh;
+
+/**
+ * What psr_ply_read read of a PLY file: its vertices (positions; normals, colours,
+ * confidence or `value`, sensor positions and other scalar properties when present) and its
+ * faces as triangles. Created by psr_ply_read, destroyed by psr_ply_free; never changed in
+ * between, so any number of threads may read one at once. Opaque to C.
+ */
+typedef struct psr_ply psr_ply;
 
 /**
  * A reusable reconstruction: parameters, accumulated points, an optional progress callback and
@@ -1928,6 +1973,187 @@ psr_status psr_reconstructor_estimate_memory(const psr_reconstructor *r, uint64_
  * `out` is NULL or valid for writes.
  */
 psr_status psr_estimate_memory(uint32_t depth, uint64_t point_count, uint64_t *out);
+
+/**
+ * Reads the PLY file at `path` (a NUL-terminated path; its bytes as they are on Unix) with
+ * psr's own reader, the one the psr program uses, and writes a new handle to *out (free it
+ * with psr_ply_free). ASCII and binary of either byte order, every scalar type; the `vertex`
+ * element needs x y z; nx ny nz (or normal_x ...), red green blue [alpha] (or diffuse_red ...,
+ * r g b [a]; integer colours are scaled to 0..1), confidence (or else value: the density a
+ * psr mesh carries), sensor_x sensor_y sensor_z (or vp_x ..., beamorigin_x ...) and every other
+ * scalar property (a "channel") are read when present; a `face` element's vertex_indices (or
+ * vertex_index) polygons become triangles, an n-gon a fan of n - 2 (none when the file has
+ * no face element). Other elements and list properties are skipped. A point cloud, or a mesh
+ * psr or another program wrote: the views below give every part.
+ *
+ * path and out must not be NULL; message may be NULL (or message_capacity 0) for no message.
+ * Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (an empty
+ * path), PSR_STATUS_IO_ERROR (the file cannot be opened or read: the message has the
+ * system's reason), PSR_STATUS_INVALID_FILE (not PLY, a malformed or truncated file, no
+ * vertex element or no x y z, a face index out of range: the message says where) or
+ * PSR_STATUS_INTERNAL_ERROR. The message (at most message_capacity - 1 bytes and a NUL,
+ * shortened if longer) is written on every return: "" on success. On failure *out is left
+ * untouched. The file is read before anything is allocated for it, so a header that
+ * promises more than the file holds is refused, not allocated. Thread-safe: no state is
+ * shared between calls.
+ *
+ * # Safety
+ * `path` is NULL or a NUL-terminated string; `out` is NULL or valid for writing one
+ * pointer; `message` is NULL or valid for writing `message_capacity` bytes.
+ */
+psr_status psr_ply_read(const char *path, psr_ply **out, char *message, size_t message_capacity);
+
+/**
+ * Frees a handle from psr_ply_read and every view it gave; NULL is ignored.
+ *
+ * # Safety
+ * `p` is NULL or a handle from psr_ply_read not yet freed, used by no other thread.
+ */
+void psr_ply_free(psr_ply *p);
+
+/**
+ * Number of vertices (points) read; 0 if p is NULL.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+size_t psr_ply_vertex_count(const psr_ply *p);
+
+/**
+ * The positions, 3 floats (x, y, z) per vertex (rounded to float when the file stores
+ * double: psr_ply_positions_f64 has them exactly); owned by p, valid until psr_ply_free(p).
+ * NULL if p is NULL or has no vertices. Give them to psr_reconstructor_add_points (or
+ * psr_point_arrays) with the normals, or to psr_reconstructor_add_positions without.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const float *psr_ply_positions(const psr_ply *p);
+
+/**
+ * The positions as the file stores them, 3 doubles per vertex, when any of x y z is a double
+ * (georeferenced clouds: give them to psr_reconstructor_add_points_f64 so that nothing is lost
+ * to float); owned by p. NULL if p is NULL, has no vertices, or the file stores float (or
+ * integer) coordinates.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const double *psr_ply_positions_f64(const psr_ply *p);
+
+/**
+ * The normals, 3 floats per vertex, as stored (not normalised); owned by p. NULL if p is
+ * NULL, has no vertices, or the file has no normals.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const float *psr_ply_normals(const psr_ply *p);
+
+/**
+ * 3 (RGB) or 4 (RGBA) when the file has colours; 0 if it has none or p is NULL.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+size_t psr_ply_color_components(const psr_ply *p);
+
+/**
+ * The colours, psr_ply_color_components floats per vertex in 0..1 (integer colours divided by
+ * their type's full scale, 255 for uchar; float colours as stored); owned by p. NULL if p is
+ * NULL, has no vertices, or the file has no colours.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const float *psr_ply_colors(const psr_ply *p);
+
+/**
+ * The `confidence` property (or else `value`, which is the density in a mesh psr wrote), one
+ * float per vertex; owned by p. NULL if p is NULL, has no vertices, or the file has neither.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const float *psr_ply_confidence(const psr_ply *p);
+
+/**
+ * The position of the sensor that saw each vertex, 3 floats per vertex (for
+ * psr_reconstructor_add_positions_with_sensors); owned by p. NULL if p is NULL, has no
+ * vertices, or the file has no sensor_x sensor_y sensor_z (vp_x ..., beamorigin_x ...).
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const float *psr_ply_sensors(const psr_ply *p);
+
+/**
+ * Number of channels: the vertex element's other scalar properties, in the file's order; 0 if
+ * p is NULL.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+size_t psr_ply_channel_count(const psr_ply *p);
+
+/**
+ * The name of channel `index` (the property's name) as a NUL-terminated string owned by p.
+ * NULL if p is NULL or index >= psr_ply_channel_count(p).
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const char *psr_ply_channel_name(const psr_ply *p, size_t index);
+
+/**
+ * The values of channel `index`, one float per vertex; owned by p. NULL if p is NULL, has no
+ * vertices, or index >= psr_ply_channel_count(p).
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const float *psr_ply_channel(const psr_ply *p, size_t index);
+
+/**
+ * Number of triangles the file's faces gave; 0 if p is NULL or the file has no faces (a point
+ * cloud).
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+size_t psr_ply_triangle_count(const psr_ply *p);
+
+/**
+ * The triangles, 3 vertex indices each (below psr_ply_vertex_count), in the file's order and
+ * orientation; owned by p. NULL if p is NULL or has none.
+ *
+ * # Safety
+ * `p` is NULL or a live handle from psr_ply_read.
+ */
+const uint32_t *psr_ply_triangles(const psr_ply *p);
+
+/**
+ * Writes m to the file at `path` (created or replaced) as PLY, with the writer the psr program
+ * uses, so the same mesh gives the same bytes as `psr --out mesh.ply`: vertex x y z (float;
+ * double with PSR_PLY_DOUBLE_POSITIONS or when m's origin is not 0), nx ny nz when m has
+ * vertex normals, value (the density), red green blue [alpha] (uchar) when it has colours, a
+ * float per channel; face `list uchar int vertex_indices` (uint past 2^31 vertices).
+ * Binary little-endian unless `flags` has PSR_PLY_ASCII or PSR_PLY_BIG_ENDIAN.
+ *
+ * m and path must not be NULL; message may be NULL (or message_capacity 0). Returns
+ * PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (an empty path, a flag
+ * this library does not know, PSR_PLY_ASCII with PSR_PLY_BIG_ENDIAN), PSR_STATUS_TOO_LARGE
+ * (more than 2^32 vertices: PLY has no standard 64-bit index), PSR_STATUS_IO_ERROR (the file
+ * cannot be created or written, e.g. no such directory or a full disk: the message has the
+ * system's reason; a partly written file may be left) or PSR_STATUS_INTERNAL_ERROR. The
+ * message is written on every return ("" on success). m is only read: several threads may
+ * write (or read) the same mesh at once.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `path` is NULL or a NUL-terminated string; `message` is NULL
+ * or valid for writing `message_capacity` bytes.
+ */
+psr_status psr_mesh_write_ply(const psr_mesh *m, const char *path, uint32_t flags, char *message, size_t message_capacity);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -9,6 +9,9 @@
 //!   has one (see [`SENSOR_PROPERTIES`]).
 //! * [`read_mesh`] reads a triangle mesh: `vertex` `x y z` and the `face` element's
 //!   `vertex_indices` (or `vertex_index`) lists, with polygons split into fans of triangles.
+//! * [`read_points_and_triangles`] reads both: the vertices with every property, as
+//!   [`read_points`] does, and the faces as [`read_mesh`] does (a mesh with its densities,
+//!   normals, colours and channels).
 //! * [`write_mesh`] writes a [`Mesh`] as binary little-endian PLY, with the per-vertex density as
 //!   `float value` (PoissonRecon's name for it), and the normals, colours and channels when the
 //!   mesh has them ([`write_mesh_with`] chooses the colours' type and the format, ASCII
@@ -1152,6 +1155,28 @@ pub fn read_points_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
     read_vertex_points(reader, None, Normals::IfPresent).map_err(PlyError::new)
 }
 
+/// The vertices and the faces of a PLY file (see [`read_points_and_triangles_from`]).
+pub fn read_points_and_triangles(path: &Path) -> Result<PointsAndTriangles, PlyError> {
+    let (reader, len) = open(path)?;
+    read_vertices_and_faces(reader, len, Normals::IfPresent, true)
+        .map_err(|e| PlyError::new(e).with_path(path))
+}
+
+/// Everything psr reads of a PLY file, a point cloud or a mesh: the `vertex` element as
+/// [`read_points_from`] reads it (normals, colours, confidence or `value` — a mesh's density —,
+/// sensors and channels when present), and the `face` element's `vertex_indices` (or
+/// `vertex_index`) polygons as triangles, each n-gon a fan of n − 2 triangles around its first
+/// corner, as [`read_mesh_from`] splits them (no triangles when the file has no `face`
+/// element). The C API's psr_ply_read.
+pub fn read_points_and_triangles_from(
+    reader: impl BufRead,
+) -> Result<PointsAndTriangles, PlyError> {
+    read_vertices_and_faces(reader, None, Normals::IfPresent, true).map_err(PlyError::new)
+}
+
+/// The vertices of a PLY file and its faces as triangles (indices into the vertices).
+pub type PointsAndTriangles = (PlyPoints, Vec<[u32; 3]>);
+
 /// Whether a point cloud must have normals.
 #[derive(Clone, Copy, PartialEq)]
 enum Normals {
@@ -1160,10 +1185,57 @@ enum Normals {
 }
 
 fn read_vertex_points<R: BufRead>(
-    mut r: R,
+    r: R,
     file_len: Option<u64>,
     normals: Normals,
 ) -> Result<PlyPoints, PlyErrorKind> {
+    read_vertices_and_faces(r, file_len, normals, false).map(|(points, _)| points)
+}
+
+/// The `face` element a reader reads along with the vertices: its index, how to read it, the
+/// number of vertices its indices may name, and the triangles read so far.
+struct Faces {
+    index: usize,
+    plan: Plan,
+    vertex_count: usize,
+    corners: Vec<u32>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl Faces {
+    /// Reads element `i` into the triangles when it is the face element, else skips it.
+    fn read_or_skip<R: BufRead>(
+        faces: &mut Option<Faces>,
+        body: &mut Body<R>,
+        i: usize,
+        el: &Element,
+    ) -> Result<(), PlyErrorKind> {
+        match faces {
+            Some(f) if f.index == i => {
+                let Faces {
+                    plan,
+                    vertex_count,
+                    corners,
+                    triangles,
+                    ..
+                } = f;
+                body.read_element(el, plan, |_, _, list| {
+                    push_polygon(list, *vertex_count, corners, triangles)
+                })
+            }
+            _ => body.read_element(el, &Plan::skip(el), |_, _, _| Ok(())),
+        }
+    }
+}
+
+/// [`read_vertex_points`], and with `faces` the `face` element's polygons as triangles too
+/// (none when the file has no `face` element).
+fn read_vertices_and_faces<R: BufRead>(
+    mut r: R,
+    file_len: Option<u64>,
+    normals: Normals,
+    faces: bool,
+) -> Result<(PlyPoints, Vec<[u32; 3]>), PlyErrorKind> {
     let header = parse_header(&mut r)?;
     let Some(vi) = header.element("vertex") else {
         return Err(PlyErrorKind::MissingElement {
@@ -1260,12 +1332,27 @@ fn read_vertex_points<R: BufRead>(
         }
     }
 
+    let face_index = header.element("face").filter(|_| faces);
+    let last = face_index.map_or(vi, |fi| vi.max(fi));
     let size_checked = match file_len {
         Some(len) => {
-            check_sizes(&header, vi, len.saturating_sub(header.bytes))?;
+            check_sizes(&header, last, len.saturating_sub(header.bytes))?;
             true
         }
         None => false,
+    };
+    let mut faces = match face_index {
+        Some(index) => {
+            let el = &header.elements[index];
+            Some(Faces {
+                index,
+                plan: face_plan(el)?,
+                vertex_count: vertex.count,
+                corners: Vec::new(),
+                triangles: Vec::with_capacity(capacity(el.count, size_checked)),
+            })
+        }
+        None => None,
     };
     let cap = capacity(vertex.count, size_checked);
     let components = match rgba {
@@ -1292,8 +1379,8 @@ fn read_vertex_points<R: BufRead>(
         channels: Vec::new(),
     };
     let mut body = Body::new(r, &header);
-    for el in &header.elements[..vi] {
-        body.read_element(el, &Plan::skip(el), |_, _, _| Ok(()))?;
+    for (i, el) in header.elements[..vi].iter().enumerate() {
+        Faces::read_or_skip(&mut faces, &mut body, i, el)?;
     }
     body.read_element(vertex, &plan, |_, v, _| {
         out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
@@ -1325,7 +1412,61 @@ fn read_vertex_points<R: BufRead>(
         .zip(channels)
         .map(|(name, values)| Channel::new(name, values))
         .collect();
-    Ok(out)
+    for (i, el) in header
+        .elements
+        .iter()
+        .enumerate()
+        .take(last + 1)
+        .skip(vi + 1)
+    {
+        Faces::read_or_skip(&mut faces, &mut body, i, el)?;
+    }
+    Ok((out, faces.map(|f| f.triangles).unwrap_or_default()))
+}
+
+/// How to read a `face` element: its `vertex_indices` (or `vertex_index`) list.
+fn face_plan(face: &Element) -> Result<Plan, PlyErrorKind> {
+    let mut plan = Plan::skip(face);
+    match face.find(&["vertex_indices", "vertex_index"]) {
+        Some(p) if matches!(face.props[p].ty, PropType::List { .. }) => plan.list = Some(p),
+        _ => {
+            return Err(PlyErrorKind::MissingProperty {
+                element: "face".into(),
+                wanted: "vertex_indices list".into(),
+                present: face.prop_names(),
+            })
+        }
+    }
+    Ok(plan)
+}
+
+/// Adds the polygon whose corners are `list` (vertex indices, checked against `vertex_count`)
+/// to `triangles` as a fan around its first corner; fewer than 3 corners add nothing.
+fn push_polygon(
+    list: &[f64],
+    vertex_count: usize,
+    corners: &mut Vec<u32>,
+    triangles: &mut Vec<[u32; 3]>,
+) -> Result<(), String> {
+    corners.clear();
+    for &v in list {
+        if !(v >= 0.0 && v.fract() == 0.0 && v < vertex_count as f64) {
+            return Err(format!(
+                "vertex index {v} is out of range (the file has {vertex_count} vertices)"
+            ));
+        }
+        // Exact: v is a whole number below vertex_count (a usize).
+        let Ok(v) = u32::try_from(v as u64) else {
+            return Err(format!(
+                "vertex index {v} is beyond the 2^32 vertices psr's meshes can index"
+            ));
+        };
+        corners.push(v);
+    }
+    for k in 2..corners.len() {
+        triangles.push([corners[0], corners[k - 1], corners[k]]);
+    }
+    Ok(())
 }
 
 /// Writes oriented points as PLY (see [`write_point_cloud_to`]).
@@ -1520,17 +1661,7 @@ fn read_mesh_impl<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<MeshDat
             }
         }
     }
-    let mut fplan = Plan::skip(face);
-    match face.find(&["vertex_indices", "vertex_index"]) {
-        Some(p) if matches!(face.props[p].ty, PropType::List { .. }) => fplan.list = Some(p),
-        _ => {
-            return Err(PlyErrorKind::MissingProperty {
-                element: "face".into(),
-                wanted: "vertex_indices list".into(),
-                present: face.prop_names(),
-            })
-        }
-    }
+    let fplan = face_plan(face)?;
 
     let size_checked = match file_len {
         Some(len) => {
@@ -1552,25 +1683,7 @@ fn read_mesh_impl<R: BufRead>(mut r: R, file_len: Option<u64>) -> Result<MeshDat
             })?;
         } else if i == fi {
             body.read_element(el, &fplan, |_, _, list| {
-                corners.clear();
-                for &v in list {
-                    if !(v >= 0.0 && v.fract() == 0.0 && v < vertex_count as f64) {
-                        return Err(format!(
-                            "vertex index {v} is out of range (the file has {vertex_count} vertices)"
-                        ));
-                    }
-                    // Exact: v is a whole number below vertex_count (a usize).
-                    let Ok(v) = u32::try_from(v as u64) else {
-                        return Err(format!(
-                            "vertex index {v} is beyond the 2^32 vertices psr's meshes can index"
-                        ));
-                    };
-                    corners.push(v);
-                }
-                for k in 2..corners.len() {
-                    triangles.push([corners[0], corners[k - 1], corners[k]]);
-                }
-                Ok(())
+                push_polygon(list, vertex_count, &mut corners, &mut triangles)
             })?;
         } else {
             body.read_element(el, &Plan::skip(el), |_, _, _| Ok(()))?;
@@ -2753,6 +2866,61 @@ mod tests {
             property float z\nend_header\n";
         let message = read_mesh_from(no_faces.as_bytes()).unwrap_err().to_string();
         assert!(message.contains("no 'face' element"), "{message}");
+    }
+
+    /// Proves: read_points_and_triangles reads a mesh's vertex properties as read_points does
+    /// (value as the confidence, normals, colours, channels) and its faces as read_mesh does,
+    /// in every format, with the face element before or after the vertices; a cloud has no
+    /// triangles, and a bad index is an error.
+    #[test]
+    fn points_and_triangles_read_a_whole_mesh() {
+        let mesh = Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.5],
+                [1.0, 1.0, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [2, 1, 3]],
+            densities: vec![0.5, 1.5, 2.5, 3.5],
+            normals: vec![[0.0, 0.0, 1.0]; 4],
+            colors: Some(Colors::Rgb(vec![[1.0, 0.0, 0.0]; 4])),
+            channels: vec![Channel::new("t", vec![4.0, 3.0, 2.0, 1.0])],
+            ..Mesh::default()
+        };
+        for format in [
+            PlyFormat::Ascii,
+            PlyFormat::BinaryLittleEndian,
+            PlyFormat::BinaryBigEndian,
+        ] {
+            let mut bytes = Vec::new();
+            let options = WriteOptions::default().with_format(format);
+            write_mesh_to_with(&mut bytes, &mesh, &options).unwrap();
+            let (points, triangles) = read_points_and_triangles_from(&bytes[..]).unwrap();
+            assert_eq!(triangles, mesh.triangles, "{format:?}");
+            assert_eq!(points.positions, mesh.positions);
+            assert_eq!(points.confidence.as_deref(), Some(&mesh.densities[..]));
+            assert_eq!(points.normals, mesh.normals);
+            assert_eq!(points.colors, mesh.colors);
+            assert_eq!(points.channels, mesh.channels);
+            let alone = read_points_from(&bytes[..]).unwrap();
+            assert_eq!(alone, points, "the vertices read as read_points reads them");
+        }
+        let faces_first = "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int \
+            vertex_indices\nelement vertex 4\nproperty float x\nproperty float y\n\
+            property float z\nend_header\n4 0 1 2 3\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n";
+        let (points, triangles) = read_points_and_triangles_from(faces_first.as_bytes()).unwrap();
+        assert_eq!(points.positions.len(), 4);
+        assert_eq!(triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        let cloud = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
+            property float y\nproperty float z\nend_header\n1 2 3\n";
+        let (points, triangles) = read_points_and_triangles_from(cloud.as_bytes()).unwrap();
+        assert_eq!((points.positions.len(), triangles.len()), (1, 0));
+        let bad = faces_first.replace("4 0 1 2 3", "3 0 1 4");
+        let message = read_points_and_triangles_from(bad.as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("out of range"), "{message}");
     }
 
     /// Proves: a face index past u32 (in a file that declares more vertices than that, faces

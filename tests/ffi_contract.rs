@@ -1006,7 +1006,9 @@ fn status_strings_take_any_int() {
     assert_eq!(name(15), "PSR_STATUS_INVALID_TRANSFORM");
     assert_eq!(name(16), "PSR_STATUS_TOO_LARGE");
     assert_eq!(name(17), "PSR_STATUS_OUT_OF_MEMORY");
-    assert_eq!(name(18), "PSR_STATUS_UNKNOWN");
+    assert_eq!(name(18), "PSR_STATUS_IO_ERROR");
+    assert_eq!(name(19), "PSR_STATUS_INVALID_FILE");
+    assert_eq!(name(20), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(-1), "PSR_STATUS_UNKNOWN");
     assert_eq!(name(i32::MIN), "PSR_STATUS_UNKNOWN");
 }
@@ -3932,4 +3934,267 @@ fn a_memory_limit_fails_typed_and_leaves_the_handle_usable() {
         psr_reconstructor_free(r);
         psr_reconstructor_free(fresh);
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// PLY files: psr_ply_read and its views, psr_mesh_write_ply
+// ---------------------------------------------------------------------------------------------
+
+/// A path in a fresh directory of its own under the system's temporary directory.
+fn scratch_path(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("psr-ffi-ply-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn c_path(path: &std::path::Path) -> std::ffi::CString {
+    std::ffi::CString::new(path.to_str().unwrap()).unwrap()
+}
+
+/// psr_ply_read's status, handle (NULL on failure; `out` must then be untouched) and message.
+fn read_ply(path: *const std::ffi::c_char) -> (psr_status, *mut psr_ply, String) {
+    let sentinel = sentinel_ptr::<psr_ply>();
+    let mut out = sentinel;
+    let mut message = [0x55 as std::ffi::c_char; 512];
+    let status = unsafe { psr_ply_read(path, &mut out, message.as_mut_ptr(), message.len()) };
+    let text = unsafe { CStr::from_ptr(message.as_ptr()) }
+        .to_string_lossy()
+        .into_owned();
+    if status == psr_status::Ok {
+        assert!(!out.is_null() && out != sentinel);
+        assert_eq!(text, "", "a success writes an empty message");
+        (status, out, text)
+    } else {
+        assert_eq!(out, sentinel, "*out must be left untouched on failure");
+        (status, ptr::null_mut(), text)
+    }
+}
+
+/// `count` values at `p` (NULL: none) as a vector.
+fn values<T: Copy>(p: *const T, count: usize) -> Option<Vec<T>> {
+    (!p.is_null()).then(|| unsafe { std::slice::from_raw_parts(p, count) }.to_vec())
+}
+
+/// Proves: psr_ply_read reads the sample cloud as the Rust reader does (positions and normals,
+/// no faces, no colours), and the views are NULL for what the file lacks and for a NULL handle.
+#[test]
+fn ply_read_gives_what_the_rust_reader_reads() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/data/kitten_cgal.ply");
+    let expected = psr::ply::read_points(&path).unwrap();
+    let (status, p, _) = read_ply(c_path(&path).as_ptr());
+    assert_eq!(status, psr_status::Ok);
+    unsafe {
+        let n = psr_ply_vertex_count(p);
+        assert_eq!(n, expected.positions.len());
+        assert_eq!(
+            values(psr_ply_positions(p), 3 * n).unwrap(),
+            expected.positions.as_flattened()
+        );
+        assert_eq!(
+            values(psr_ply_normals(p), 3 * n).unwrap(),
+            expected.normals.as_flattened()
+        );
+        assert!(psr_ply_positions_f64(p).is_null() && psr_ply_colors(p).is_null());
+        assert_eq!(psr_ply_color_components(p), 0);
+        assert!(psr_ply_sensors(p).is_null() && psr_ply_triangles(p).is_null());
+        assert_eq!(psr_ply_triangle_count(p), 0);
+        assert_eq!(psr_ply_channel_count(p), expected.channels.len());
+        assert!(psr_ply_channel_name(p, 99).is_null() && psr_ply_channel(p, 99).is_null());
+        psr_ply_free(p);
+        // NULL handles: zero counts and NULL views, and free(NULL) does nothing.
+        let null = ptr::null();
+        assert_eq!(psr_ply_vertex_count(null) + psr_ply_triangle_count(null), 0);
+        assert!(psr_ply_positions(null).is_null() && psr_ply_channel_name(null, 0).is_null());
+        psr_ply_free(ptr::null_mut());
+    }
+}
+
+/// Proves: bad arguments and bad files get their statuses and a message that names the
+/// function and the problem (the path, the system's reason, the line), *out is untouched, and
+/// a short or absent message buffer is safe.
+#[test]
+fn ply_read_refuses_bad_arguments_and_files_with_a_message() {
+    let (status, _, message) = read_ply(ptr::null());
+    assert_eq!(status, psr_status::NullArgument);
+    assert_eq!(message, "psr_ply_read: path is NULL");
+    let empty = std::ffi::CString::new("").unwrap();
+    assert_eq!(read_ply(empty.as_ptr()).0, psr_status::InvalidArgument);
+    let kitten = c_path(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/data/kitten_cgal.ply"),
+    );
+    assert_eq!(
+        unsafe { psr_ply_read(kitten.as_ptr(), ptr::null_mut(), ptr::null_mut(), 0) },
+        psr_status::NullArgument
+    );
+
+    let missing = scratch_path("missing.ply");
+    let (status, _, message) = read_ply(c_path(&missing).as_ptr());
+    assert_eq!(status, psr_status::IoError);
+    assert!(
+        message.starts_with("psr_ply_read: ") && message.contains("missing.ply"),
+        "{message}"
+    );
+
+    let bad = scratch_path("bad.ply");
+    let cases: [(&[u8], &str); 4] = [
+        (b"solid cube\n", "not a PLY file"),
+        (
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
+            "x y z",
+        ),
+        (
+            b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+              property float z\nend_header\n0 0 0\n1 1\n",
+            "line 9",
+        ),
+        (
+            b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000\nproperty float x\n\
+              property float y\nproperty float z\nend_header\n\0\0\0\0",
+            "truncated",
+        ),
+    ];
+    for (bytes, says) in cases {
+        std::fs::write(&bad, bytes).unwrap();
+        let (status, _, message) = read_ply(c_path(&bad).as_ptr());
+        assert_eq!(status, psr_status::InvalidFile, "{message}");
+        assert!(message.contains(says), "wanted '{says}' in: {message}");
+    }
+    // A message buffer of 8 bytes gets 7 bytes and the NUL; NULL gets nothing.
+    let mut short = [0x55 as std::ffi::c_char; 12];
+    let mut out = ptr::null_mut();
+    let status = unsafe { psr_ply_read(c_path(&bad).as_ptr(), &mut out, short.as_mut_ptr(), 8) };
+    assert_eq!(status, psr_status::InvalidFile);
+    assert_eq!(
+        unsafe { CStr::from_ptr(short.as_ptr()) }.to_bytes(),
+        b"psr_ply"
+    );
+    assert_eq!(short[8], 0x55, "wrote past the capacity");
+    let status = unsafe { psr_ply_read(c_path(&bad).as_ptr(), &mut out, ptr::null_mut(), 99) };
+    assert_eq!(status, psr_status::InvalidFile);
+}
+
+/// Proves: psr_mesh_write_ply writes the bytes the Rust writer (the psr program's) writes, in
+/// each format; psr_ply_read gives the mesh back (positions, triangles, densities as `value`,
+/// normals, colours, channels); bad flags and an unwritable path are refused with a message.
+#[test]
+fn mesh_write_ply_writes_what_the_program_writes_and_reads_back() {
+    let mut mesh = psr::Mesh::default();
+    mesh.positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.25],
+        [1.0, 1.0, 0.5],
+    ];
+    mesh.triangles = vec![[0, 1, 2], [2, 1, 3]];
+    mesh.densities = vec![1.0, 2.0, 3.0, 4.0];
+    mesh.normals = vec![[0.0, 0.0, 1.0]; 4];
+    mesh.colors = Some(psr::Colors::Rgba(vec![[0.2, 0.4, 0.6, 1.0]; 4]));
+    mesh.channels = vec![psr::Channel::new("time", vec![9.0, 8.0, 7.0, 6.0])];
+    let m = debug_mesh_new(mesh.clone());
+    let path = scratch_path("mesh.ply");
+    let cpath = c_path(&path);
+    for (flags, format) in [
+        (0, psr::ply::PlyFormat::BinaryLittleEndian),
+        (PSR_PLY_ASCII, psr::ply::PlyFormat::Ascii),
+        (PSR_PLY_BIG_ENDIAN, psr::ply::PlyFormat::BinaryBigEndian),
+    ] {
+        let mut message = [0x55 as std::ffi::c_char; 64];
+        let status = unsafe {
+            psr_mesh_write_ply(
+                m,
+                cpath.as_ptr(),
+                flags,
+                message.as_mut_ptr(),
+                message.len(),
+            )
+        };
+        assert_eq!(status, psr_status::Ok);
+        assert_eq!(message[0], 0, "a success writes an empty message");
+        let mut expected = Vec::new();
+        let options = psr::ply::WriteOptions::default().with_format(format);
+        psr::ply::write_mesh_to_with(&mut expected, &mesh, &options).unwrap();
+        assert!(std::fs::read(&path).unwrap() == expected, "{format:?}");
+
+        let (status, p, _) = read_ply(cpath.as_ptr());
+        assert_eq!(status, psr_status::Ok);
+        unsafe {
+            assert_eq!(psr_ply_vertex_count(p), 4);
+            assert_eq!(
+                values(psr_ply_triangles(p), 6).unwrap(),
+                mesh.triangles.as_flattened()
+            );
+            assert_eq!(
+                values(psr_ply_positions(p), 12).unwrap(),
+                mesh.positions.as_flattened()
+            );
+            assert_eq!(values(psr_ply_confidence(p), 4).unwrap(), mesh.densities);
+            assert_eq!(
+                values(psr_ply_normals(p), 12).unwrap(),
+                mesh.normals.as_flattened()
+            );
+            assert_eq!(psr_ply_color_components(p), 4);
+            // uchar colours: within half a step of 1/255.
+            let colors = values(psr_ply_colors(p), 16).unwrap();
+            let want = mesh.colors.as_ref().unwrap().as_flattened();
+            assert!(colors
+                .iter()
+                .zip(want)
+                .all(|(a, b)| (a - b).abs() <= 0.5 / 255.0 + 1e-6));
+            assert_eq!(psr_ply_channel_count(p), 1);
+            assert_eq!(
+                CStr::from_ptr(psr_ply_channel_name(p, 0)).to_str().unwrap(),
+                "time"
+            );
+            assert_eq!(
+                values(psr_ply_channel(p, 0), 4).unwrap(),
+                mesh.channels[0].values
+            );
+            psr_ply_free(p);
+        }
+    }
+    // Double positions: x y z as double, read back exactly through psr_ply_positions_f64.
+    let status = unsafe {
+        psr_mesh_write_ply(
+            m,
+            cpath.as_ptr(),
+            PSR_PLY_DOUBLE_POSITIONS,
+            ptr::null_mut(),
+            0,
+        )
+    };
+    assert_eq!(status, psr_status::Ok);
+    let (_, p, _) = read_ply(cpath.as_ptr());
+    let exact = unsafe { values(psr_ply_positions_f64(p), 12) }.expect("double positions");
+    assert!(exact
+        .iter()
+        .zip(mesh.positions.as_flattened())
+        .all(|(&a, &b)| a == b as f64));
+    unsafe { psr_ply_free(p) };
+
+    let write = |m: *const psr_mesh, path: *const std::ffi::c_char, flags: u32| {
+        let mut message = [0 as std::ffi::c_char; 256];
+        let status =
+            unsafe { psr_mesh_write_ply(m, path, flags, message.as_mut_ptr(), message.len()) };
+        let text = unsafe { CStr::from_ptr(message.as_ptr()) }
+            .to_string_lossy()
+            .into_owned();
+        (status, text)
+    };
+    assert_eq!(
+        write(ptr::null(), cpath.as_ptr(), 0).0,
+        psr_status::NullArgument
+    );
+    assert_eq!(write(m, ptr::null(), 0).0, psr_status::NullArgument);
+    let (status, message) = write(m, cpath.as_ptr(), PSR_PLY_ASCII | PSR_PLY_BIG_ENDIAN);
+    assert_eq!(status, psr_status::InvalidArgument);
+    assert!(message.contains("text or binary"), "{message}");
+    let (status, message) = write(m, cpath.as_ptr(), 1 << 8);
+    assert_eq!(status, psr_status::InvalidArgument);
+    assert!(message.contains("0x100"), "{message}");
+    let nowhere = scratch_path("x").join("no/such/dir/mesh.ply");
+    let (status, message) = write(m, c_path(&nowhere).as_ptr(), 0);
+    assert_eq!(status, psr_status::IoError);
+    assert!(message.contains("no/such/dir"), "{message}");
+    unsafe { psr_mesh_free(m) };
 }

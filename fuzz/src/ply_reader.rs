@@ -14,15 +14,19 @@ pub fn run(data: &[u8]) {
         check_points(&points, false);
     }
     if let Ok((positions, triangles)) = ply::read_mesh_from(data) {
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                assert!(
-                    (v as usize) < positions.len(),
-                    "mesh triangle {t} indexes vertex {v} of {}",
-                    positions.len()
-                );
-            }
-        }
+        check_triangles(&triangles, positions.len());
+    }
+    // The C API's psr_ply_read: the vertices as read_points reads them, and the faces.
+    if let Ok((points, triangles)) = ply::read_points_and_triangles_from(data) {
+        check_points(&points, false);
+        check_triangles(&triangles, points.positions.len());
+        let alone = ply::read_points_from(data).expect("the vertices read alone");
+        // Compared as text: a NaN in the file equals itself there.
+        assert_eq!(
+            format!("{alone:?}"),
+            format!("{points:?}"),
+            "the vertices differ from read_points's"
+        );
     }
     // PoissonRecon's ASCII layout may be positions only (3 numbers a line).
     if let Ok(points) = npts::read_ascii_from(data) {
@@ -31,6 +35,18 @@ pub fn run(data: &[u8]) {
     for colors in [false, true] {
         if let Ok(points) = npts::read_binary_from(data, colors) {
             check_points(&points, true);
+        }
+    }
+}
+
+/// Every triangle indexes one of the `vertices` read.
+fn check_triangles(triangles: &[[u32; 3]], vertices: usize) {
+    for (t, tri) in triangles.iter().enumerate() {
+        for &v in tri {
+            assert!(
+                (v as usize) < vertices,
+                "mesh triangle {t} indexes vertex {v} of {vertices}"
+            );
         }
     }
 }

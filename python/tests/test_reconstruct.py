@@ -261,14 +261,13 @@ def test_ply_round_trip(tmp_path: Path, ball: tuple[np.ndarray, np.ndarray]) -> 
         m.write_ply(path, ascii=ascii)
         back = psr.read_ply_mesh(path)
         assert np.array_equal(back.vertices, m.vertices)
-        assert np.array_equal(back.triangles, m.triangles)
-        assert np.array_equal(back.properties["value"], m.densities)
-        assert np.array_equal(back.properties["t"], m.channels["t"])
-        assert m.normals is not None
-        assert np.array_equal(
-            np.stack([back.properties[c] for c in ("nx", "ny", "nz")], 1), m.normals
-        )
-        assert back.properties["red"].dtype == np.uint8
+        assert back.triangles.dtype == np.uint32 and np.array_equal(back.triangles, m.triangles)
+        assert back.densities is not None and np.array_equal(back.densities, m.densities)
+        assert np.array_equal(back.channels["t"], m.channels["t"])
+        assert m.normals is not None and back.normals is not None
+        assert np.array_equal(back.normals, m.normals)
+        # uchar colours in the file: within half a step of 1/255.
+        assert back.colors is not None and np.abs(back.colors - m.colors).max() <= 0.5 / 255 + 1e-6
         cloud = psr.read_ply(path)
         assert np.array_equal(cloud.points, m.vertices) and cloud.normals is not None
         assert (
@@ -289,10 +288,39 @@ def test_read_ply_kitten_and_errors(tmp_path: Path) -> None:
     with pytest.raises(psr.PlyError, match="not a PLY"):
         psr.read_ply(bad)
     bad.write_bytes(KITTEN.read_bytes()[:2000])
-    with pytest.raises(psr.PlyError, match="ends inside"):
+    with pytest.raises(psr.PlyError, match="truncated"):
         psr.read_ply(bad)
-    with pytest.raises(OSError):
+    with pytest.raises(psr.FileError, match="missing.ply") as info:
         psr.read_ply(tmp_path / "missing.ply")
+    assert isinstance(info.value, OSError) and info.value.status is psr.Status.IO_ERROR
+    with pytest.raises(psr.FileError, match="no-such-dir"):
+        psr.reconstruct(cloud, depth=4).write_ply(tmp_path / "no-such-dir" / "m.ply")
+    with pytest.raises(TypeError, match="psr.Mesh"):
+        psr.write_ply(tmp_path / "m.ply", object())  # type: ignore[arg-type]
+
+
+def test_ply_files_with_every_property(tmp_path: Path) -> None:
+    # A cloud with double positions, uchar colours, sensors, a confidence and a channel, and a
+    # quad face: read as the psr program reads it.
+    path = tmp_path / "cloud.ply"
+    header = (
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty double x\nproperty double y\n"
+        "property double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+        "property float confidence\nproperty float sensor_x\nproperty float sensor_y\n"
+        "property float sensor_z\nproperty float intensity\nelement face 1\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    )
+    rows = [f"{1000000 + i}.125 2 3 255 0 51 0.5 0 0 {i} {i * 10}" for i in range(4)]
+    path.write_text(header + "\n".join(rows) + "\n4 0 1 2 3\n")
+    cloud = psr.read_ply(path)
+    assert cloud.points.dtype == np.float64 and cloud.points[1, 0] == 1e6 + 1.125
+    assert cloud.colors is not None and np.allclose(cloud.colors[0], [1.0, 0.0, 0.2])
+    assert cloud.confidence is not None and np.all(cloud.confidence == 0.5)
+    assert cloud.sensors is not None and np.array_equal(cloud.sensors[:, 2], [0, 1, 2, 3])
+    assert set(cloud.channels) == {"intensity"} and cloud.channels["intensity"][3] == 30
+    assert cloud.normals is None
+    mesh = psr.read_ply_mesh(path)
+    assert np.array_equal(mesh.triangles, [[0, 1, 2], [0, 2, 3]])
 
 
 def test_trimesh_interop(ball_mesh: psr.Mesh) -> None:

@@ -95,6 +95,7 @@ mod stats;
 mod implicit;
 // The memory limit and the estimates.
 mod memory;
+mod ply;
 
 pub use self::attributes::{
     psr_mesh_channel, psr_mesh_channel_count, psr_mesh_channel_name, psr_mesh_color_components,
@@ -139,6 +140,13 @@ pub use self::params::{
     psr_reconstructor_set_threads, psr_reconstructor_set_vertex_placement,
     psr_reconstructor_set_width, psr_splatting, psr_vertex_placement,
 };
+pub use self::ply::{
+    psr_mesh_write_ply, psr_ply, psr_ply_channel, psr_ply_channel_count, psr_ply_channel_name,
+    psr_ply_color_components, psr_ply_colors, psr_ply_confidence, psr_ply_free, psr_ply_normals,
+    psr_ply_positions, psr_ply_positions_f64, psr_ply_read, psr_ply_sensors,
+    psr_ply_triangle_count, psr_ply_triangles, psr_ply_vertex_count, PSR_PLY_ASCII,
+    PSR_PLY_BIG_ENDIAN, PSR_PLY_DOUBLE_POSITIONS,
+};
 pub use self::points::{
     psr_reconstructor_add_points, psr_reconstructor_add_points_f64,
     psr_reconstructor_add_points_transformed, psr_reconstructor_clear_points,
@@ -182,5 +190,6 @@ mod tests {
         assert_send::<psr_reconstructor>();
         assert_send::<psr_mesh>();
         assert_send::<psr_implicit>();
+        assert_send::<psr_ply>();
     }
 }

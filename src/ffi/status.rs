@@ -63,6 +63,14 @@ pub enum psr_status {
     /// do. Nothing was kept and the handle stays usable: raise the limit, lower the depth or
     /// free memory, and solve again (the same mesh as a handle that never failed).
     OutOfMemory = 17,
+    /// A file could not be opened, read, created or written (psr_ply_read, psr_mesh_write_ply):
+    /// the message has the path and the system's reason (no such file, permission denied, disk
+    /// full).
+    IoError = 18,
+    /// A file was read but is not what it should be (psr_ply_read): not PLY, a malformed header
+    /// or value, a truncated body, no vertex element or no x y z, a face index out of range. The
+    /// message says where (line, element, entry).
+    InvalidFile = 19,
 }
 
 /// The name of a status, e.g. "PSR_STATUS_ZERO_NORMAL", as a static NUL-terminated string
@@ -88,6 +96,8 @@ pub extern "C" fn psr_status_string(status: c_int) -> *const c_char {
         15 => "PSR_STATUS_INVALID_TRANSFORM\0",
         16 => "PSR_STATUS_TOO_LARGE\0",
         17 => "PSR_STATUS_OUT_OF_MEMORY\0",
+        18 => "PSR_STATUS_IO_ERROR\0",
+        19 => "PSR_STATUS_INVALID_FILE\0",
         _ => "PSR_STATUS_UNKNOWN\0",
     };
     name.as_ptr().cast()
@@ -185,13 +195,15 @@ mod tests {
             (psr_status::InvalidTransform, "PSR_STATUS_INVALID_TRANSFORM"),
             (psr_status::TooLarge, "PSR_STATUS_TOO_LARGE"),
             (psr_status::OutOfMemory, "PSR_STATUS_OUT_OF_MEMORY"),
+            (psr_status::IoError, "PSR_STATUS_IO_ERROR"),
+            (psr_status::InvalidFile, "PSR_STATUS_INVALID_FILE"),
         ];
         for (status, name) in all {
             // SAFETY: psr_status_string returns a static NUL-terminated string, never NULL.
             let got = unsafe { CStr::from_ptr(psr_status_string(status as c_int)) };
             assert_eq!(got.to_str().unwrap(), name);
         }
-        for unknown in [-1, 18, c_int::MAX, c_int::MIN] {
+        for unknown in [-1, 20, c_int::MAX, c_int::MIN] {
             // SAFETY: as above.
             let got = unsafe { CStr::from_ptr(psr_status_string(unknown)) };
             assert_eq!(got.to_str().unwrap(), "PSR_STATUS_UNKNOWN");

@@ -10,7 +10,8 @@
  * (smaller) and a newer (larger) one, bad sizes and values, its progress callback and cancel,
  * and the trimmed mesh outliving its source; the target width, and the mesh's figures (depths, nodes per depth, psr_depth_solve
  * from this header and from a newer one, bad sizes and indices); the implicit function
- * (psr_implicit: evaluation, gradient, grid, bad arguments).
+ * (psr_implicit: evaluation, gradient, grid, bad arguments); PLY files through the library
+ * (psr_mesh_write_ply, psr_ply_read: round trip, bad files and arguments).
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -23,6 +24,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static int passed, failed;
 
@@ -1389,6 +1391,90 @@ static void test_implicit(void) {
     psr_implicit_free(f);
 }
 
+/* PLY through the library: psr_mesh_write_ply writes a solved mesh, psr_ply_read gives it back
+ * (positions, triangles, densities as confidence); a missing file, a file that is not PLY, bad
+ * flags and NULLs get their statuses and a message in the caller's buffer. */
+static void test_ply_files(void) {
+    enum { N = 3000 };
+    float *p = malloc(3 * N * sizeof(float)), *nr = malloc(3 * N * sizeof(float));
+    psr_reconstructor *r = NULL;
+    psr_mesh *m = NULL;
+    psr_ply *ply = NULL, *const sentinel = (psr_ply *)&r, *out = sentinel;
+    char path[512], message[256], tiny[8];
+    const char *dir = getenv("TMPDIR");
+    FILE *f;
+
+    section("PLY files: psr_mesh_write_ply, psr_ply_read, bad files and arguments");
+    snprintf(path, sizeof path, "%s/psr_contract_%ld.ply", dir != NULL ? dir : "/tmp",
+             (long)getpid());
+    sphere(N, p, nr);
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_add_points(r, p, 0, nr, 0, N), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    psr_reconstructor_free(r);
+    free(p);
+    free(nr);
+    if (m == NULL) return;
+
+    memset(message, 'x', sizeof message);
+    CHECK_STATUS(psr_mesh_write_ply(m, path, 0, message, sizeof message), PSR_STATUS_OK);
+    CHECK(message[0] == '\0');
+    CHECK_STATUS(psr_ply_read(path, &ply, message, sizeof message), PSR_STATUS_OK);
+    if (ply != NULL) {
+        size_t nv = psr_mesh_vertex_count(m), nt = psr_mesh_triangle_count(m);
+        CHECK(psr_ply_vertex_count(ply) == nv && psr_ply_triangle_count(ply) == nt);
+        CHECK(memcmp(psr_ply_positions(ply), psr_mesh_positions(m), 3 * nv * sizeof(float)) == 0);
+        CHECK(memcmp(psr_ply_triangles(ply), psr_mesh_triangles(m), 3 * nt * sizeof(uint32_t)) ==
+              0);
+        CHECK(memcmp(psr_ply_confidence(ply), psr_mesh_densities(m), nv * sizeof(float)) == 0);
+        CHECK(psr_ply_normals(ply) == NULL && psr_ply_colors(ply) == NULL);
+        CHECK(psr_ply_positions_f64(ply) == NULL && psr_ply_channel_count(ply) == 0);
+        psr_ply_free(ply);
+    }
+    psr_ply_free(NULL);
+
+    /* Text, then a file that is not PLY. */
+    CHECK_STATUS(psr_mesh_write_ply(m, path, PSR_PLY_ASCII, NULL, 0), PSR_STATUS_OK);
+    f = fopen(path, "r");
+    CHECK(f != NULL && fgets(message, sizeof message, f) != NULL && strcmp(message, "ply\n") == 0 &&
+          fgets(message, sizeof message, f) != NULL && contains(message, "format ascii"));
+    if (f != NULL) fclose(f);
+    f = fopen(path, "w");
+    if (f != NULL) {
+        fputs("solid not a ply\n", f);
+        fclose(f);
+    }
+    CHECK_STATUS(psr_ply_read(path, &out, message, sizeof message), PSR_STATUS_INVALID_FILE);
+    CHECK(out == sentinel && contains(message, "not a PLY file"));
+    /* A short buffer: 7 bytes and the NUL. */
+    CHECK_STATUS(psr_ply_read(path, &out, tiny, sizeof tiny), PSR_STATUS_INVALID_FILE);
+    CHECK(strcmp(tiny, "psr_ply") == 0);
+    remove(path);
+    CHECK_STATUS(psr_ply_read(path, &out, message, sizeof message), PSR_STATUS_IO_ERROR);
+    CHECK(out == sentinel && contains(message, "psr_contract_"));
+
+    /* Bad arguments. */
+    CHECK_STATUS(psr_ply_read(NULL, &out, message, sizeof message), PSR_STATUS_NULL_ARGUMENT);
+    CHECK(strcmp(message, "psr_ply_read: path is NULL") == 0);
+    CHECK_STATUS(psr_ply_read(path, NULL, NULL, 0), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_ply_read("", &out, NULL, 0), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_mesh_write_ply(NULL, path, 0, NULL, 0), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_write_ply(m, NULL, 0, NULL, 0), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_write_ply(m, path, PSR_PLY_ASCII | PSR_PLY_BIG_ENDIAN, NULL, 0),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_mesh_write_ply(m, path, 64, message, sizeof message),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(contains(message, "flags"));
+    CHECK_STATUS(psr_mesh_write_ply(m, "/nonexistent-dir/psr/mesh.ply", 0, message, sizeof message),
+                 PSR_STATUS_IO_ERROR);
+    CHECK(contains(message, "nonexistent-dir"));
+    CHECK(strcmp(psr_status_string(PSR_STATUS_IO_ERROR), "PSR_STATUS_IO_ERROR") == 0);
+    CHECK(strcmp(psr_status_string(PSR_STATUS_INVALID_FILE), "PSR_STATUS_INVALID_FILE") == 0);
+    CHECK(out == sentinel);
+    psr_mesh_free(m);
+}
+
 int main(void) {
     printf("psr %s C contract test\n", psr_version());
     test_null_arguments();
@@ -1408,6 +1494,7 @@ int main(void) {
     test_stats();
     test_implicit();
     test_memory();
+    test_ply_files();
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

@@ -32,6 +32,7 @@ from ._core import (
 from ._errors import (
     CancelledError,
     EmptyInputError,
+    FileError,
     HandlePoisonedError,
     InternalError,
     InvalidArgumentError,
@@ -40,6 +41,7 @@ from ._errors import (
     InvalidWeightError,
     NonFiniteError,
     OutOfMemoryError,
+    PlyError,
     PsrError,
     Status,
     ThreadsUnavailableError,
@@ -48,7 +50,7 @@ from ._errors import (
 )
 from ._lib import LIB as _LIB
 from ._lib import library_path
-from ._ply import PlyError, PlyMesh, PointCloud, read_ply, read_ply_mesh, write_ply
+from ._ply import PlyMesh, PointCloud, read_ply, read_ply_mesh, write_ply
 
 #: The version of the loaded libpsr ("MAJOR.MINOR.PATCH"); the package has the same version.
 library_version: str = _LIB.psr_version().decode()
@@ -59,6 +61,7 @@ __all__ = [
     "Boundary",
     "CancelledError",
     "EmptyInputError",
+    "FileError",
     "HandlePoisonedError",
     "Implicit",
     "InternalError",

@@ -22,6 +22,8 @@ __all__ = [
     "ThreadsUnavailableError",
     "InternalError",
     "HandlePoisonedError",
+    "FileError",
+    "PlyError",
     "error_for",
 ]
 
@@ -47,6 +49,8 @@ class Status(IntEnum):
     INVALID_TRANSFORM = 15
     TOO_LARGE = 16
     OUT_OF_MEMORY = 17
+    IO_ERROR = 18
+    INVALID_FILE = 19
 
 
 class PsrError(Exception):
@@ -117,6 +121,16 @@ class ThreadsUnavailableError(PsrError, OSError):
     """PSR_STATUS_THREADS_UNAVAILABLE: the system refused to start worker threads."""
 
 
+class FileError(PsrError, OSError):
+    """PSR_STATUS_IO_ERROR: a file could not be opened, read, created or written (the message
+    has the path and the system's reason)."""
+
+
+class PlyError(PsrError, ValueError):
+    """PSR_STATUS_INVALID_FILE: a file that is not PLY, or a PLY psr cannot read (malformed or
+    truncated, no vertex x y z, a face index out of range); the message says where."""
+
+
 class InternalError(PsrError, RuntimeError):
     """PSR_STATUS_INTERNAL_ERROR: a bug in psr (please report it)."""
 
@@ -143,6 +157,8 @@ _CLASSES: dict[int, type[PsrError]] = {
     Status.INVALID_TRANSFORM: InvalidTransformError,
     Status.TOO_LARGE: TooLargeError,
     Status.OUT_OF_MEMORY: OutOfMemoryError,
+    Status.IO_ERROR: FileError,
+    Status.INVALID_FILE: PlyError,
 }
 
 

@@ -87,6 +87,7 @@ class DepthSolve(Structure):
 _R = c_void_p  # psr_reconstructor *
 _M = c_void_p  # psr_mesh *
 _F = c_void_p  # psr_implicit *
+_Y = c_void_p  # psr_ply *
 _S = c_int  # psr_status
 _P = c_void_p  # any data pointer (NumPy arrays pass their address)
 
@@ -186,6 +187,22 @@ _PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "psr_mesh_trim": (_S, [_M, POINTER(TrimOptions), POINTER(_M)]),
     "psr_mesh_trim_density": (c_double, [_M]),
     "psr_mesh_trim_depth": (c_double, [_M]),
+    "psr_ply_read": (_S, [c_char_p, POINTER(_Y), c_char_p, c_size_t]),
+    "psr_ply_free": (None, [_Y]),
+    "psr_ply_vertex_count": (c_size_t, [_Y]),
+    "psr_ply_positions": (POINTER(c_float), [_Y]),
+    "psr_ply_positions_f64": (POINTER(c_double), [_Y]),
+    "psr_ply_normals": (POINTER(c_float), [_Y]),
+    "psr_ply_color_components": (c_size_t, [_Y]),
+    "psr_ply_colors": (POINTER(c_float), [_Y]),
+    "psr_ply_confidence": (POINTER(c_float), [_Y]),
+    "psr_ply_sensors": (POINTER(c_float), [_Y]),
+    "psr_ply_channel_count": (c_size_t, [_Y]),
+    "psr_ply_channel_name": (c_char_p, [_Y, c_size_t]),
+    "psr_ply_channel": (POINTER(c_float), [_Y, c_size_t]),
+    "psr_ply_triangle_count": (c_size_t, [_Y]),
+    "psr_ply_triangles": (POINTER(c_uint32), [_Y]),
+    "psr_mesh_write_ply": (_S, [_M, c_char_p, c_uint32, c_char_p, c_size_t]),
     "psr_implicit_free": (None, [_F]),
     "psr_implicit_isovalue": (c_double, [_F]),
     "psr_implicit_cube": (_S, [_F, POINTER(c_double), POINTER(c_double)]),

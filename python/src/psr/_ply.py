@@ -1,49 +1,33 @@
-"""PLY reading and writing in NumPy.
-
-psr's C API has no PLY functions (the reader and writer live in the Rust crate, used by the
-command-line program), so this module reads and writes the same layouts itself: point clouds
-with ``x y z [nx ny nz] [red green blue [alpha]] [confidence] [other scalars]`` and meshes as
-the psr program writes them, in ASCII or binary of either byte order.
+"""PLY reading and writing through psr's own reader and writer (psr_ply_read,
+psr_mesh_write_ply): the files the psr program reads are read alike, with the same properties
+and the same errors, and a mesh is written with the same bytes as ``psr --out mesh.ply``.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
 from dataclasses import dataclass, field
-from typing import IO, Any, Union
+from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
+from ._errors import PlyError, Status, error_for
 from ._lib import LIB
+
+if TYPE_CHECKING:
+    from ._core import Mesh
 
 __all__ = ["PointCloud", "PlyMesh", "PlyError", "read_ply", "read_ply_mesh", "write_ply"]
 
-PathLike = Union[str, "os.PathLike[str]"]
+PathLike = Union[str, bytes, "os.PathLike[str]", "os.PathLike[bytes]"]
 
-_TYPES = {
-    "char": "i1",
-    "int8": "i1",
-    "uchar": "u1",
-    "uint8": "u1",
-    "short": "i2",
-    "int16": "i2",
-    "ushort": "u2",
-    "uint16": "u2",
-    "int": "i4",
-    "int32": "i4",
-    "uint": "u4",
-    "uint32": "u4",
-    "float": "f4",
-    "float32": "f4",
-    "double": "f8",
-    "float64": "f8",
-}
-_COLORS = ("red", "green", "blue", "alpha")
-_SENSORS = ("sensor_x", "sensor_y", "sensor_z")
+#: psr_mesh_write_ply's flags (include/psr.h).
+_PLY_ASCII = 1
+_PLY_DOUBLE_POSITIONS = 4
 
-
-class PlyError(ValueError):
-    """A file that is not PLY, or a PLY this reader cannot take (the message says why)."""
+#: Room for the library's message about a file (it shortens longer ones).
+_MESSAGE_BYTES = 1024
 
 
 @dataclass
@@ -53,10 +37,11 @@ class PointCloud:
     ``points`` (n, 3) float32 (float64 when the file stores doubles); ``normals`` (n, 3) or
     None; ``colors`` (n, 3 or 4) float32 in 0..1 (integer colours are divided by their full
     scale) or None; ``confidence`` (n,) from a ``confidence`` (or else ``value``) property, or
-    None; ``channels``: every other scalar vertex property by name, as float32 (sensor
-    positions excepted). Passed whole to :func:`psr.reconstruct`, the cloud gives its normals,
-    colours and channels, as the psr program does; its confidence is used only when passed
-    as ``confidence=`` (the program's ``--confidence``).
+    None; ``sensors`` (n, 3), the position of the sensor that saw each point, or None;
+    ``channels``: every other scalar vertex property by name, as float32. Passed whole to
+    :func:`psr.reconstruct`, the cloud gives its normals, colours and channels, as the psr
+    program does; its confidence is used only when passed as ``confidence=`` (the program's
+    ``--confidence``).
     """
 
     points: np.ndarray
@@ -64,6 +49,7 @@ class PointCloud:
     colors: np.ndarray | None = None
     confidence: np.ndarray | None = None
     channels: dict[str, np.ndarray] = field(default_factory=dict)
+    sensors: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.points)
@@ -71,272 +57,112 @@ class PointCloud:
 
 @dataclass
 class PlyMesh:
-    """A triangle mesh read from a PLY file: ``vertices`` (n, 3) as stored (float32 or
-    float64), ``triangles`` (m, 3) int64, and every other vertex property by name as stored
-    (``value`` is psr's density)."""
+    """A triangle mesh read from a PLY file (such as the psr program's output), as
+    :func:`read_ply_mesh` gives it: ``vertices`` (n, 3) float32 (float64 when the file stores
+    doubles), ``triangles`` (m, 3) uint32 (polygons split into fans), ``densities`` (n,) from
+    the ``value`` property psr writes (or ``confidence``) or None, ``normals`` (n, 3) or None,
+    ``colors`` (n, 3 or 4) in 0..1 or None, and ``channels`` (every other scalar vertex
+    property by name)."""
 
     vertices: np.ndarray
     triangles: np.ndarray
-    properties: dict[str, np.ndarray] = field(default_factory=dict)
+    densities: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    channels: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-@dataclass
-class _Element:
-    name: str
-    count: int
-    # (name, dtype) for scalars; (name, count dtype, item dtype) for lists
-    properties: list[tuple[str, ...]] = field(default_factory=list)
+def _array(pointer: Any, shape: tuple[int, ...]) -> np.ndarray | None:
+    """A NumPy copy of the `shape` values the library's view `pointer` shows, or None for a NULL
+    view (what the file does not have)."""
+    if not pointer:
+        return None
+    values: np.ndarray = np.ctypeslib.as_array(pointer, shape).copy()
+    return values
 
 
-def _read_header(f: IO[bytes], path: str) -> tuple[str, list[_Element]]:
-    if f.readline().rstrip(b"\r\n") != b"ply":
-        raise PlyError(f"{path}: not a PLY file (no 'ply' magic line)")
-    fmt = ""
-    elements: list[_Element] = []
-    while True:
-        line = f.readline()
-        if not line:
-            raise PlyError(f"{path}: the header has no end_header")
-        words = line.decode("ascii", errors="replace").split()
-        if not words or words[0] in ("comment", "obj_info"):
-            continue
-        if words[0] == "end_header":
-            break
-        if words[0] == "format" and len(words) >= 2:
-            fmt = words[1]
-        elif words[0] == "element" and len(words) == 3:
-            try:
-                count = int(words[2])
-            except ValueError:
-                raise PlyError(f"{path}: bad element count in {line!r}") from None
-            if count < 0:
-                raise PlyError(f"{path}: negative element count in {line!r}")
-            elements.append(_Element(words[1], count))
-        elif words[0] == "property" and elements:
-            try:
-                if words[1] == "list" and len(words) == 5:
-                    elements[-1].properties.append((words[4], _TYPES[words[2]], _TYPES[words[3]]))
-                elif len(words) == 3:
-                    elements[-1].properties.append((words[2], _TYPES[words[1]]))
-                else:
-                    raise KeyError(words[1])
-            except KeyError:
-                raise PlyError(f"{path}: unknown property type in {line!r}") from None
-        else:
-            raise PlyError(f"{path}: unexpected header line {line!r}")
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise PlyError(f"{path}: unknown or missing format {fmt!r}")
-    return fmt, elements
-
-
-def _read_binary(f: IO[bytes], fmt: str, elements: list[_Element], path: str) -> dict[str, Any]:
-    order = "<" if fmt == "binary_little_endian" else ">"
-    data: dict[str, Any] = {}
-    for el in elements:
-        if all(len(p) == 2 for p in el.properties):
-            dt = np.dtype([(p[0], order + p[1]) for p in el.properties])
-            raw = f.read(dt.itemsize * el.count)
-            if len(raw) != dt.itemsize * el.count:
-                raise PlyError(f"{path}: the file ends inside element {el.name}")
-            data[el.name] = np.frombuffer(raw, dt)
-        elif el.name == "face" and len(el.properties) == 1:
-            name, count_t, item_t = el.properties[0]
-            # Triangles: every record is the count 3 and three indices.
-            dt = np.dtype([("n", order + count_t), ("v", order + item_t, (3,))])
-            raw = f.read(dt.itemsize * el.count)
-            rec = np.frombuffer(raw, dt) if len(raw) == dt.itemsize * el.count else None
-            if rec is None or (rec["n"] != 3).any():
-                raise PlyError(f"{path}: only triangle faces are supported")
-            data[el.name] = {name: rec["v"]}
-        else:
-            raise PlyError(
-                f"{path}: element {el.name} has list properties this reader skips "
-                "only in ASCII files"
-            )
-    return data
-
-
-def _read_ascii(f: IO[bytes], elements: list[_Element], path: str) -> dict[str, Any]:
-    lines = f.read().decode("ascii", errors="replace").splitlines()
-    at = 0
-    data: dict[str, Any] = {}
-    for el in elements:
-        rows = [line.split() for line in lines[at : at + el.count]]
-        at += el.count
-        if len(rows) != el.count:
-            raise PlyError(f"{path}: the file ends inside element {el.name}")
-        if all(len(p) == 2 for p in el.properties):
-            width = len(el.properties)
-            try:
-                table = np.array(rows, dtype=np.float64).reshape(el.count, width)
-            except ValueError:
-                raise PlyError(f"{path}: element {el.name} has a malformed line") from None
-            rec = np.empty(el.count, np.dtype([(p[0], p[1]) for p in el.properties]))
-            for j, p in enumerate(el.properties):
-                rec[p[0]] = table[:, j]
-            data[el.name] = rec
-        elif el.name == "face" and len(el.properties) == 1:
-            if any(len(r) != 4 or r[0] != "3" for r in rows):
-                raise PlyError(f"{path}: only triangle faces are supported")
-            v = np.array([r[1:] for r in rows], dtype=np.int64).reshape(el.count, 3)
-            data[el.name] = {el.properties[0][0]: v}
-    return data
-
-
-def _read(path: PathLike) -> dict[str, Any]:
-    p = os.fspath(path)
-    with open(p, "rb") as f:
-        fmt, elements = _read_header(f, p)
-        if fmt == "ascii":
-            return _read_ascii(f, elements, p)
-        return _read_binary(f, fmt, elements, p)
-
-
-def _vertex(data: dict[str, Any], path: str) -> np.ndarray:
-    v: np.ndarray | None = data.get("vertex")
-    if v is None or not all(k in (v.dtype.names or ()) for k in "xyz"):
-        raise PlyError(f"{path}: no vertex element with x, y, z")
-    return v
-
-
-def _stack(v: np.ndarray, names: tuple[str, ...], dtype: Any = None) -> np.ndarray:
-    return np.stack([v[n] for n in names], axis=1).astype(dtype or v.dtype[names[0]], copy=True)
+def _read(path: PathLike) -> tuple[PointCloud, np.ndarray]:
+    """Everything psr_ply_read reads of a file: its vertices as a cloud, and its triangles."""
+    handle = ctypes.c_void_p()
+    message = ctypes.create_string_buffer(_MESSAGE_BYTES)
+    status = LIB.psr_ply_read(os.fsencode(path), ctypes.byref(handle), message, len(message))
+    if status != Status.OK:
+        raise error_for(status, message.value.decode("utf-8", "replace"))
+    try:
+        n = LIB.psr_ply_vertex_count(handle)
+        exact = _array(LIB.psr_ply_positions_f64(handle), (n, 3))
+        points = exact if exact is not None else _array(LIB.psr_ply_positions(handle), (n, 3))
+        k = LIB.psr_ply_color_components(handle)
+        cloud = PointCloud(
+            points=points if points is not None else np.empty((0, 3), np.float32),
+            normals=_array(LIB.psr_ply_normals(handle), (n, 3)),
+            colors=_array(LIB.psr_ply_colors(handle), (n, k)) if k else None,
+            confidence=_array(LIB.psr_ply_confidence(handle), (n,)),
+            sensors=_array(LIB.psr_ply_sensors(handle), (n, 3)),
+        )
+        for i in range(LIB.psr_ply_channel_count(handle)):
+            name = LIB.psr_ply_channel_name(handle, i).decode("utf-8", "replace")
+            values = _array(LIB.psr_ply_channel(handle, i), (n,))
+            cloud.channels[name] = values if values is not None else np.empty(0, np.float32)
+        m = LIB.psr_ply_triangle_count(handle)
+        triangles = _array(LIB.psr_ply_triangles(handle), (m, 3))
+        return cloud, (triangles if triangles is not None else np.empty((0, 3), np.uint32))
+    finally:
+        LIB.psr_ply_free(handle)
 
 
 def read_ply(path: PathLike) -> PointCloud:
-    """Reads a point cloud from a PLY file (ASCII or binary, any property types).
+    """Reads a point cloud from a PLY file with psr's own reader (the psr program's).
 
-    The positions keep their stored precision (float32 or float64), normals come from
-    ``nx ny nz``, colours from ``red green blue [alpha]`` (scaled to 0..1), confidence from
-    ``confidence``; other scalar vertex properties become channels. Raises :class:`PlyError`
-    (a ValueError) for a file it cannot read, OSError when it cannot open it.
+    ASCII or binary of either byte order, any property types. The positions keep their stored
+    precision (float32, or float64 for doubles); normals come from ``nx ny nz``, colours from
+    ``red green blue [alpha]`` (scaled to 0..1), confidence from ``confidence`` (or else
+    ``value``), sensor positions from ``sensor_x sensor_y sensor_z``; other scalar vertex
+    properties become channels. Raises :class:`PlyError` (a ValueError) for a file psr cannot
+    read, with where the problem is, and :class:`psr.FileError` (an OSError) for one it cannot
+    open.
     """
-    p = os.fspath(path)
-    v = _vertex(_read(p), p)
-    names = v.dtype.names or ()
-    kind = v.dtype["x"]
-    pos_type = np.float64 if kind == np.float64 else np.float32
-    cloud = PointCloud(points=_stack(v, ("x", "y", "z"), pos_type))
-    used = {"x", "y", "z", *_SENSORS}
-    if all(k in names for k in ("nx", "ny", "nz")):
-        cloud.normals = _stack(v, ("nx", "ny", "nz"), np.float32)
-        used |= {"nx", "ny", "nz"}
-    # The colour names the psr program reads: red green blue [alpha], diffuse_red ..., r g b [a].
-    candidates = [_COLORS, tuple("diffuse_" + c for c in _COLORS), ("r", "g", "b", "a")]
-    found = [c for c in candidates if all(name in names for name in c[:3])]
-    if found:
-        comps = found[0] if found[0][3] in names else found[0][:3]
-        t = v.dtype[comps[0]]
-        full = {np.dtype("u2"): 65535.0}.get(t, 1.0 if t.kind == "f" else 255.0)
-        cloud.colors = (_stack(v, comps, np.float64) / full).astype(np.float32)
-        used |= set(comps)
-    for name in ("confidence", "value"):
-        if name in names:
-            # As the psr program reads it; reconstruct() uses it only when passed explicitly
-            # (the program's --confidence).
-            if cloud.confidence is None:
-                cloud.confidence = v[name].astype(np.float32)
-            used.add(name)
-    for name in names:
-        if name not in used:
-            cloud.channels[name] = v[name].astype(np.float32)
+    cloud, _ = _read(path)
     return cloud
 
 
 def read_ply_mesh(path: PathLike) -> PlyMesh:
-    """Reads a triangle mesh (such as the psr program's output) from a PLY file."""
-    p = os.fspath(path)
-    data = _read(p)
-    v = _vertex(data, p)
-    faces = data.get("face")
-    if faces is None:
-        raise PlyError(f"{p}: no face element")
-    (triangles,) = faces.values()
-    props = {n: np.array(v[n]) for n in (v.dtype.names or ()) if n not in ("x", "y", "z")}
+    """Reads a triangle mesh (such as the psr program's output) from a PLY file with psr's own
+    reader: the vertices as :func:`read_ply` reads them (``value`` as the densities) and the
+    faces as triangles, polygons split into fans (no triangles for a file without faces).
+    Raises as :func:`read_ply` does."""
+    cloud, triangles = _read(path)
     return PlyMesh(
-        vertices=_stack(v, ("x", "y", "z")),
-        triangles=np.asarray(triangles, dtype=np.int64),
-        properties=props,
+        vertices=cloud.points,
+        triangles=triangles,
+        densities=cloud.confidence,
+        normals=cloud.normals,
+        colors=cloud.colors,
+        channels=cloud.channels,
     )
 
 
-def write_ply(path: PathLike, mesh: Any, *, ascii: bool = False) -> None:
-    """Writes a mesh (a :class:`psr.Mesh`, or any object with ``vertices`` and ``triangles``
-    and optionally ``normals``, ``densities``, ``colors`` and ``channels``) as PLY, in the
-    layout of the psr program: vertex ``x y z`` (float, or double for float64 vertices), then
-    ``nx ny nz``, ``value`` (the density), ``red green blue [alpha]`` (uchar, 255 x the 0..1
-    colour) and a float per channel when present; face ``list uchar int vertex_indices``.
-    Binary little-endian unless ``ascii``. The same mesh gives the same bytes as
-    ``psr --out mesh.ply``.
+def write_ply(path: PathLike, mesh: Mesh, *, ascii: bool = False) -> None:
+    """Writes a :class:`psr.Mesh` as PLY with psr's own writer, so the same mesh gives the same
+    bytes as ``psr --out mesh.ply`` (``--ascii`` with ``ascii=True``): vertex ``x y z`` (float,
+    or double when the points were given in float64), ``nx ny nz`` when the mesh has vertex
+    normals, ``value`` (the density), ``red green blue [alpha]`` (uchar) when it has colours, a
+    float per channel; face ``list uchar int vertex_indices``. Binary little-endian unless
+    ``ascii``. Raises :class:`psr.FileError` (an OSError) when the file cannot be written.
+
+    The mesh written is the library's (which :meth:`psr.Mesh.trim` cuts too); its NumPy arrays
+    are read-only copies of it. A mesh from elsewhere (trimesh, Open3D) is written by its own
+    library.
     """
-    vertices = np.asarray(mesh.vertices)
-    triangles = np.asarray(mesh.triangles)
-    n = len(vertices)
-    if (
-        vertices.ndim != 2
-        or vertices.shape[1] != 3
-        or triangles.ndim != 2
-        or (triangles.shape[1] != 3)
-    ):
-        raise ValueError("write_ply: vertices and triangles must have shape (n, 3) and (m, 3)")
-    if len(triangles) and (triangles.min() < 0 or triangles.max() >= n):
-        raise ValueError("write_ply: a triangle refers to a vertex that does not exist")
-    if n > 2**32:
-        raise ValueError("write_ply: more than 2^32 vertices do not fit PLY's indices")
-    pos_t = "f8" if vertices.dtype == np.float64 else "f4"
-    fields: list[tuple[str, str, np.ndarray]] = [
-        (c, pos_t, vertices[:, i]) for i, c in enumerate("xyz")
-    ]
-    normals = getattr(mesh, "normals", None)
-    if normals is not None and len(normals):
-        fields += [(c, "f4", np.asarray(normals)[:, i]) for i, c in enumerate(("nx", "ny", "nz"))]
-    densities = getattr(mesh, "densities", None)
-    if densities is not None and len(densities):
-        fields.append(("value", "f4", np.asarray(densities)))
-    colors = getattr(mesh, "colors", None)
-    if colors is not None:
-        c8 = np.clip(np.rint(np.asarray(colors, np.float64) * 255.0), 0, 255).astype(np.uint8)
-        fields += [(_COLORS[i], "u1", c8[:, i]) for i in range(c8.shape[1])]
-    for name, values in (getattr(mesh, "channels", None) or {}).items():
-        if name in {f[0] for f in fields}:
-            raise ValueError(f"write_ply: channel {name!r} is named like another property")
-        fields.append((name, "f4", np.asarray(values)))
-    for name, _, values in fields:
-        if len(values) != n:
-            raise ValueError(f"write_ply: {len(values)} {name} values for {n} vertices")
-    index_t = "i4" if n <= 2**31 else "u4"
-    ply_names = {"f4": "float", "f8": "double", "u1": "uchar", "i4": "int", "u4": "uint"}
-    header = [
-        "ply",
-        f"format {'ascii' if ascii else 'binary_little_endian'} 1.0",
-        f"comment written by psr {LIB.psr_version().decode()}",
-        f"element vertex {n}",
-        *(f"property {ply_names[t]} {name}" for name, t, _ in fields),
-        f"element face {len(triangles)}",
-        f"property list uchar {ply_names[index_t]} vertex_indices",
-        "end_header",
-    ]
-    with open(os.fspath(path), "wb") as f:
-        f.write(("\n".join(header) + "\n").encode())
-        if ascii:
-            _write_ascii(f, fields, triangles)
-            return
-        vdt = np.dtype([(name, "<" + t) for name, t, _ in fields])
-        body = np.empty(n, vdt)
-        for name, _, values in fields:
-            body[name] = values
-        f.write(body.tobytes())
-        fdt = np.dtype([("n", "u1"), ("v", "<" + index_t, (3,))])
-        faces = np.empty(len(triangles), fdt)
-        faces["n"] = 3
-        faces["v"] = triangles
-        f.write(faces.tobytes())
+    from ._core import Mesh
 
-
-def _write_ascii(f: IO[bytes], fields: list[tuple[str, str, np.ndarray]], triangles: Any) -> None:
-    columns = [values for _, _, values in fields]
-    for i in range(len(columns[0]) if columns else 0):
-        # str() of a NumPy float is its shortest round-tripping decimal in its own precision.
-        f.write((" ".join(str(c[i]) for c in columns) + "\n").encode())
-    for t in np.asarray(triangles):
-        f.write(f"3 {t[0]} {t[1]} {t[2]}\n".encode())
+    if not isinstance(mesh, Mesh):
+        raise TypeError(
+            f"write_ply writes a psr.Mesh, not {type(mesh).__name__}: write other meshes with "
+            "their own library (trimesh's export, Open3D's write_triangle_mesh)"
+        )
+    flags = (_PLY_ASCII if ascii else 0) | (_PLY_DOUBLE_POSITIONS if mesh._double else 0)
+    message = ctypes.create_string_buffer(_MESSAGE_BYTES)
+    status = LIB.psr_mesh_write_ply(mesh._live(), os.fsencode(path), flags, message, len(message))
+    if status != Status.OK:
+        raise error_for(status, message.value.decode("utf-8", "replace"))
