@@ -22,7 +22,7 @@ use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::error::Result;
 use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
-use crate::parallel::{DistinctIndices, Watch};
+use crate::parallel::{stop_requested, DistinctIndices, Watch};
 use crate::Boundary;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -493,7 +493,11 @@ impl Octree {
                 .collect();
             cells.par_sort_unstable();
             cells.dedup();
+            // Cancel points between the finest depths' sorts and dilations, each a fraction of
+            // a second on a million samples.
+            watch.check()?;
             let mut keys = clip(dilate(&cells, 1));
+            watch.check()?;
             if d < max_depth {
                 let mut parents: Vec<u64> = cores[d as usize + 1]
                     .par_iter()
@@ -542,9 +546,11 @@ impl Octree {
             .into_par_iter()
             .enumerate()
             .map(|(d, core)| {
-                // (A cancelled build skips the levels not yet started.)
+                // (A cancelled build skips the levels not yet started, and stops those under
+                // way between their steps: see `stop_requested`.)
                 (!watch.is_cancelled())
                     .then(|| Level::with_halo(d as u32, &core, mirror_sign, degree))
+                    .flatten()
             })
             .collect::<Option<Vec<Level>>>()
             .ok_or(crate::Error::Cancelled)?;
@@ -665,16 +671,29 @@ impl Level {
     /// nodes, NEAR the core widened by one. The widening runs on bit rows of 8×8×8 bricks
     /// ([`BrickRows`]), and the bricks sorted by key list the nodes in Morton order (a brick's
     /// positions are its keys' low nine bits): no per-node sort and no per-node look-up.
-    fn with_halo(depth: u32, core: &[u64], mirror_sign: Option<f64>, degree: Degree) -> Level {
+    fn with_halo(
+        depth: u32,
+        core: &[u64],
+        mirror_sign: Option<f64>,
+        degree: Degree,
+    ) -> Option<Level> {
+        // None as soon as the watched job that builds the level is cancelled: between the
+        // steps below, and every STOP_CHECK_BRICKS bricks of the serial listing.
+        const STOP_CHECK_BRICKS: usize = 4096;
+        let go_on = || (!stop_requested()).then_some(());
         let core_rows = BrickRows::from_packed(core);
+        go_on()?;
         let near_rows = core_rows.widened();
+        go_on()?;
         let halo_rows = near_rows.widened();
+        go_on()?;
         let mut bricks: Vec<(u64, u64)> = halo_rows
             .rows
             .keys()
             .map(|&b| (BrickRows::morton_of(b), b))
             .collect();
         bricks.par_sort_unstable();
+        go_on()?;
         // Per brick, in key order: the occupancy of K_d, NEAR and the core (Morton positions).
         let masks: Vec<[[u64; 8]; 3]> = bricks
             .par_iter()
@@ -695,7 +714,10 @@ impl Level {
         let mut mirrors = Vec::new();
         let mut faces = Vec::new();
         let n = 1i32 << depth;
-        for (&(brick, _), [halo, near, in_core]) in bricks.iter().zip(&masks) {
+        for (b, (&(brick, _), [halo, near, in_core])) in bricks.iter().zip(&masks).enumerate() {
+            if b % STOP_CHECK_BRICKS == 0 {
+                go_on()?;
+            }
             let first = keys.len() as u32;
             let mut k = first;
             for word in 0..8 {
@@ -755,7 +777,7 @@ impl Level {
                 })
             })
             .collect();
-        Level {
+        Some(Level {
             depth,
             keys,
             flags,
@@ -765,7 +787,7 @@ impl Level {
             face_sign: mirror_sign.unwrap_or(1.0),
             degree,
             index,
-        }
+        })
     }
 }
 
@@ -1141,6 +1163,9 @@ fn merge_unique(a: &[u64], b: &[u64]) -> Vec<u64> {
 /// widened and merged in one pass; along y and z the union of the list shifted by −r..=r is a
 /// merge of sorted lists (a shift along an axis keeps a (z, y, x)-sorted list sorted). No
 /// coordinate may leave −OFFSET..2^21 − OFFSET.
+///
+/// Inside a cancelled watched job ([`stop_requested`]) the result is incomplete: the job stops
+/// at its next cancel point and nothing reads it.
 pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
     let mut along_x = Vec::with_capacity(keys.len() * 2);
     let row_of = |k: u64| k >> BITS;
@@ -1160,6 +1185,9 @@ pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
             i += 1;
         }
         along_x.extend(lo..=hi);
+    }
+    if stop_requested() {
+        return Vec::new();
     }
     let along_y = union_of_shifts(&along_x, 1 << BITS, r);
     drop(along_x);
@@ -1181,6 +1209,9 @@ fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
         .into_par_iter()
         .map(|p| {
             let mut out: Vec<u64> = Vec::new();
+            if stop_requested() {
+                return out;
+            }
             for &s in &shifts {
                 // The keys whose shifted value lies in [bounds[p − 1], bounds[p]).
                 let start = match p {
