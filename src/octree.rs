@@ -548,10 +548,13 @@ impl Octree {
             .map(|(d, core)| {
                 // (A cancelled build skips the levels not yet started, and stops those under
                 // way between their steps: see `stop_requested`.)
-                (!watch.is_cancelled())
-                    .then(|| Level::with_halo(d as u32, &core, mirror_sign, degree))
-                    .flatten()
+                if watch.is_cancelled() {
+                    return Ok(None);
+                }
+                Level::with_halo(d as u32, &core, mirror_sign, degree)
             })
+            .collect::<Result<Vec<Option<Level>>>>()?
+            .into_iter()
             .collect::<Option<Vec<Level>>>()
             .ok_or(crate::Error::Cancelled)?;
         for d in 1..levels.len() {
@@ -676,24 +679,31 @@ impl Level {
         core: &[u64],
         mirror_sign: Option<f64>,
         degree: Degree,
-    ) -> Option<Level> {
-        // None as soon as the watched job that builds the level is cancelled: between the
+    ) -> Result<Option<Level>> {
+        // Ok(None) as soon as the watched job that builds the level is cancelled: between the
         // steps below, and every STOP_CHECK_BRICKS bricks of the serial listing.
         const STOP_CHECK_BRICKS: usize = 4096;
-        let go_on = || (!stop_requested()).then_some(());
         let core_rows = BrickRows::from_packed(core);
-        go_on()?;
+        if stop_requested() {
+            return Ok(None);
+        }
         let near_rows = core_rows.widened();
-        go_on()?;
+        if stop_requested() {
+            return Ok(None);
+        }
         let halo_rows = near_rows.widened();
-        go_on()?;
+        if stop_requested() {
+            return Ok(None);
+        }
         let mut bricks: Vec<(u64, u64)> = halo_rows
             .rows
             .keys()
             .map(|&b| (BrickRows::morton_of(b), b))
             .collect();
         bricks.par_sort_unstable();
-        go_on()?;
+        if stop_requested() {
+            return Ok(None);
+        }
         // Per brick, in key order: the occupancy of K_d, NEAR and the core (Morton positions).
         let masks: Vec<[[u64; 8]; 3]> = bricks
             .par_iter()
@@ -708,15 +718,16 @@ impl Level {
             .iter()
             .map(|m| m[0].iter().map(|w| w.count_ones() as usize).sum::<usize>())
             .sum();
-        let mut keys = Vec::with_capacity(total);
-        let mut flags = Vec::with_capacity(total);
+        // The level's largest arrays (a node each): a refusal is an out-of-memory error.
+        let mut keys = crate::memory::with_capacity(total, "an octree level's node keys")?;
+        let mut flags = crate::memory::with_capacity(total, "an octree level's node flags")?;
         let mut core = Vec::new();
         let mut mirrors = Vec::new();
         let mut faces = Vec::new();
         let n = 1i32 << depth;
         for (b, (&(brick, _), [halo, near, in_core])) in bricks.iter().zip(&masks).enumerate() {
-            if b % STOP_CHECK_BRICKS == 0 {
-                go_on()?;
+            if b % STOP_CHECK_BRICKS == 0 && stop_requested() {
+                return Ok(None);
             }
             let first = keys.len() as u32;
             let mut k = first;
@@ -777,7 +788,7 @@ impl Level {
                 })
             })
             .collect();
-        Some(Level {
+        Ok(Some(Level {
             depth,
             keys,
             flags,
@@ -787,7 +798,7 @@ impl Level {
             face_sign: mirror_sign.unwrap_or(1.0),
             degree,
             index,
-        })
+        }))
     }
 }
 
