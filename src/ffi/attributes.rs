@@ -506,8 +506,8 @@ unsafe fn mesh_of<'a>(m: *const psr_mesh) -> Option<&'a psr_mesh> {
     unsafe { m.as_ref() }
 }
 
-/// A borrowed view of a mesh array: NULL when it is empty.
-fn view(values: &[f32]) -> *const f32 {
+/// A borrowed view of an array a handle owns (a mesh's, a PLY file's): NULL when it is empty.
+pub(super) fn view<T>(values: &[T]) -> *const T {
     if values.is_empty() {
         ptr::null()
     } else {

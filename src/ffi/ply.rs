@@ -6,6 +6,7 @@
 //! needs its message (which line, which element, the OS's reason), so they write it into a
 //! buffer the caller passes (`message`, `message_capacity`; NULL and 0 for none).
 
+use super::attributes::view;
 use super::mesh::psr_mesh;
 use super::panic_boundary::{guard_no_handle, guard_value, require_out, write_out};
 use super::status::{psr_status, Failure, Outcome};
@@ -212,15 +213,6 @@ unsafe fn ply_of<'a>(p: *const psr_ply) -> Option<&'a psr_ply> {
     // SAFETY: `p` is NULL or a live handle (this function's contract); handles never change,
     // so a shared reference is sound with other threads reading it.
     unsafe { p.as_ref() }
-}
-
-/// A view of `values` for C: NULL when empty.
-fn view<T>(values: &[T]) -> *const T {
-    if values.is_empty() {
-        ptr::null()
-    } else {
-        values.as_ptr()
-    }
 }
 
 /// Number of vertices (points) read; 0 if p is NULL.
