@@ -1978,8 +1978,8 @@ psr_status psr_estimate_memory(uint32_t depth, uint64_t point_count, uint64_t *o
  * Reads the PLY file at `path` (a NUL-terminated path; its bytes as they are on Unix) with
  * psr's own reader, the one the psr program uses, and writes a new handle to *out (free it
  * with psr_ply_free). ASCII and binary of either byte order, every scalar type; the `vertex`
- * element needs x y z; nx ny nz (or normal_x ...), red green blue [alpha] (or diffuse_red ...,
- * r g b [a]; integer colours are scaled to 0..1), confidence (or else value: the density a
+ * element needs x y z; nx ny nz (or normal_x ...), red green blue and alpha if present (or
+ * diffuse_red ..., r g b a; integer colours are scaled to 0..1), confidence (or else value: the density a
  * psr mesh carries), sensor_x sensor_y sensor_z (or vp_x ..., beamorigin_x ...) and every other
  * scalar property (a "channel") are read when present; a `face` element's vertex_indices (or
  * vertex_index) polygons become triangles, an n-gon a fan of n - 2 (none when the file has
@@ -2136,8 +2136,9 @@ const uint32_t *psr_ply_triangles(const psr_ply *p);
  * Writes m to the file at `path` (created or replaced) as PLY, with the writer the psr program
  * uses, so the same mesh gives the same bytes as `psr --out mesh.ply`: vertex x y z (float;
  * double with PSR_PLY_DOUBLE_POSITIONS or when m's origin is not 0), nx ny nz when m has
- * vertex normals, value (the density), red green blue [alpha] (uchar) when it has colours, a
- * float per channel; face `list uchar int vertex_indices` (uint past 2^31 vertices).
+ * vertex normals, value (the density), red green blue and alpha if RGBA (uchar) when it has
+ * colours, a float per channel; face `list uchar int vertex_indices` (uint past 2^31
+ * vertices).
  * Binary little-endian unless `flags` has PSR_PLY_ASCII or PSR_PLY_BIG_ENDIAN.
  *
  * m and path must not be NULL; message may be NULL (or message_capacity 0). Returns
