@@ -375,3 +375,33 @@ def test_max_memory_out_of_memory_and_estimate(
         psr.reconstruct(*ball, depth=6, max_memory=4096)
     with pytest.raises(ValueError):
         psr.Reconstructor(max_memory=-1)
+
+
+def test_a_cloud_file_gives_its_sensors_to_sensor_orientation(tmp_path: Path) -> None:
+    # A sphere without normals whose file stores, per point, a "scanner" inside it: the
+    # normals face their scanner, so with SENSORS orientation (and only then) they point inward
+    # and the mesh comes out inside-out (negative signed volume), which propagation would not do.
+    p, _ = sphere(3000, seed=4)
+    sensors = p * 0.3
+    path = tmp_path / "scan.ply"
+    header = (
+        "ply\nformat ascii 1.0\nelement vertex 3000\nproperty float x\nproperty float y\n"
+        "property float z\nproperty float sensor_x\nproperty float sensor_y\n"
+        "property float sensor_z\nend_header\n"
+    )
+    rows = "\n".join(" ".join(f"{v:.6f}" for v in (*a, *b)) for a, b in zip(p, sensors))
+    path.write_text(header + rows + "\n")
+    cloud = psr.read_ply(path)
+    assert cloud.normals is None and cloud.sensors is not None
+
+    def signed_volume(m: psr.Mesh) -> float:
+        v = m.vertices.astype(np.float64)[m.triangles.astype(np.int64)]
+        return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6)
+
+    facing = psr.reconstruct(cloud, depth=5, normal_orientation="sensors")
+    assert signed_volume(facing) < -3.0  # about -4.19, the unit ball inside-out
+    propagated = psr.reconstruct(cloud, depth=5)
+    assert signed_volume(propagated) > 3.0
+    with psr.Reconstructor(depth=5, normal_orientation=psr.Orientation.SENSORS) as r:
+        r.add_points(cloud)
+        assert same_mesh(r.solve(), facing)

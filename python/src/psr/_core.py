@@ -629,7 +629,9 @@ class Reconstructor:
         are read in place, float64 ones too (psr keeps them in double: the mesh then has
         float64 vertices in the input's coordinates, for scans far from the origin); other
         layouts are copied. An Open3D ``PointCloud`` or a :class:`psr.PointCloud` is taken
-        whole (its normals and colours unless given here).
+        whole (its normals and colours unless given here; a psr.PointCloud without normals
+        also gives its sensor positions when ``normal_orientation`` is SENSORS, as the psr
+        program's ``--orientation sensors`` reads them from the file).
 
         ``normals``: shape (n, 3), any length but zero; None to have psr estimate and orient
         them (see ``normal_neighbors``, ``normal_orientation``, ``viewpoint``), then optionally
@@ -644,6 +646,17 @@ class Reconstructor:
         :class:`psr.PsrError` subclass (a ValueError) naming the first bad index, and nothing of
         it is added; earlier batches stay.
         """
+        from ._ply import PointCloud
+
+        if (
+            isinstance(points, PointCloud)
+            and normals is None
+            and points.normals is None
+            and sensor is None
+            and sensors is None
+            and self.normal_orientation == Orientation.SENSORS
+        ):
+            sensors = points.sensors
         points, normals, colors, confidence, channels = _unpack_cloud(
             points, normals, colors, confidence, channels
         )
