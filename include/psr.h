@@ -465,8 +465,8 @@ typedef struct psr_reconstructor psr_reconstructor;
  *
  * It is called only from inside psr_reconstructor_solve (or psr_mesh_trim, when set in its
  * psr_trim_options; the same rules hold there, with PSR_STAGE_TRIM), on the thread that called
- * it, never concurrently with itself. It is called while each stage runs, not only between stages: the
- * stage's work runs on psr's worker threads while the calling thread waits in slices of at most
+ * it, never concurrently with itself. It is called while each stage runs, not only between
+ * stages: the stage's work runs on psr's worker threads while the calling thread waits in slices of at most
  * 20 ms and calls it after each slice with the fraction of the stage done so far (within a
  * stage never less than the call before), then with 1 when the stage ends; so a host that
  * polls for a "stop" (a Cancel button, Ctrl-C) from the callback sees it within about 20 ms
@@ -524,8 +524,8 @@ typedef struct {
      * psr_reconstructor_solve (see psr_progress_fn) with PSR_STAGE_TRIM, on the thread that
      * called psr_mesh_trim, at least every 20 ms while the cut runs, then with 1; returning
      * false cancels (psr_mesh_trim returns PSR_STATUS_CANCELLED and no mesh, within a step of
-     * the cut: 9 steps, each a parallel pass over the mesh). Added in 0.1.0 after
-     * min_piece_triangles.
+     * the cut: 9 steps, each a parallel pass over the mesh). A struct from a header without
+     * this field ends before it: then no callback is called.
      */
     psr_progress_fn progress;
     /**
@@ -663,8 +663,8 @@ const char *psr_status_string(int status);
 /**
  * The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
  * (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
- * "extract", "mesh", "normals" or "trim", in psr_stage's order. Any int is accepted: unknown values give
- * "unknown". Never NULL.
+ * "extract", "mesh", "normals" or "trim", in psr_stage's order. Any int is accepted: unknown
+ * values give "unknown". Never NULL.
  */
 const char *psr_stage_string(int stage);
 
@@ -1521,8 +1521,8 @@ psr_status psr_trim_options_init(psr_trim_options *opts, size_t struct_size);
  * field this library does not know set to non-zero), PSR_STATUS_INVALID_PARAMETER (an unknown
  * threshold kind, or a value out of the range its field documents), PSR_STATUS_CANCELLED
  * (options->progress returned false), PSR_STATUS_THREADS_UNAVAILABLE or
- * PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
- * message (there is no reconstructor to keep it on). On failure *out is left untouched.
+ * PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no message (there is no reconstructor to
+ * keep it on). On failure *out is left untouched.
  *
  * Runs on the calling thread with its own worker threads (options->threads). m is only read:
  * several threads may trim (or read) the same mesh at once.

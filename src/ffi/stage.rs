@@ -67,8 +67,8 @@ static UNKNOWN_STAGE: &CStr = c"unknown";
 
 /// The short lower-case name of a stage, e.g. "density", as a static NUL-terminated string
 /// (never free it): "points", "density", "octree", "splat", "system", "solve", "isovalue",
-/// "extract", "mesh", "normals" or "trim", in psr_stage's order. Any int is accepted: unknown values give
-/// "unknown". Never NULL.
+/// "extract", "mesh", "normals" or "trim", in psr_stage's order. Any int is accepted: unknown
+/// values give "unknown". Never NULL.
 #[no_mangle]
 pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
     guard_value("psr_stage_string", UNKNOWN_STAGE.as_ptr(), || {
@@ -88,8 +88,8 @@ pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
 ///
 /// It is called only from inside psr_reconstructor_solve (or psr_mesh_trim, when set in its
 /// psr_trim_options; the same rules hold there, with PSR_STAGE_TRIM), on the thread that called
-/// it, never concurrently with itself. It is called while each stage runs, not only between stages: the
-/// stage's work runs on psr's worker threads while the calling thread waits in slices of at most
+/// it, never concurrently with itself. It is called while each stage runs, not only between
+/// stages: the stage's work runs on psr's worker threads while the calling thread waits in slices of at most
 /// 20 ms and calls it after each slice with the fraction of the stage done so far (within a
 /// stage never less than the call before), then with 1 when the stage ends; so a host that
 /// polls for a "stop" (a Cancel button, Ctrl-C) from the callback sees it within about 20 ms

@@ -67,8 +67,8 @@ pub struct psr_trim_options {
     /// psr_reconstructor_solve (see psr_progress_fn) with PSR_STAGE_TRIM, on the thread that
     /// called psr_mesh_trim, at least every 20 ms while the cut runs, then with 1; returning
     /// false cancels (psr_mesh_trim returns PSR_STATUS_CANCELLED and no mesh, within a step of
-    /// the cut: 9 steps, each a parallel pass over the mesh). Added in 0.1.0 after
-    /// min_piece_triangles.
+    /// the cut: 9 steps, each a parallel pass over the mesh). A struct from a header without
+    /// this field ends before it: then no callback is called.
     pub progress: psr_progress_fn,
     /// Passed as the callback's first argument; the library never reads it. Default NULL.
     pub progress_user_data: *mut c_void,
@@ -302,8 +302,8 @@ unsafe fn try_trim(
 /// field this library does not know set to non-zero), PSR_STATUS_INVALID_PARAMETER (an unknown
 /// threshold kind, or a value out of the range its field documents), PSR_STATUS_CANCELLED
 /// (options->progress returned false), PSR_STATUS_THREADS_UNAVAILABLE or
-/// PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no
-/// message (there is no reconstructor to keep it on). On failure *out is left untouched.
+/// PSR_STATUS_INTERNAL_ERROR. A mesh function keeps no message (there is no reconstructor to
+/// keep it on). On failure *out is left untouched.
 ///
 /// Runs on the calling thread with its own worker threads (options->threads). m is only read:
 /// several threads may trim (or read) the same mesh at once.
