@@ -466,9 +466,10 @@ typedef struct psr_reconstructor psr_reconstructor;
  * It is called only from inside psr_reconstructor_solve (or psr_mesh_trim, when set in its
  * psr_trim_options; the same rules hold there, with PSR_STAGE_TRIM), on the thread that called
  * it, never concurrently with itself. It is called while each stage runs, not only between
- * stages: the stage's work runs on psr's worker threads while the calling thread waits in slices of at most
- * 20 ms and calls it after each slice with the fraction of the stage done so far (within a
- * stage never less than the call before), then with 1 when the stage ends; so a host that
+ * stages: the stage's work runs on psr's worker threads while the calling thread waits in
+ * slices of at most 20 ms and calls it after each slice with the fraction of the stage done so
+ * far (within a stage never less than the call before), then with 1 when the stage ends; so a
+ * host that
  * polls for a "stop" (a Cancel button, Ctrl-C) from the callback sees it within about 20 ms
  * plus the callback's own time. After it returns false it is not called again: the stage stops
  * at its next cancel point (docs/architecture.md lists them: batches of work milliseconds apart,
@@ -1979,9 +1980,9 @@ psr_status psr_estimate_memory(uint32_t depth, uint64_t point_count, uint64_t *o
  * psr's own reader, the one the psr program uses, and writes a new handle to *out (free it
  * with psr_ply_free). ASCII and binary of either byte order, every scalar type; the `vertex`
  * element needs x y z; nx ny nz (or normal_x ...), red green blue and alpha if present (or
- * diffuse_red ..., r g b a; integer colours are scaled to 0..1), confidence (or else value: the density a
- * psr mesh carries), sensor_x sensor_y sensor_z (or vp_x ..., beamorigin_x ...) and every other
- * scalar property (a "channel") are read when present; a `face` element's vertex_indices (or
+ * diffuse_red ..., r g b a; integer colours are scaled to 0..1), confidence (or else value:
+ * the density a psr mesh carries), sensor_x sensor_y sensor_z (or vp_x ..., beamorigin_x ...)
+ * and every other scalar property (a "channel") are read when present; a `face` element's vertex_indices (or
  * vertex_index) polygons become triangles, an n-gon a fan of n - 2 (none when the file has
  * no face element). Other elements and list properties are skipped. A point cloud, or a mesh
  * psr or another program wrote: the views below give every part.

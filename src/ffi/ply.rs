@@ -130,9 +130,9 @@ unsafe fn path_argument(function: &str, path: *const c_char) -> Result<PathBuf, 
 /// psr's own reader, the one the psr program uses, and writes a new handle to *out (free it
 /// with psr_ply_free). ASCII and binary of either byte order, every scalar type; the `vertex`
 /// element needs x y z; nx ny nz (or normal_x ...), red green blue and alpha if present (or
-/// diffuse_red ..., r g b a; integer colours are scaled to 0..1), confidence (or else value: the density a
-/// psr mesh carries), sensor_x sensor_y sensor_z (or vp_x ..., beamorigin_x ...) and every other
-/// scalar property (a "channel") are read when present; a `face` element's vertex_indices (or
+/// diffuse_red ..., r g b a; integer colours are scaled to 0..1), confidence (or else value:
+/// the density a psr mesh carries), sensor_x sensor_y sensor_z (or vp_x ..., beamorigin_x ...)
+/// and every other scalar property (a "channel") are read when present; a `face` element's vertex_indices (or
 /// vertex_index) polygons become triangles, an n-gon a fan of n - 2 (none when the file has
 /// no face element). Other elements and list properties are skipped. A point cloud, or a mesh
 /// psr or another program wrote: the views below give every part.

@@ -89,9 +89,10 @@ pub extern "C" fn psr_stage_string(stage: c_int) -> *const c_char {
 /// It is called only from inside psr_reconstructor_solve (or psr_mesh_trim, when set in its
 /// psr_trim_options; the same rules hold there, with PSR_STAGE_TRIM), on the thread that called
 /// it, never concurrently with itself. It is called while each stage runs, not only between
-/// stages: the stage's work runs on psr's worker threads while the calling thread waits in slices of at most
-/// 20 ms and calls it after each slice with the fraction of the stage done so far (within a
-/// stage never less than the call before), then with 1 when the stage ends; so a host that
+/// stages: the stage's work runs on psr's worker threads while the calling thread waits in
+/// slices of at most 20 ms and calls it after each slice with the fraction of the stage done so
+/// far (within a stage never less than the call before), then with 1 when the stage ends; so a
+/// host that
 /// polls for a "stop" (a Cancel button, Ctrl-C) from the callback sees it within about 20 ms
 /// plus the callback's own time. After it returns false it is not called again: the stage stops
 /// at its next cancel point (docs/architecture.md lists them: batches of work milliseconds apart,
