@@ -1027,7 +1027,8 @@ class Mesh:
         return self._ptr
 
     def close(self) -> None:
-        """Frees the psr_mesh now (the NumPy arrays stay; trim and statistics no longer work)."""
+        """Frees the psr_mesh now (the NumPy arrays stay; trim, write_ply and the statistics no
+        longer work)."""
         self._finalizer()
 
     def __repr__(self) -> str:
@@ -1205,8 +1206,8 @@ class Mesh:
         )
 
     def write_ply(self, path: Any, *, ascii: bool = False) -> None:
-        """Writes the mesh as PLY in the layout of the psr command-line program (see
-        :func:`psr.write_ply`)."""
+        """Writes the mesh as PLY with the psr program's writer, the same bytes as ``psr --out``
+        (see :func:`psr.write_ply`); the library's mesh is written, so not after :meth:`close`."""
         from ._ply import write_ply
 
         write_ply(path, self, ascii=ascii)
