@@ -27,11 +27,7 @@ impl psr_mesh {
     /// The C handle of `mesh` (every psr_mesh is made here).
     pub(super) fn new(mesh: Mesh) -> psr_mesh {
         // Channel names hold no NUL (PointSet refuses control characters in them).
-        let channel_names = mesh
-            .channels
-            .iter()
-            .map(|c| CString::new(c.name.replace('\0', "\u{FFFD}")).unwrap_or_default())
-            .collect();
+        let channel_names = super::channel_names(&mesh.channels);
         psr_mesh {
             mesh,
             channel_names,

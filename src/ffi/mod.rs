@@ -66,6 +66,17 @@
 /// uninitialised size is refused rather than read as a huge struct.
 const MAX_STRUCT_SIZE: usize = 4096;
 
+/// `text` as a C string, each NUL byte (which would end it early) replaced by U+FFFD: for the
+/// names and messages psr hands to C.
+fn c_string(text: &str) -> std::ffi::CString {
+    std::ffi::CString::new(text.replace('\0', "\u{FFFD}")).unwrap_or_default()
+}
+
+/// The names of `channels` as C strings (see [`c_string`]), for the handles that lend them.
+fn channel_names(channels: &[crate::Channel]) -> Vec<std::ffi::CString> {
+    channels.iter().map(|c| c_string(&c.name)).collect()
+}
+
 mod panic_boundary;
 // psr_status_string.
 mod status;

@@ -170,13 +170,8 @@ pub unsafe extern "C" fn psr_ply_read(
             };
             Failure::new(status, format!("{F}: {e}"))
         })?;
-        // A property name is a header word, which may hold a NUL byte: replaced, as a C string
-        // cannot carry it.
-        let channel_names = points
-            .channels
-            .iter()
-            .map(|c| CString::new(c.name.replace('\0', "\u{FFFD}")).unwrap_or_default())
-            .collect();
+        // A property name is a header word, which may hold a NUL byte: replaced.
+        let channel_names = super::channel_names(&points.channels);
         let handle = Box::into_raw(Box::new(psr_ply {
             points,
             triangles,

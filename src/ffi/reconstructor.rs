@@ -71,8 +71,7 @@ impl psr_reconstructor {
 
     pub(super) fn set_message(&self, message: String) {
         // Interior NULs would truncate the C string; replace them rather than lose the message.
-        let message = CString::new(message.replace('\0', "\u{FFFD}")).unwrap_or_default();
-        *self.last_error.borrow_mut() = Some(message);
+        *self.last_error.borrow_mut() = Some(super::c_string(&message));
     }
 }
 
