@@ -34,8 +34,10 @@ pub const NONE: u32 = u32::MAX;
 pub const CORE: u8 = 1;
 /// Within one node of the core: the node functions of the core cover (part of) this cell.
 pub const NEAR: u8 = 2;
-/// A core node with at least one core child: in the leaf partition the isosurface is extracted
-/// on, its eight children replace it.
+/// A node with a core descendant (a core child, or a split one): in the leaf partition the
+/// isosurface is extracted on, its eight children replace it. Usually a core node; with degree 1
+/// and Dirichlet boundaries also a face node (outside the core) above a core node next to the
+/// face, so that every split node's parent is split too and the leaves tile the cube.
 pub const SPLIT: u8 = 4;
 
 /// The nodes of one depth.
@@ -557,20 +559,31 @@ impl Octree {
             .into_iter()
             .collect::<Option<Vec<Level>>>()
             .ok_or(crate::Error::Cancelled)?;
-        for d in 1..levels.len() {
-            watch.step(d, levels.len(), 0.8, 1.0)?;
+        // Finest first, so that a node split at depth d splits its parent at d − 1 too.
+        for d in (1..levels.len()).rev() {
+            watch.step(levels.len() - d, levels.len(), 0.8, 1.0)?;
             let (coarse, fine) = levels.split_at_mut(d);
             let (coarse, fine) = (&mut coarse[d - 1], &fine[0]);
-            // The core of depth d − 1 holds the parents of the core of depth d.
-            let core_keys: Vec<u64> = fine
+            // The core of depth d − 1 holds the parents of the core of depth d, but for
+            // degree 1 with Dirichlet boundaries: a core node next to a face (index 1) has a
+            // face node (index 0) for its parent, which that boundary keeps out of the core.
+            // It is split all the same (and its parent, a face node too), or the coarser leaf
+            // around it would overlap the core node's cell.
+            let split_keys: Vec<u64> = fine
                 .core
                 .par_iter()
-                .map(|&i| fine.keys[i as usize])
+                .copied()
+                .chain(
+                    (0..fine.len() as u32)
+                        .into_par_iter()
+                        .filter(|&i| fine.flags[i as usize] & (SPLIT | CORE) == SPLIT),
+                )
+                .map(|i| fine.keys[i as usize])
                 .collect();
-            let mut parents = vec![NONE; core_keys.len()];
-            coarse_parents(coarse, &core_keys, &mut parents);
-            // (Every parent is there but a degree-1 Dirichlet face node's, which is no node of
-            // depth 0, where that core is empty.)
+            let mut parents = vec![NONE; split_keys.len()];
+            coarse_parents(coarse, &split_keys, &mut parents);
+            // (Every parent is there but a degree-1 Dirichlet face node's at depth 0, which
+            // has no nodes then: the extraction splits the root whenever there is a depth 1.)
             for p in parents.into_iter().filter(|&p| p != NONE) {
                 coarse.flags[p as usize] |= SPLIT;
             }
@@ -1394,6 +1407,57 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Degree 1 with Dirichlet boundaries keeps the face corners out of the core, so the
+    /// parent of a core node next to a face is a face node: it is split all the same, and so
+    /// are its ancestors. Every split node's parent is split, every core node's parent is
+    /// split, and a node is split exactly when it has a core or split child.
+    #[test]
+    fn degree_one_dirichlet_splits_the_face_nodes_above_core_nodes() {
+        // Sample cells along the x = 0 face at depth 4, with nothing deeper than depth 1
+        // complete: the core reaches index 1 there, whose parents have index 0.
+        let cells: Vec<Coord> = (0..16).flat_map(|y| [[0, y, 3], [0, y, 12]]).collect();
+        let mut sample_cells = vec![Vec::new(); 5];
+        sample_cells[4] = cells;
+        let tree = Octree::build_for(sample_cells, 0, Boundary::Dirichlet, Degree::One);
+        let mut face_nodes_split = 0;
+        for d in 0..tree.levels.len() - 1 {
+            let (level, finer) = (&tree.levels[d], &tree.levels[d + 1]);
+            for j in 0..level.len() as u32 {
+                let c = level.coord(j);
+                let split_or_core_child = (0..8).any(|k| {
+                    let child = [0, 1, 2].map(|a| 2 * c[a] + (k >> a & 1));
+                    finer
+                        .find(child)
+                        .is_some_and(|n| finer.flags[n as usize] & (CORE | SPLIT) != 0)
+                });
+                let flags = level.flags[j as usize];
+                assert_eq!(
+                    flags & SPLIT != 0,
+                    split_or_core_child,
+                    "depth {d} node {c:?}"
+                );
+                if flags & (SPLIT | CORE) == SPLIT {
+                    face_nodes_split += 1;
+                }
+            }
+            for j in 0..finer.len() as u32 {
+                if finer.flags[j as usize] & (CORE | SPLIT) == 0 {
+                    continue;
+                }
+                // Depth 0 holds no node with these boundaries: the root stands for itself.
+                if let Some((p, _)) = finer.parent_in(level, j) {
+                    assert!(level.flags[p as usize] & SPLIT != 0, "depth {d}");
+                } else {
+                    assert_eq!(d, 0, "the parent of {:?} is missing", finer.coord(j));
+                }
+            }
+        }
+        assert!(
+            face_nodes_split > 0,
+            "the case this test is about did not arise"
+        );
     }
 
     #[test]

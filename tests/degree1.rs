@@ -10,8 +10,8 @@
 
 use psr::{reconstruct, Boundary, Error, Mesh, Params, PointSet};
 use psr_test_support::{
-    chamfer_to_surface, sample_sphere, sample_torus, signed_volume, sphere_bbox_diagonal,
-    sphere_distance, torus_bbox_diagonal, torus_distance, MeshTopology,
+    chamfer_to_surface, sample_box, sample_sphere, sample_torus, signed_volume,
+    sphere_bbox_diagonal, sphere_distance, torus_bbox_diagonal, torus_distance, MeshTopology, Rng,
 };
 
 const CHAMFER_MESH_SAMPLES: usize = 200_000;
@@ -198,6 +198,44 @@ fn samples_too_sparse_for_any_depth_reconstruct_with_degree_one_and_dirichlet() 
             let mesh = run(&points, &params, &label);
             let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
             assert!(topo.is_closed_manifold(), "{label}: {topo}");
+        }
+    }
+}
+
+/// Proves: with degree 1 and Dirichlet boundaries, the leaves the mesh is extracted on tile the
+/// cube when samples lie next to its faces, so the mesh is a closed, consistently oriented
+/// 2-manifold. Degree-1 nodes sit on cell corners and Dirichlet keeps the face corners out of
+/// the core, so a core node next to a face (index 1) has a face node for its parent; that
+/// parent was not marked split, and the coarser leaf around it overlapped the core node's cell:
+/// edges in three triangles and in one (found by the `reconstruct` fuzz target,
+/// `fuzz/regressions/reconstruct/degree1_dirichlet_scale1_folded_edges`: 67 points, depth 5).
+/// Here the samples cover a box's faces and the cube is their bounding box (scale 1), at
+/// depths 3 to 7, with the tree complete to depth 0 (adaptive from the root) and to the
+/// default full depth, and a cloud with normals of random lengths and signs.
+#[test]
+fn degree_one_dirichlet_leaves_tile_the_cube_when_samples_touch_its_faces() {
+    let (positions, normals) = sample_box(4_000, [1.0, 0.8, 0.6], 5);
+    let mut rng = Rng::new(11);
+    let random_normals: Vec<[f32; 3]> = (0..positions.len())
+        .map(|_| std::array::from_fn(|_| rng.uniform(-3.0, 3.0) as f32))
+        .collect();
+    for (cloud, normals) in [("box", &normals), ("random normals", &random_normals)] {
+        let points = point_set(&positions, normals);
+        for depth in 3..=7 {
+            for full_depth in [0, 5] {
+                let params = Params::default()
+                    .with_degree(1)
+                    .with_boundary(Boundary::Dirichlet)
+                    .with_scale(1.0)
+                    .with_depth(depth)
+                    .with_full_depth(full_depth)
+                    .with_min_component_samples(0);
+                let label = format!("{cloud}, depth {depth}, full depth {full_depth}");
+                let mesh = run(&points, &params, &label);
+                let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
+                assert!(topo.is_closed_manifold(), "{label}: {topo}");
+                assert!(topo.is_consistently_oriented(), "{label}: {topo}");
+            }
         }
     }
 }
