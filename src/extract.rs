@@ -4,11 +4,11 @@
 //! **Leaves.** A node with a core descendant is *split* ([`SPLIT`]: a core node, or with degree
 //! 1 and Dirichlet boundaries a face node above core nodes next to the face): its eight
 //! children replace it (a child outside the core is a leaf too). Every other core node is a
-//! leaf. χ is evaluated exactly
-//! through the whole tree, so a coarse leaf is one where χ is smooth at that scale, and the mesh
-//! is as fine as the samples there: triangles shrink where samples are dense and grow where they
-//! are sparse, as in the paper, instead of cutting the whole surface at the finest depth any
-//! sample reaches (at depth 11 on the bunny scans that was 4× the triangles for the same χ).
+//! leaf. χ is evaluated exactly through the whole tree, so a coarse leaf is one where χ is
+//! smooth at that scale, and the mesh is as fine as the samples there: triangles shrink where
+//! samples are dense and grow where they are sparse, as in the paper, instead of cutting the
+//! whole surface at the finest depth any sample reaches (at depth 11 on the bunny scans that was
+//! 4× the triangles for the same χ).
 //!
 //! **The tree is 2:1 balanced.** The core of depth d contains the parents of the core of depth
 //! d + 1 widened by one node ([`crate::octree::Octree::build`]), so every depth-d neighbour

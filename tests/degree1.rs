@@ -211,7 +211,9 @@ fn samples_too_sparse_for_any_depth_reconstruct_with_degree_one_and_dirichlet() 
 /// `fuzz/regressions/reconstruct/degree1_dirichlet_scale1_folded_edges`: 67 points, depth 5).
 /// Here the samples cover a box's faces and the cube is their bounding box (scale 1), at
 /// depths 3 to 7, with the tree complete to depth 0 (adaptive from the root) and to the
-/// default full depth, and a cloud with normals of random lengths and signs.
+/// default full depth, and a cloud with normals of random lengths and signs; and, at the
+/// default scale 1.1, a sphere whose samples are read coarse (20 per node), so that the core
+/// of the coarse depths reaches the faces (found by `scripts/topology_sweep.py`).
 #[test]
 fn degree_one_dirichlet_leaves_tile_the_cube_when_samples_touch_its_faces() {
     let (positions, normals) = sample_box(4_000, [1.0, 0.8, 0.6], 5);
@@ -238,4 +240,19 @@ fn degree_one_dirichlet_leaves_tile_the_cube_when_samples_touch_its_faces() {
             }
         }
     }
+    let (positions, normals) = sample_sphere(20_000, 1.0, [0.0; 3], 3);
+    let points = point_set(&positions, &normals);
+    let params = Params::default()
+        .with_degree(1)
+        .with_boundary(Boundary::Dirichlet)
+        .with_depth(7)
+        .with_full_depth(0)
+        .with_kernel_depth(Some(5))
+        .with_samples_per_node(20.0)
+        .with_min_component_samples(0);
+    let label = "sphere read coarse, scale 1.1";
+    let mesh = run(&points, &params, label);
+    let topo = MeshTopology::of(&mesh.positions, &mesh.triangles);
+    assert!(topo.is_closed_manifold(), "{label}: {topo}");
+    assert!(topo.is_consistently_oriented(), "{label}: {topo}");
 }
