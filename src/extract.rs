@@ -641,8 +641,10 @@ pub fn extract(
     // its block looked up anyway (a pure function of the position, so the leaves sharing a
     // corner get the same value). Every other point (`looked_up`) is evaluated once and
     // kept in `values`: coarser leaves share their points more, and evaluating them costs
-    // a look-up each.
-    let plan_batch = |batch: &[Leaf]| -> Vec<Plan> {
+    // a look-up each. Into a buffer kept from batch to batch: a batch's plans are about 14 MB,
+    // and a fresh buffer each time faulted in fresh pages (a quarter of a degree-1 run's page
+    // faults on the bunny at depth 10).
+    let plan_batch = |batch: &[Leaf], plans: &mut Vec<Plan>| {
         batch
             .par_iter()
             .map(|leaf| {
@@ -662,19 +664,22 @@ pub fn extract(
                 }
                 (block, points, used, values, looked_up)
             })
-            .collect()
+            .collect_into_vec(plans);
     };
 
     // Wave by wave, each in batches of a fixed size: the first wave holds every leaf with a
     // sample, and planning it at once held ~0.6 KB per leaf (bunny depth 10: 400 MB).
     let mut next_frontier = Vec::new();
     let mut done = 0;
-    // The next batch of the wave, planned while this one's vertices are numbered.
-    let mut planned: Option<Vec<Plan>> = None;
+    // This batch's plans, and the next batch's, planned while this one's vertices are numbered.
+    let (mut plans, mut next_plans): (Vec<Plan>, Vec<Plan>) = (Vec::new(), Vec::new());
+    let mut planned = false;
     while done < frontier.len() {
         let batch = &frontier[done..(done + WAVE_BATCH).min(frontier.len())];
         done += batch.len();
-        let mut plans = planned.take().unwrap_or_else(|| plan_batch(batch));
+        if !planned {
+            plan_batch(batch, &mut plans);
+        }
         let mut needed: Vec<u64> = plans
             .par_iter()
             .flat_map_iter(|&(_, points, _, _, looked_up)| {
@@ -761,11 +766,15 @@ pub fn extract(
             }
             (new_edges, crossing_ids)
         };
-        let ((new_edges, crossing_ids), next_plans) = rayon::join(number, || {
-            (!following.is_empty()).then(|| plan_batch(following))
+        let ((new_edges, crossing_ids), next_planned) = rayon::join(number, || {
+            let planning = !following.is_empty();
+            if planning {
+                plan_batch(following, &mut next_plans);
+            }
+            planning
         });
-        planned = next_plans;
-        drop(plans);
+        planned = next_planned;
+        std::mem::swap(&mut plans, &mut next_plans);
         // Place the new vertices (independent of each other: in parallel), then triangulate.
         let placed: Vec<(DVec3, DVec3)> = new_edges
             .par_iter()
