@@ -17,8 +17,10 @@ fn torus() -> (PointSet, Params) {
     (points, Params::default().with_depth(8).with_threads(2))
 }
 
-/// The stages this input keeps busy long enough (0.2 s or more) that a slice of 20 ms falls
-/// inside them.
+/// The stages this input keeps busy long enough (0.1 s or more here) that a slice of 20 ms
+/// falls inside them after their first progress step (the system's is half-way through its
+/// largest depth: before it reported per depth only, and its first report, 2/9 of the way,
+/// came so late that a run at low load saw 0 then 1 in two of six runs).
 const LONG: [Stage; 5] = [
     Stage::Octree,
     Stage::Splat,
