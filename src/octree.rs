@@ -34,10 +34,10 @@ pub const NONE: u32 = u32::MAX;
 pub const CORE: u8 = 1;
 /// Within one node of the core: the node functions of the core cover (part of) this cell.
 pub const NEAR: u8 = 2;
-/// A node with a core descendant (a core child, or a split one): in the leaf partition the
-/// isosurface is extracted on, its eight children replace it. Usually a core node; with degree 1
-/// and Dirichlet boundaries also a face node (outside the core) above a core node next to the
-/// face, so that every split node's parent is split too and the leaves tile the cube.
+/// A node with at least one core child: in the leaf partition the isosurface is extracted on,
+/// its eight children replace it. Usually a core node; with degree 1 and Dirichlet boundaries
+/// also a face node (outside the core) above core nodes next to the face. Every split node's
+/// parent is split too, so the leaves tile the cube.
 pub const SPLIT: u8 = 4;
 
 /// The nodes of one depth.
@@ -559,29 +559,23 @@ impl Octree {
             .into_iter()
             .collect::<Option<Vec<Level>>>()
             .ok_or(crate::Error::Cancelled)?;
-        // Finest first, so that a node split at depth d splits its parent at d − 1 too.
-        for d in (1..levels.len()).rev() {
-            watch.step(levels.len() - d, levels.len(), 0.8, 1.0)?;
+        for d in 1..levels.len() {
+            watch.step(d, levels.len(), 0.8, 1.0)?;
             let (coarse, fine) = levels.split_at_mut(d);
             let (coarse, fine) = (&mut coarse[d - 1], &fine[0]);
-            // The core of depth d − 1 holds the parents of the core of depth d, but for
-            // degree 1 with Dirichlet boundaries: a core node next to a face (index 1) has a
-            // face node (index 0) for its parent, which that boundary keeps out of the core.
-            // It is split all the same (and its parent, a face node too), or the coarser leaf
-            // around it would overlap the core node's cell.
-            let split_keys: Vec<u64> = fine
+            // The core of depth d − 1 holds the parents of the core of depth d, but for degree
+            // 1 with Dirichlet boundaries: a core node next to a face (index 1) has a face node
+            // (index 0) for its parent, which that boundary keeps out of the core. It is in the
+            // halo and split all the same; its own parent is split too, since the core node
+            // beside it (index 1, the parents' core widened by one) is one of that parent's
+            // children.
+            let core_keys: Vec<u64> = fine
                 .core
                 .par_iter()
-                .copied()
-                .chain(
-                    (0..fine.len() as u32)
-                        .into_par_iter()
-                        .filter(|&i| fine.flags[i as usize] & (SPLIT | CORE) == SPLIT),
-                )
-                .map(|i| fine.keys[i as usize])
+                .map(|&i| fine.keys[i as usize])
                 .collect();
-            let mut parents = vec![NONE; split_keys.len()];
-            coarse_parents(coarse, &split_keys, &mut parents);
+            let mut parents = vec![NONE; core_keys.len()];
+            coarse_parents(coarse, &core_keys, &mut parents);
             // (Every parent is there but a degree-1 Dirichlet face node's at depth 0, which
             // has no nodes then: the extraction splits the root whenever there is a depth 1.)
             for p in parents.into_iter().filter(|&p| p != NONE) {
