@@ -1,8 +1,8 @@
 //! Stage 8 — isosurface extraction (§4.4): a watertight, manifold mesh of {χ = γ} on the leaves
 //! of the octree.
 //!
-//! **Leaves.** A node with a core descendant is *split* ([`SPLIT`]: a core node, or with degree
-//! 1 and Dirichlet boundaries a face node above core nodes next to the face): its eight
+//! **Leaves.** A node with a core child is *split* ([`SPLIT`]: a core node, or with degree 1
+//! and Dirichlet boundaries a face node above core nodes next to the face): its eight
 //! children replace it (a child outside the core is a leaf too). Every other core node is a
 //! leaf. χ is evaluated exactly through the whole tree, so a coarse leaf is one where χ is
 //! smooth at that scale, and the mesh is as fine as the samples there: triangles shrink where
@@ -157,7 +157,8 @@ struct Leaf {
 
 /// The status of node `i` of `level` (`coarser`: the level above, if any). A split node (see
 /// [`SPLIT`]) is split; any other core node is a leaf; any other node is a leaf exactly when
-/// its parent is split (the root, when depth 0 holds no node: see [`root_without_node`]).
+/// its parent is split. The root is split whenever there is a depth 1 (its node may be
+/// missing: degree 1 with Dirichlet boundaries has no node at depth 0).
 fn node_status(level: &Level, coarser: Option<&Level>, i: u32) -> Status {
     let flags = level.flags[i as usize];
     if flags & SPLIT != 0 {
@@ -168,23 +169,16 @@ fn node_status(level: &Level, coarser: Option<&Level>, i: u32) -> Status {
     }
     let parent_split = match coarser {
         None => false,
-        Some(c) => match level.parent_in(c, i) {
-            Some((parent, _)) => c.flags[parent as usize] & SPLIT != 0,
-            None => root_without_node(c),
-        },
+        Some(c) if c.depth == 0 => true,
+        Some(c) => level
+            .parent_in(c, i)
+            .is_some_and(|(parent, _)| c.flags[parent as usize] & SPLIT != 0),
     };
     if parent_split {
         Status::Leaf
     } else {
         Status::Coarser
     }
-}
-
-/// Whether `level` is depth 0 holding no node, not even the root's: degree 1 with Dirichlet
-/// boundaries, whose depth-0 nodes are the cube's corners, all on its faces and out of the core.
-/// Such a tree has a depth 1 ([`crate::octree::Octree::coarsest_depth`]), so its root is split.
-fn root_without_node(level: &Level) -> bool {
-    level.depth == 0 && level.keys.is_empty()
 }
 
 /// The leaf partition of the tree, with one layer of cells beyond the cube mirroring the leaves
@@ -212,13 +206,13 @@ impl Leaves<'_> {
         if let Some(i) = level.find(mirrored) {
             return node_status(level, coarser, i);
         }
-        // Not even in the halo: a leaf only if its parent is split. The root, with no node to
-        // say so, is split when depth 0 holds no node at all (see `root_without_node`).
+        // Not even in the halo: a leaf only if its parent is split; the root (without a node
+        // of its own here) is split whenever there is a depth 1, as in `node_status`.
         match coarser.map(|c| (c, c.find(mirrored.map(|v| v >> 1)))) {
-            None if root_without_node(level) && self.tree.levels.len() > 1 => Status::Split,
+            None if self.tree.levels.len() > 1 => Status::Split,
             None => Status::Leaf,
+            Some((c, _)) if c.depth == 0 => Status::Leaf,
             Some((c, Some(p))) if c.flags[p as usize] & SPLIT != 0 => Status::Leaf,
-            Some((c, None)) if root_without_node(c) => Status::Leaf,
             Some(_) => Status::Coarser,
         }
     }
