@@ -205,8 +205,9 @@ fn samples_too_sparse_for_any_depth_reconstruct_with_degree_one_and_dirichlet() 
 /// Proves: with degree 1 and Dirichlet boundaries, the leaves the mesh is extracted on tile the
 /// cube when samples lie next to its faces, so the mesh is a closed, consistently oriented
 /// 2-manifold. Degree-1 nodes sit on cell corners and Dirichlet keeps the face corners out of
-/// the core, so a core node next to a face (index 1) has a face node for its parent; that
-/// parent was not marked split, and the coarser leaf around it overlapped the core node's cell:
+/// the core, so a core node next to a face (index 1) has a face node for its parent; the
+/// extraction read that parent's split flag as a core node's only, and the coarser leaf around
+/// it overlapped the core node's cell:
 /// edges in three triangles and in one (found by the `reconstruct` fuzz target,
 /// `fuzz/regressions/reconstruct/degree1_dirichlet_scale1_folded_edges`: 67 points, depth 5).
 /// Here the samples cover a box's faces and the cube is their bounding box (scale 1), at
