@@ -167,18 +167,20 @@ fn node_status(level: &Level, coarser: Option<&Level>, i: u32) -> Status {
     if flags & CORE != 0 {
         return Status::Leaf;
     }
-    let parent_split = match coarser {
-        None => false,
-        Some(c) if c.depth == 0 => true,
-        Some(c) => level
-            .parent_in(c, i)
-            .is_some_and(|(parent, _)| c.flags[parent as usize] & SPLIT != 0),
-    };
+    let parent_split = coarser
+        .is_some_and(|c| parent_is_split(c, || level.parent_in(c, i).map(|(parent, _)| parent)));
     if parent_split {
         Status::Leaf
     } else {
         Status::Coarser
     }
+}
+
+/// Whether the parent of a node, in `coarser` (found by `parent` when it is there), is split:
+/// its flag says so, but for the root, split whenever there is a depth 1 (its node may be
+/// missing: degree 1 with Dirichlet boundaries has no node at depth 0).
+fn parent_is_split(coarser: &Level, parent: impl FnOnce() -> Option<u32>) -> bool {
+    coarser.depth == 0 || parent().is_some_and(|p| coarser.flags[p as usize] & SPLIT != 0)
 }
 
 /// The leaf partition of the tree, with one layer of cells beyond the cube mirroring the leaves
@@ -207,12 +209,11 @@ impl Leaves<'_> {
             return node_status(level, coarser, i);
         }
         // Not even in the halo: a leaf only if its parent is split; the root (without a node
-        // of its own here) is split whenever there is a depth 1, as in `node_status`.
-        match coarser.map(|c| (c, c.find(mirrored.map(|v| v >> 1)))) {
+        // of its own here) is split whenever there is a depth 1.
+        match coarser {
             None if self.tree.levels.len() > 1 => Status::Split,
             None => Status::Leaf,
-            Some((c, _)) if c.depth == 0 => Status::Leaf,
-            Some((c, Some(p))) if c.flags[p as usize] & SPLIT != 0 => Status::Leaf,
+            Some(c) if parent_is_split(c, || c.find(mirrored.map(|v| v >> 1))) => Status::Leaf,
             Some(_) => Status::Coarser,
         }
     }
