@@ -46,6 +46,7 @@ mod normals;
 pub mod npts;
 pub mod obj;
 mod octree;
+mod outofcore;
 mod parallel;
 mod params;
 mod pipeline;

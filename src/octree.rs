@@ -477,6 +477,27 @@ impl Octree {
         watch: &Watch,
         budget: &(dyn Fn(&[u64]) -> Result<()> + Sync),
     ) -> Result<Octree> {
+        let cores = Self::core_sets(sample_cells, full_depth, boundary, degree, watch, budget)?;
+        Self::from_cores(cores, boundary, degree, watch)
+    }
+
+    /// The core set of every depth (sorted packed keys) from the cells holding samples splatted
+    /// at each depth: the first half of [`Octree::build_watched`], reporting up to half of the
+    /// progress.
+    ///
+    /// Every step (the 3×3×3 blocks, the parents, the widening, the clip to the core's range)
+    /// maps a union of inputs to the union of their images, and the complete depths are the
+    /// same for any input, so the core sets of the union of two sets of cells are the unions of
+    /// their core sets, depth by depth: the out-of-core path builds the whole cloud's coarse
+    /// depths from its slabs' (see `crate::outofcore`).
+    pub(crate) fn core_sets(
+        sample_cells: Vec<Vec<Coord>>,
+        full_depth: u32,
+        boundary: Boundary,
+        degree: Degree,
+        watch: &Watch,
+        budget: &(dyn Fn(&[u64]) -> Result<()> + Sync),
+    ) -> Result<Vec<Vec<u64>>> {
         let mirror_sign = boundary.mirror_sign();
         let max_depth = sample_cells.len() as u32 - 1;
         // Core sets as sorted packed keys, finest first so parents can be added on the way up.
@@ -542,6 +563,18 @@ impl Octree {
             let done = (max_depth - d + 1) as usize;
             watch.step(done, max_depth as usize + 1, 0.0, 0.5)?;
         }
+        Ok(cores)
+    }
+
+    /// The tree from its core sets ([`Octree::core_sets`]): each depth's halo, mirrors and
+    /// brick index, then the split flags; the second half of the progress.
+    pub(crate) fn from_cores(
+        cores: Vec<Vec<u64>>,
+        boundary: Boundary,
+        degree: Degree,
+        watch: &Watch,
+    ) -> Result<Octree> {
+        let mirror_sign = boundary.mirror_sign();
         // The levels are independent: built side by side (the widening of one level's bricks
         // is serial).
         let mut levels: Vec<Level> = cores
