@@ -15,7 +15,7 @@ use crate::mesh::{self, Mesh, Stats};
 use crate::octree::Octree;
 use crate::parallel::{self, Watch};
 use crate::points::{PointSet, Samples, UnitCubeMap};
-use crate::solve::{self, System};
+use crate::solve::{self, Depths, System};
 use crate::splat::splat_level;
 use crate::system::{self, divergence, fill_mirrors};
 use crate::{Error, Params, Result, VertexPlacement};
@@ -325,6 +325,7 @@ pub(crate) fn run(
         positions: &samples.positions,
         screening_weights: &screening_weights,
         screening: system::depth_weight(params.point_weight, params.depth),
+        depths: Depths::All,
     };
     let (coefficients, solves) = clock.watch(Stage::Solve, pool, |watch| {
         let mut on_solve = |fraction: f32| {
@@ -332,7 +333,8 @@ pub(crate) fn run(
             !watch.is_cancelled()
         };
         let mut solves = Vec::new();
-        let coefficients = solve::cascade(system, params, pool, &mut on_solve, &mut solves)?;
+        let coefficients =
+            solve::cascade(system, params, pool, &mut on_solve, &mut solves)?.coefficients;
         Ok((coefficients, solves))
     })?;
     clock.stats.solves.extend(solves);

@@ -36,6 +36,31 @@ pub(crate) struct System<'a> {
     pub(crate) screening_weights: &'a [f64],
     /// The screening term's weight α_d ([`crate::system::depth_weight`]).
     pub(crate) screening: f64,
+    /// Which depths to solve: all of them ([`Depths::All`]) as the in-memory pipeline does, or
+    /// a base or the depths above one (the out-of-core path, `crate::outofcore`).
+    pub(crate) depths: Depths,
+}
+
+/// The depths a [`cascade`] solves.
+pub(crate) enum Depths {
+    /// Every depth of the tree, from the root.
+    All,
+    /// Depths 0..=`last` of a tree whose levels stop there, as part of a reconstruction whose
+    /// finest depth is `finest` (which sets the screening samples' grouping and the depth the
+    /// finest V was spent at). The field V of depth `last`, with every coarser depth's
+    /// prolonged into it, is handed back for the finer depths (see [`Solved`]).
+    Base { last: usize, finest: u32 },
+    /// The depths above a base solved before (its coefficients, depths 0..=B, and its
+    /// accumulated V at depth B), on a tree whose levels 0..=B are the base's.
+    Above(Solved),
+}
+
+/// What a base hands to the depths above it: the coefficients of depths 0..=B and V at depth B
+/// with every coarser depth's prolonged into it.
+#[derive(Debug)]
+pub(crate) struct Solved {
+    pub(crate) coefficients: Vec<Vec<f64>>,
+    pub(crate) field_v: [Vec<f64>; 3],
 }
 
 /// Solves the system depth by depth from the root and returns z_d on K_d for every depth: the
@@ -53,7 +78,7 @@ pub(crate) fn cascade(
     pool: &rayon::ThreadPool,
     progress: &mut dyn FnMut(f32) -> bool,
     solves: &mut Vec<DepthSolve>,
-) -> Result<Vec<Vec<f64>>> {
+) -> Result<Solved> {
     let System {
         tree,
         mut rho,
@@ -61,14 +86,32 @@ pub(crate) fn cascade(
         positions,
         screening_weights,
         screening,
+        depths: which,
     } = system;
-    let max_depth = tree.max_depth();
-    field_v.push(Default::default());
+    // The reconstruction's finest depth, and the depths solved here.
+    let (max_depth, first, last) = match &which {
+        Depths::All => (tree.max_depth(), 0, tree.max_depth() as usize),
+        Depths::Base { last, finest } => (*finest, 0, *last),
+        Depths::Above(solved) => (
+            tree.max_depth(),
+            solved.coefficients.len(),
+            tree.max_depth() as usize,
+        ),
+    };
+    // V has an entry per depth but the finest (spent on its ρ).
+    field_v.resize_with(tree.levels.len().max(last + 1), Default::default);
     let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
     // The coarse right-hand side of the next depth, ⟨∇B_o, coarser V prolonged⟩ on its core.
     let mut next_coarse_div: Option<Vec<f64>> = None;
+    if let Depths::Above(solved) = which {
+        // The base's last depth, carried to the first depth solved here as that depth's own
+        // iteration would have.
+        coefficients = solved.coefficients;
+        field_v[first - 1] = solved.field_v;
+        next_coarse_div = Some(carry_field(tree, first - 1, &mut field_v, max_depth, pool)?);
+    }
     let depths = max_depth + 1;
-    for d in 0..=max_depth as usize {
+    for d in first..=last {
         let depth_started = Instant::now();
         let level = &tree.levels[d];
         let base = d as f32 / depths as f32;
@@ -111,27 +154,9 @@ pub(crate) fn cascade(
             Some(div) => div,
             None => zeroed(level.core.len(), "a coarse right-hand side")?,
         };
-        if !is_finest {
-            // V of this depth and all coarser ones (accumulated here by the depth above) is
-            // read for the last time, before this depth's vectors are allocated: prolonged to
-            // the next depth (F̃ halves in width: ×1/8), where its divergence is that depth's
-            // coarse right-hand side, and added to that depth's V (brick by brick, never as
-            // three more halo vectors).
-            let mut field = std::mem::take(&mut field_v[d]);
-            fill_mirrors_field(level, &mut field);
-            let finer = &tree.levels[d + 1];
-            let prolonged = ProlongedField {
-                coarse: level,
-                fine: finer,
-                field: [&field[0], &field[1], &field[2]],
-                scale: 0.125,
-            };
-            next_coarse_div = Some(pool.install(|| divergence_of_prolonged(&prolonged))?);
+        if !is_finest && d < last {
+            next_coarse_div = Some(carry_field(tree, d, &mut field_v, max_depth, pool)?);
             go_on()?;
-            if d + 1 < max_depth as usize {
-                pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
-                go_on()?;
-            }
         }
         // b − A·y on the core, computed in A·y's vector.
         let rhs = pool.install(|| -> Result<Vec<f64>> {
@@ -181,7 +206,44 @@ pub(crate) fn cascade(
             seconds: depth_started.elapsed().as_secs_f64(),
         });
     }
-    Ok(coefficients)
+    // A base hands its last depth's V (every coarser depth's in it) to the depths above.
+    let field_v = if last < max_depth as usize {
+        std::mem::take(&mut field_v[last])
+    } else {
+        Default::default()
+    };
+    Ok(Solved {
+        coefficients,
+        field_v,
+    })
+}
+
+/// V of depth `d` and all coarser ones (accumulated there by the depth above) read for the last
+/// time: prolonged to the next depth (F̃ halves in width: ×1/8), where its divergence is that
+/// depth's coarse right-hand side (returned), and added to that depth's V unless that is the
+/// finest (brick by brick, never as three more halo vectors).
+fn carry_field(
+    tree: &Octree,
+    d: usize,
+    field_v: &mut [[Vec<f64>; 3]],
+    finest: u32,
+    pool: &rayon::ThreadPool,
+) -> Result<Vec<f64>> {
+    let level = &tree.levels[d];
+    let mut field = std::mem::take(&mut field_v[d]);
+    fill_mirrors_field(level, &mut field);
+    let finer = &tree.levels[d + 1];
+    let prolonged = ProlongedField {
+        coarse: level,
+        fine: finer,
+        field: [&field[0], &field[1], &field[2]],
+        scale: 0.125,
+    };
+    let div = pool.install(|| divergence_of_prolonged(&prolonged))?;
+    if d + 1 < finest as usize {
+        pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
+    }
+    Ok(div)
 }
 
 /// How one depth's solve ended.

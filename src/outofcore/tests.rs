@@ -131,3 +131,247 @@ fn the_layout_balances_the_clouds_columns() {
         );
     }
 }
+
+/// The in-memory pipeline's system for a sphere of `n` points at `depth`, up to the solve: the
+/// tree, ρ and V of every depth, the samples and their screening weights.
+struct SystemParts {
+    tree: Octree,
+    rho: Vec<Vec<f64>>,
+    field_v: Vec<[Vec<f64>; 3]>,
+    positions: Vec<DVec3>,
+    screening_weights: Vec<f64>,
+}
+
+/// A bumpy sphere sampled at three densities.
+fn sphere_system(params: &crate::Params) -> SystemParts {
+    use crate::points::{PointSet, Samples, UnitCubeMap};
+    let n = 40_000;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let mut positions = Vec::with_capacity(n);
+    let mut normals = Vec::with_capacity(n);
+    for i in 0..n {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        // Sampled 16 and 64 times more sparsely near the poles, so that samples are splatted
+        // at several depths and every depth's V has something to carry to the next.
+        if (z > 0.6 && i % 16 != 0) || (z < -0.6 && i % 64 != 0) {
+            continue;
+        }
+        let r = (1.0 - z * z).sqrt();
+        let t = golden * i as f64;
+        // A bumpy sphere, so every depth has something to correct.
+        let bump = 1.0 + 0.05 * (5.0 * t.sin() * z).sin();
+        let u = [r * t.cos(), r * t.sin(), z];
+        positions.push(u.map(|c| (c * bump) as f32));
+        normals.push(u.map(|c| c as f32));
+    }
+    let points = PointSet::from_slices(&positions, &normals).expect("valid points");
+    let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
+    let samples = Samples::in_morton_order(&points, &map, params.depth).expect("fits");
+    let watch = Watch::new();
+    let field = DensityField::splat(&samples.positions, Some(&samples.confidence), 6);
+    let mut density =
+        estimate(&field, &samples.positions, params.depth, 1.5, &watch).expect("not cancelled");
+    let degree = params.node_degree();
+    let at_depth = samples_by_depth(
+        &mut density,
+        &samples.confidence,
+        params.depth,
+        params.effective_full_depth(),
+        Octree::coarsest_depth(params.boundary, degree),
+    );
+    let tree = Octree::around_samples(
+        &at_depth,
+        &samples.positions,
+        params.effective_full_depth(),
+        params.boundary,
+        degree,
+        &watch,
+        &|_| Ok(()),
+    )
+    .expect("not cancelled");
+    let finest = tree.max_depth() as usize;
+    let v_finest =
+        crate::splat::splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)
+            .expect("fits");
+    let mut rho_finest = crate::system::divergence(&tree.levels[finest], v_finest).expect("fits");
+    crate::system::fill_mirrors(&tree.levels[finest], &mut rho_finest);
+    let field_v: Vec<[Vec<f64>; 3]> = (0..finest)
+        .map(|d| {
+            crate::splat::splat_level(&tree.levels[d], &samples, &at_depth[d], params)
+                .expect("fits")
+        })
+        .collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool");
+    let rho = crate::system::right_hand_sides(&tree, rho_finest, &field_v, &pool, |_| Ok(()))
+        .expect("not cancelled");
+    let screening_weights = crate::system::sample_weights(&density.area, &samples.confidence);
+    SystemParts {
+        tree,
+        rho,
+        field_v,
+        positions: samples.positions,
+        screening_weights,
+    }
+}
+
+/// Proves the solve can be cut at a base depth B without changing a bit: solving depths
+/// 0..=B on a tree that stops at B (as the out-of-core base does), then the depths above B
+/// from the base's coefficients and its accumulated V, gives the coefficients of the whole
+/// solve, for both degrees and every boundary.
+#[test]
+fn a_cascade_cut_at_the_base_depth_gives_the_whole_cascades_coefficients() {
+    use crate::solve::{cascade, Depths, System};
+    for (degree, boundary) in [
+        (2, Boundary::Neumann),
+        (2, Boundary::Free),
+        (1, Boundary::Dirichlet),
+        (1, Boundary::Neumann),
+    ] {
+        let params = crate::Params::default()
+            .with_depth(7)
+            .with_degree(degree)
+            .with_boundary(boundary);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a pool");
+        fn system(parts: &SystemParts, screening: f64, depths: Depths) -> System<'_> {
+            System {
+                tree: &parts.tree,
+                rho: parts.rho.clone(),
+                field_v: parts.field_v.clone(),
+                positions: &parts.positions,
+                screening_weights: &parts.screening_weights,
+                screening,
+                depths,
+            }
+        }
+        let screening = crate::system::depth_weight(params.point_weight, params.depth);
+        let whole_parts = sphere_system(&params);
+        let finest = whole_parts.tree.max_depth();
+        let whole = cascade(
+            system(&whole_parts, screening, Depths::All),
+            &params,
+            &pool,
+            &mut |_| true,
+            &mut Vec::new(),
+        )
+        .expect("solved")
+        .coefficients;
+        for base_depth in [3usize, 5] {
+            let mut base_parts = sphere_system(&params);
+            base_parts.tree.levels.truncate(base_depth + 1);
+            base_parts.rho.truncate(base_depth + 1);
+            base_parts.field_v.truncate(base_depth + 1);
+            let base = cascade(
+                system(
+                    &base_parts,
+                    screening,
+                    Depths::Base {
+                        last: base_depth,
+                        finest,
+                    },
+                ),
+                &params,
+                &pool,
+                &mut |_| true,
+                &mut Vec::new(),
+            )
+            .expect("solved");
+            assert_eq!(base.coefficients.len(), base_depth + 1);
+            let above = cascade(
+                system(&whole_parts, screening, Depths::Above(base)),
+                &params,
+                &pool,
+                &mut |_| true,
+                &mut Vec::new(),
+            )
+            .expect("solved")
+            .coefficients;
+            assert_eq!(above.len(), whole.len());
+            for (d, (a, w)) in above.iter().zip(&whole).enumerate() {
+                assert!(
+                    a.iter().zip(w).all(|(a, w)| a.to_bits() == w.to_bits()),
+                    "degree {degree}, {boundary:?}, base {base_depth}: depth {d} differs"
+                );
+            }
+        }
+    }
+}
+
+/// Proves the padding the design asks for: a slab's tree, its depths up to B taken from the
+/// base (the union of the slabs' own cores) and the finer ones built from its points plus
+/// those of its neighbours within the padding, has exactly the whole cloud's core nodes over
+/// the slab's own columns at every depth above B, when the padding is three nodes of depth B
+/// (12 columns of the wall depth B + 2); and not always with no padding. (Here the cores agree
+/// from 6 columns on, 3 nodes of depth B + 1, a sample's reach in the core at every depth; the
+/// halos two nodes wider need 4 more: 12 covers both.)
+#[test]
+fn a_slabs_tree_with_its_padding_is_the_whole_tree_over_its_columns() {
+    use crate::octree::unpack;
+    let positions = cloud();
+    let watch = Watch::new();
+    let field = DensityField::splat(&positions, None, 7);
+    let mut density = estimate(&field, &positions, 9, 1.5, &watch).expect("not cancelled");
+    let confidence = vec![1.0; positions.len()];
+    let unlimited = |_: &[u64]| Ok(());
+    let boundary = Boundary::Neumann;
+    let degree = Degree::Two;
+    let at_depth = samples_by_depth(&mut density, &confidence, 9, 3, 0);
+    let finest = at_depth.len() - 1;
+    let cores_of = |keep: &dyn Fn(DVec3) -> bool| {
+        Octree::core_sets(
+            sample_cells(&positions, &at_depth, keep),
+            3,
+            boundary,
+            degree,
+            &watch,
+            &unlimited,
+        )
+        .expect("not cancelled")
+    };
+    let whole = cores_of(&|_| true);
+    let base_depth = 5u32;
+    let wall_depth = base_depth + 2;
+    let mut counts = vec![0u64; 1 << wall_depth];
+    let probe = SlabLayout::balanced(&counts, wall_depth, 1, 0);
+    for p in &positions {
+        counts[probe.column_of(p.x) as usize] += 1;
+    }
+    let mismatches = |padding: u32| -> usize {
+        let layout = SlabLayout::balanced(&counts, wall_depth, 4, padding);
+        let own: Vec<Vec<Vec<u64>>> = (0..layout.len())
+            .map(|k| cores_of(&|p| layout.slab_of_column(layout.column_of(p.x)) == k))
+            .collect();
+        let base = coarse_cores(own.iter().map(|c| c.as_slice()), base_depth);
+        assert_eq!(base[..], whole[..=base_depth as usize]);
+        let mut mismatches = 0;
+        for k in 0..layout.len() {
+            let padded = layout.padded(k);
+            let slab = cores_of(&|p| padded.contains(&layout.column_of(p.x)));
+            let owned = layout.owned(k);
+            for d in base_depth as usize + 1..=finest {
+                // A node is over the slab's columns when its cell's x range lies in them.
+                let in_owned = |key: &u64| {
+                    let x = unpack(*key)[0] as i64;
+                    let shift = d as i64 - wall_depth as i64;
+                    let column = if shift >= 0 { x >> shift } else { x << -shift };
+                    column >= owned.start as i64 && column < owned.end as i64
+                };
+                let a: Vec<u64> = whole[d].iter().copied().filter(in_owned).collect();
+                let b: Vec<u64> = slab[d].iter().copied().filter(in_owned).collect();
+                mismatches += a.len().abs_diff(b.len())
+                    + a.iter().filter(|k| b.binary_search(k).is_err()).count();
+            }
+        }
+        mismatches
+    };
+    assert_eq!(mismatches(12), 0);
+    assert!(
+        mismatches(0) > 0,
+        "without padding the slabs lose nodes near their walls"
+    );
+}
