@@ -132,18 +132,18 @@ fn the_layout_balances_the_clouds_columns() {
     }
 }
 
-/// The in-memory pipeline's system for a sphere of `n` points at `depth`, up to the solve: the
-/// tree, ρ and V of every depth, the samples and their screening weights.
-struct SystemParts {
-    tree: Octree,
-    rho: Vec<Vec<f64>>,
-    field_v: Vec<[Vec<f64>; 3]>,
-    positions: Vec<DVec3>,
-    screening_weights: Vec<f64>,
+/// A bumpy sphere's samples as the in-memory pipeline prepares them: in Morton order in the
+/// unit cube, with their density and the samples splatted at each depth.
+struct Cloud {
+    samples: crate::points::Samples,
+    area: Vec<f64>,
+    at_depth: Vec<Vec<crate::density::DepthSample>>,
 }
 
-/// A bumpy sphere sampled at three densities.
-fn sphere_system(params: &crate::Params) -> SystemParts {
+/// A bumpy sphere sampled at three densities (16 and 64 times sparser near the poles, so that
+/// samples are splatted at several depths and every depth's V has something to carry to the
+/// next), ready for `params`.
+fn bumpy_sphere(params: &crate::Params) -> Cloud {
     use crate::points::{PointSet, Samples, UnitCubeMap};
     let n = 40_000;
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
@@ -151,14 +151,11 @@ fn sphere_system(params: &crate::Params) -> SystemParts {
     let mut normals = Vec::with_capacity(n);
     for i in 0..n {
         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-        // Sampled 16 and 64 times more sparsely near the poles, so that samples are splatted
-        // at several depths and every depth's V has something to carry to the next.
         if (z > 0.6 && i % 16 != 0) || (z < -0.6 && i % 64 != 0) {
             continue;
         }
         let r = (1.0 - z * z).sqrt();
         let t = golden * i as f64;
-        // A bumpy sphere, so every depth has something to correct.
         let bump = 1.0 + 0.05 * (5.0 * t.sin() * z).sin();
         let u = [r * t.cos(), r * t.sin(), z];
         positions.push(u.map(|c| (c * bump) as f32));
@@ -171,48 +168,117 @@ fn sphere_system(params: &crate::Params) -> SystemParts {
     let field = DensityField::splat(&samples.positions, Some(&samples.confidence), 6);
     let mut density =
         estimate(&field, &samples.positions, params.depth, 1.5, &watch).expect("not cancelled");
-    let degree = params.node_degree();
     let at_depth = samples_by_depth(
         &mut density,
         &samples.confidence,
         params.depth,
         params.effective_full_depth(),
-        Octree::coarsest_depth(params.boundary, degree),
+        Octree::coarsest_depth(params.boundary, params.node_degree()),
     );
-    let tree = Octree::around_samples(
-        &at_depth,
-        &samples.positions,
-        params.effective_full_depth(),
+    Cloud {
+        samples,
+        area: density.area,
+        at_depth,
+    }
+}
+
+impl Cloud {
+    /// The samples at each depth that `keep` admits (by position).
+    fn at_depth_where(
+        &self,
+        keep: impl Fn(DVec3) -> bool,
+    ) -> Vec<Vec<crate::density::DepthSample>> {
+        self.at_depth
+            .iter()
+            .map(|at| {
+                at.iter()
+                    .copied()
+                    .filter(|s| keep(self.samples.positions[s.sample as usize]))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The core sets of the samples `at_depth`.
+    fn cores(
+        &self,
+        at_depth: &[Vec<crate::density::DepthSample>],
+        params: &crate::Params,
+    ) -> Vec<Vec<u64>> {
+        let cells = at_depth
+            .iter()
+            .enumerate()
+            .map(|(d, at)| {
+                let inv_h = (d as f64).exp2();
+                at.iter()
+                    .map(|s| cell_of(self.samples.positions[s.sample as usize], inv_h))
+                    .collect()
+            })
+            .collect();
+        Octree::core_sets(
+            cells,
+            params.effective_full_depth(),
+            params.boundary,
+            params.node_degree(),
+            &Watch::new(),
+            &|_| Ok(()),
+        )
+        .expect("not cancelled")
+    }
+
+    /// ρ of every depth and V of every depth but the finest, splatted from the samples
+    /// `at_depth` on `tree`, as the pipeline's splat and system stages compute them.
+    fn right_hand_sides(
+        &self,
+        tree: &Octree,
+        at_depth: &[Vec<crate::density::DepthSample>],
+        params: &crate::Params,
+    ) -> (Vec<Vec<f64>>, Vec<[Vec<f64>; 3]>) {
+        let finest = tree.max_depth() as usize;
+        let splat = |d: usize| {
+            crate::splat::splat_level(&tree.levels[d], &self.samples, &at_depth[d], params)
+                .expect("fits")
+        };
+        let mut rho_finest =
+            crate::system::divergence(&tree.levels[finest], splat(finest)).expect("fits");
+        crate::system::fill_mirrors(&tree.levels[finest], &mut rho_finest);
+        let field_v: Vec<[Vec<f64>; 3]> = (0..finest).map(splat).collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a pool");
+        let rho = crate::system::right_hand_sides(tree, rho_finest, &field_v, &pool, |_| Ok(()))
+            .expect("not cancelled");
+        (rho, field_v)
+    }
+}
+
+/// The in-memory pipeline's system for the bumpy sphere, up to the solve: the tree, ρ and V of
+/// every depth, the samples and their screening weights.
+struct SystemParts {
+    tree: Octree,
+    rho: Vec<Vec<f64>>,
+    field_v: Vec<[Vec<f64>; 3]>,
+    positions: Vec<DVec3>,
+    screening_weights: Vec<f64>,
+}
+
+fn sphere_system(params: &crate::Params) -> SystemParts {
+    let cloud = bumpy_sphere(params);
+    let tree = Octree::from_cores(
+        cloud.cores(&cloud.at_depth, params),
         params.boundary,
-        degree,
-        &watch,
-        &|_| Ok(()),
+        params.node_degree(),
+        &Watch::new(),
     )
     .expect("not cancelled");
-    let finest = tree.max_depth() as usize;
-    let v_finest =
-        crate::splat::splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)
-            .expect("fits");
-    let mut rho_finest = crate::system::divergence(&tree.levels[finest], v_finest).expect("fits");
-    crate::system::fill_mirrors(&tree.levels[finest], &mut rho_finest);
-    let field_v: Vec<[Vec<f64>; 3]> = (0..finest)
-        .map(|d| {
-            crate::splat::splat_level(&tree.levels[d], &samples, &at_depth[d], params)
-                .expect("fits")
-        })
-        .collect();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("a pool");
-    let rho = crate::system::right_hand_sides(&tree, rho_finest, &field_v, &pool, |_| Ok(()))
-        .expect("not cancelled");
-    let screening_weights = crate::system::sample_weights(&density.area, &samples.confidence);
+    let (rho, field_v) = cloud.right_hand_sides(&tree, &cloud.at_depth, params);
+    let screening_weights = crate::system::sample_weights(&cloud.area, &cloud.samples.confidence);
     SystemParts {
         tree,
         rho,
         field_v,
-        positions: samples.positions,
+        positions: cloud.samples.positions,
         screening_weights,
     }
 }
@@ -374,4 +440,97 @@ fn a_slabs_tree_with_its_padding_is_the_whole_tree_over_its_columns() {
         mismatches(0) > 0,
         "without padding the slabs lose nodes near their walls"
     );
+}
+
+/// Proves the base's right-hand sides and fields are sums over the slabs: on trees that share
+/// the base's depths (the union of the slabs' own cores up to B) and have each slab's own finer
+/// depths, the ρ and V each slab splats from its own samples add up, node by node, to the whole
+/// cloud's at every depth up to B (to rounding: the sums are taken in another order).
+#[test]
+fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
+    for (degree, boundary) in [(2, Boundary::Neumann), (1, Boundary::Dirichlet)] {
+        let params = crate::Params::default()
+            .with_depth(7)
+            .with_degree(degree)
+            .with_boundary(boundary);
+        let cloud = bumpy_sphere(&params);
+        let whole_tree = Octree::from_cores(
+            cloud.cores(&cloud.at_depth, &params),
+            boundary,
+            params.node_degree(),
+            &Watch::new(),
+        )
+        .expect("not cancelled");
+        let (whole_rho, whole_v) = cloud.right_hand_sides(&whole_tree, &cloud.at_depth, &params);
+        let base_depth = 4usize;
+        let walls = [0.0, 0.35, 0.5, 0.62, 1.01];
+        let own: Vec<_> = walls
+            .windows(2)
+            .map(|w| cloud.at_depth_where(|p| (w[0]..w[1]).contains(&p.x)))
+            .collect();
+        let own_cores: Vec<Vec<Vec<u64>>> = own.iter().map(|at| cloud.cores(at, &params)).collect();
+        let base = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth as u32);
+        let mut rho_sum: Vec<Vec<f64>> = whole_rho[..=base_depth]
+            .iter()
+            .map(|r| vec![0.0; r.len()])
+            .collect();
+        let mut v_sum: Vec<[Vec<f64>; 3]> = whole_v[..=base_depth]
+            .iter()
+            .map(|v| [0, 1, 2].map(|a| vec![0.0; v[a].len()]))
+            .collect();
+        for (at, cores) in own.iter().zip(own_cores) {
+            let mut slab_cores = base.clone();
+            slab_cores.extend(cores.into_iter().skip(base_depth + 1));
+            let tree =
+                Octree::from_cores(slab_cores, boundary, params.node_degree(), &Watch::new())
+                    .expect("not cancelled");
+            for d in 0..=base_depth {
+                assert_eq!(
+                    tree.levels[d].keys, whole_tree.levels[d].keys,
+                    "the base's depth {d}"
+                );
+            }
+            let (rho, v) = cloud.right_hand_sides(&tree, at, &params);
+            for d in 0..=base_depth {
+                rho_sum[d]
+                    .iter_mut()
+                    .zip(&rho[d])
+                    .for_each(|(s, r)| *s += r);
+                for a in 0..3 {
+                    v_sum[d][a]
+                        .iter_mut()
+                        .zip(&v[d][a])
+                        .for_each(|(s, x)| *s += x);
+                }
+            }
+        }
+        // Rounding relative to the largest value of any depth (a depth whose values cancel,
+        // like the root's, has no scale of its own).
+        let largest = |vectors: &mut dyn Iterator<Item = &Vec<f64>>| {
+            vectors.flatten().fold(0.0f64, |m, x| m.max(x.abs()))
+        };
+        let rho_scale = largest(&mut whole_rho.iter());
+        let v_scale = largest(&mut whole_v.iter().flatten());
+        let close = |a: &[f64], b: &[f64], scale: f64| {
+            a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * scale)
+        };
+        for d in 0..=base_depth {
+            assert!(
+                close(&rho_sum[d], &whole_rho[d], rho_scale),
+                "degree {degree}: ρ at depth {d}"
+            );
+            for a in 0..3 {
+                assert!(
+                    close(&v_sum[d][a], &whole_v[d][a], v_scale),
+                    "degree {degree}: V at depth {d}"
+                );
+            }
+        }
+        // (Not a test of zeros: from depth 2 on every depth has a right-hand side, and the
+        // sparse caps put V at the base depth.)
+        for d in 2..=base_depth {
+            assert!(whole_rho[d].iter().any(|&r| r != 0.0), "depth {d}'s ρ");
+        }
+        assert!(whole_v[base_depth][0].iter().any(|&v| v != 0.0));
+    }
 }
