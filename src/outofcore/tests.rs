@@ -7,6 +7,7 @@ use crate::density::{estimate, samples_by_depth, DensityField};
 use crate::grid::cell_of;
 use crate::octree::Octree;
 use crate::parallel::Watch;
+use crate::solve::Solved;
 use crate::Boundary;
 use glam::DVec3;
 
@@ -533,4 +534,153 @@ fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
         }
         assert!(whole_v[base_depth][0].iter().any(|&v| v != 0.0));
     }
+}
+
+/// Proves the whole design in one process, on the bumpy sphere at depth 7 (full depth 3) with
+/// base depth 4 and four slabs: the base solved from the slabs' summed parts, then each slab's finer depths on
+/// its own points plus 12 columns of padding, give at every node a slab owns, at every depth
+/// from the wall depth B + 2 on, coefficients that differ from the in-memory solve's by less than the
+/// in-memory solve's own differ from the converged solution (its solver stops at a relative
+/// residual of 1e-2 per depth).
+#[test]
+fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
+    use crate::solve::{cascade, Depths, System};
+    // The base holds the complete depths (a complete depth spans the cube, far from any slab).
+    let params = crate::Params::default().with_depth(7).with_full_depth(3);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool");
+    let screening = crate::system::depth_weight(params.point_weight, params.depth);
+    let cloud = bumpy_sphere(&params);
+    let weights = crate::system::sample_weights(&cloud.area, &cloud.samples.confidence);
+    let degree = params.node_degree();
+    let tree_of = |cores: Vec<Vec<u64>>| {
+        Octree::from_cores(cores, params.boundary, degree, &Watch::new()).expect("not cancelled")
+    };
+    let solve = |tree: &Octree, rho, field_v, depths, params: &crate::Params| {
+        cascade(
+            System {
+                tree,
+                rho,
+                field_v,
+                positions: &cloud.samples.positions,
+                screening_weights: &weights,
+                screening,
+                depths,
+            },
+            params,
+            &pool,
+            &mut |_| true,
+            &mut Vec::new(),
+        )
+        .expect("solved")
+    };
+    // In memory, and converged.
+    let whole_tree = tree_of(cloud.cores(&cloud.at_depth, &params));
+    let finest = whole_tree.max_depth();
+    let (rho, v) = cloud.right_hand_sides(&whole_tree, &cloud.at_depth, &params);
+    let whole = solve(&whole_tree, rho.clone(), v.clone(), Depths::All, &params).coefficients;
+    let converged_params = params
+        .clone()
+        .with_solver_tolerance(1e-9)
+        .with_max_solver_iterations(2000);
+    let converged = solve(&whole_tree, rho, v, Depths::All, &converged_params).coefficients;
+
+    // The slabs: balanced columns of depth B + 2.
+    let base_depth = 4usize;
+    let wall_depth = base_depth as u32 + 2;
+    let mut counts = vec![0u64; 1 << wall_depth];
+    let probe = SlabLayout::balanced(&counts, wall_depth, 1, 0);
+    for p in &cloud.samples.positions {
+        counts[probe.column_of(p.x) as usize] += 1;
+    }
+    let layout = SlabLayout::balanced(&counts, wall_depth, 4, 12);
+    assert!(params.effective_full_depth() as usize <= base_depth);
+    assert_eq!(layout.len(), 4);
+    let column = |p: DVec3| layout.column_of(p.x);
+    let own: Vec<_> = (0..layout.len())
+        .map(|k| cloud.at_depth_where(|p| layout.slab_of_column(column(p)) == k))
+        .collect();
+    let own_cores: Vec<Vec<Vec<u64>>> = own.iter().map(|at| cloud.cores(at, &params)).collect();
+    let base_cores = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth as u32);
+
+    // The base: the slabs' own parts summed, solved on the base's depths alone.
+    let mut base_rho: Vec<Vec<f64>> = Vec::new();
+    let mut base_v: Vec<[Vec<f64>; 3]> = Vec::new();
+    for (at, cores) in own.iter().zip(&own_cores) {
+        let mut slab_cores = base_cores.clone();
+        slab_cores.extend(cores.iter().skip(base_depth + 1).cloned());
+        let (rho, v) = cloud.right_hand_sides(&tree_of(slab_cores), at, &params);
+        if base_rho.is_empty() {
+            base_rho = rho[..=base_depth].to_vec();
+            base_v = v[..=base_depth].to_vec();
+            continue;
+        }
+        for d in 0..=base_depth {
+            base_rho[d]
+                .iter_mut()
+                .zip(&rho[d])
+                .for_each(|(s, r)| *s += r);
+            for a in 0..3 {
+                base_v[d][a]
+                    .iter_mut()
+                    .zip(&v[d][a])
+                    .for_each(|(s, x)| *s += x);
+            }
+        }
+    }
+    let base_tree = tree_of(base_cores.clone());
+    let base = solve(
+        &base_tree,
+        base_rho,
+        base_v,
+        Depths::Base {
+            last: base_depth,
+            finest,
+        },
+        &params,
+    );
+
+    // Each slab above the base, on its points and padding; compared where it owns nodes.
+    let mut worst_slab = 0.0f64;
+    let mut worst_in_memory = 0.0f64;
+    let mut compared = 0;
+    for k in 0..layout.len() {
+        let padded = layout.padded(k);
+        let at = cloud.at_depth_where(|p| padded.contains(&column(p)));
+        let mut slab_cores = base_cores.clone();
+        slab_cores.extend(cloud.cores(&at, &params).into_iter().skip(base_depth + 1));
+        let tree = tree_of(slab_cores);
+        let (rho, v) = cloud.right_hand_sides(&tree, &at, &params);
+        let solved = Solved {
+            coefficients: base.coefficients.clone(),
+            field_v: base.field_v.clone(),
+        };
+        let slab = solve(&tree, rho, v, Depths::Above(solved), &params).coefficients;
+        let owned = layout.owned(k);
+        for d in wall_depth as usize..=finest as usize {
+            let level = &tree.levels[d];
+            for &c in level.core.iter() {
+                // Owned: the node's cell lies in the slab's columns (d > B + 2 here).
+                let coord = level.coord(c);
+                let x_column = (coord[0] as i64) >> (d - wall_depth as usize);
+                if !(owned.start as i64..owned.end as i64).contains(&x_column) {
+                    continue;
+                }
+                let w = whole_tree.levels[d]
+                    .find(coord)
+                    .expect("the slab's node is the whole's") as usize;
+                worst_slab = worst_slab.max((slab[d][c as usize] - whole[d][w]).abs());
+                worst_in_memory = worst_in_memory.max((whole[d][w] - converged[d][w]).abs());
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 10_000, "{compared} nodes compared");
+    assert!(
+        worst_slab < worst_in_memory,
+        "slabs differ by up to {worst_slab:e}, the in-memory solve from the converged one by {worst_in_memory:e}"
+    );
+    assert!(worst_slab > 0.0, "the slabs solve their own systems");
 }
