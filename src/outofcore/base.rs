@@ -1,6 +1,9 @@
 //! The base: the depths 0..=B that are solved once for the whole cloud, from the sums of the
 //! slabs' contributions.
 
+use crate::grid::morton_nested;
+use glam::DVec3;
+
 /// The whole cloud's core sets at depths 0..=`base_depth` from the core sets of its slabs'
 /// own points (each a `Vec` per depth of sorted packed keys, as
 /// [`crate::octree::Octree::core_sets`] returns them): their union, depth by depth, sorted.
@@ -21,4 +24,29 @@ pub(crate) fn coarse_cores<'a>(
         union.dedup();
     }
     cores
+}
+
+/// The whole cloud's screening groups at one proxy depth from its slabs' (each in Morton order
+/// of the cells, as [`crate::system::sample_groups`] gives them): a cell split by a wall has a
+/// group in each slab, and their sums add up (in slab order).
+pub(crate) fn merge_groups<'a>(
+    slab_groups: impl IntoIterator<Item = &'a [([i32; 3], DVec3, f64)]>,
+) -> Vec<([i32; 3], DVec3, f64)> {
+    let mut all: Vec<([i32; 3], DVec3, f64)> = slab_groups
+        .into_iter()
+        .flat_map(|groups| groups.iter().copied())
+        .collect();
+    // Stable: a cell's groups stay in slab order.
+    all.sort_by_key(|g| morton_nested(g.0.map(|v| v.max(0) as u32)));
+    let mut merged: Vec<([i32; 3], DVec3, f64)> = Vec::with_capacity(all.len());
+    for (cell, sum_p, sum_w) in all {
+        match merged.last_mut() {
+            Some(last) if last.0 == cell => {
+                last.1 += sum_p;
+                last.2 += sum_w;
+            }
+            _ => merged.push((cell, sum_p, sum_w)),
+        }
+    }
+    merged
 }

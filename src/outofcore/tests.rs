@@ -684,3 +684,53 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
     );
     assert!(worst_slab > 0.0, "the slabs solve their own systems");
 }
+
+/// Proves the base's screening samples are the merge of its slabs' groups: at every proxy
+/// depth, the proxies built from the slabs' own samples' groups, merged, are those the whole
+/// cloud's samples give (the same cells, weights and offsets, to rounding), with walls that
+/// cut cells of every coarser proxy depth.
+#[test]
+fn the_base_proxies_are_the_merge_of_the_slabs_groups() {
+    use super::base::merge_groups;
+    use crate::system::{sample_groups, Proxies};
+    let params = crate::Params::default().with_depth(7);
+    let parts = sphere_system(&params);
+    let walls = [0.0, 0.33, 0.5, 0.61, 1.01];
+    for d in 0..=5u32 {
+        let level = &parts.tree.levels[d as usize];
+        let proxy_depth = crate::system::proxy_depth(d, parts.tree.max_depth());
+        let whole = Proxies::build(
+            level,
+            &parts.positions,
+            &parts.screening_weights,
+            proxy_depth,
+        );
+        let slab_groups: Vec<_> = walls
+            .windows(2)
+            .map(|w| {
+                let (positions, weights): (Vec<DVec3>, Vec<f64>) = parts
+                    .positions
+                    .iter()
+                    .zip(&parts.screening_weights)
+                    .filter(|(p, _)| (w[0]..w[1]).contains(&p.x))
+                    .map(|(p, w)| (*p, *w))
+                    .unzip();
+                sample_groups(&positions, &weights, proxy_depth)
+            })
+            .collect();
+        let merged = merge_groups(slab_groups.iter().map(|g| g.as_slice()));
+        let base = Proxies::from_groups(level, &merged, proxy_depth);
+        assert_eq!(base.cell, whole.cell, "depth {d}");
+        assert!(!whole.is_empty());
+        for q in 0..whole.len() {
+            let relative = (base.weight[q] - whole.weight[q]).abs() / whole.weight[q];
+            assert!(relative < 1e-12, "depth {d}, proxy {q}: weight");
+            for a in 0..3 {
+                assert!(
+                    (base.offset[q][a] - whole.offset[q][a]).abs() < 1e-6,
+                    "depth {d}"
+                );
+            }
+        }
+    }
+}

@@ -116,43 +116,59 @@ impl Proxies {
         weights: &[f64],
         proxy_depth: u32,
     ) -> Proxies {
-        let inv_h = (level.depth as f64).exp2();
-        let inv_proxy_h = (proxy_depth as f64).exp2();
         let mut proxies = Proxies::default();
-        let mut s = 0;
-        let mut previous_group = None;
-        while s < positions.len() {
-            let group = cell_of(positions[s], inv_proxy_h);
-            // Each group's samples must be consecutive (Morton order at a depth ≥ the proxy
-            // depth), or a cell would get several proxies with part of its weight each.
-            let key = morton_nested(group.map(|v| v.max(0) as u32));
-            debug_assert!(previous_group < Some(key), "samples not in Morton order");
-            previous_group = Some(key);
-            let mut sum_w = 0.0;
-            let mut sum_p = DVec3::ZERO;
-            while s < positions.len() && cell_of(positions[s], inv_proxy_h) == group {
-                sum_w += weights[s];
-                sum_p += positions[s] * weights[s];
-                s += 1;
-            }
-            if sum_w <= 0.0 {
-                continue;
-            }
-            let shift = proxy_depth - level.depth;
-            let cell = [group[0] >> shift, group[1] >> shift, group[2] >> shift];
-            let Some(idx) = level.find(cell) else {
-                continue;
-            };
-            if level.flags[idx as usize] & NEAR == 0 {
-                continue;
-            }
-            let t = sum_p / sum_w * inv_h;
-            let offset = [t.x, t.y, t.z].map(|v| (v - v.floor()).clamp(0.0, 1.0) as f32);
-            proxies.cell.push(idx);
-            proxies.weight.push(sum_w);
-            proxies.offset.push(offset);
+        for_each_group(positions, weights, proxy_depth, |group, sum_p, sum_w| {
+            proxies.push_group(level, group, sum_p, sum_w, proxy_depth)
+        });
+        proxies
+    }
+
+    /// The proxies of one depth from samples already grouped by cell at `proxy_depth`
+    /// (`groups`: the cell, Σ w·p and Σ w of its samples, in Morton order of the cells, each
+    /// cell once), as [`Proxies::build`] makes them from the samples: the out-of-core base sums
+    /// its slabs' groups, since a group is additive over the samples in it.
+    pub(crate) fn from_groups(
+        level: &Level,
+        groups: &[([i32; 3], DVec3, f64)],
+        proxy_depth: u32,
+    ) -> Proxies {
+        let mut proxies = Proxies {
+            degree: level.degree,
+            ..Proxies::default()
+        };
+        for &(cell, sum_p, sum_w) in groups {
+            proxies.push_group(level, cell, sum_p, sum_w, proxy_depth);
         }
         proxies
+    }
+
+    /// Adds the proxy of the samples of cell `group` of `proxy_depth` (their Σ w·p and Σ w),
+    /// unless they weigh nothing or lie beyond the nodes near the level's core.
+    fn push_group(
+        &mut self,
+        level: &Level,
+        group: [i32; 3],
+        sum_p: DVec3,
+        sum_w: f64,
+        proxy_depth: u32,
+    ) {
+        if sum_w <= 0.0 {
+            return;
+        }
+        let shift = proxy_depth - level.depth;
+        let cell = [group[0] >> shift, group[1] >> shift, group[2] >> shift];
+        let Some(idx) = level.find(cell) else {
+            return;
+        };
+        if level.flags[idx as usize] & NEAR == 0 {
+            return;
+        }
+        let inv_h = (level.depth as f64).exp2();
+        let t = sum_p / sum_w * inv_h;
+        let offset = [t.x, t.y, t.z].map(|v| (v - v.floor()).clamp(0.0, 1.0) as f32);
+        self.cell.push(idx);
+        self.weight.push(sum_w);
+        self.offset.push(offset);
     }
 
     pub fn len(&self) -> usize {
@@ -180,6 +196,51 @@ impl Proxies {
     pub fn is_empty(&self) -> bool {
         self.cell.is_empty()
     }
+}
+
+/// Calls `f(cell, Σ w·p, Σ w)` for the samples of each cell of `proxy_depth` in turn: the
+/// samples (`positions`, with `weights`) must be in Morton order at a depth ≥ `proxy_depth`,
+/// so that a cell's samples are consecutive.
+fn for_each_group(
+    positions: &[DVec3],
+    weights: &[f64],
+    proxy_depth: u32,
+    mut f: impl FnMut([i32; 3], DVec3, f64),
+) {
+    let inv_proxy_h = (proxy_depth as f64).exp2();
+    let mut s = 0;
+    let mut previous_group = None;
+    while s < positions.len() {
+        let group = cell_of(positions[s], inv_proxy_h);
+        // Each group's samples must be consecutive (Morton order at a depth ≥ the proxy
+        // depth), or a cell would get several proxies with part of its weight each.
+        let key = morton_nested(group.map(|v| v.max(0) as u32));
+        debug_assert!(previous_group < Some(key), "samples not in Morton order");
+        previous_group = Some(key);
+        let mut sum_w = 0.0;
+        let mut sum_p = DVec3::ZERO;
+        while s < positions.len() && cell_of(positions[s], inv_proxy_h) == group {
+            sum_w += weights[s];
+            sum_p += positions[s] * weights[s];
+            s += 1;
+        }
+        f(group, sum_p, sum_w);
+    }
+}
+
+/// The samples grouped by cell of `proxy_depth` (the cell, Σ w·p, Σ w), in Morton order of
+/// the cells, for [`Proxies::from_groups`]; the samples in Morton order as for
+/// [`Proxies::build`].
+pub(crate) fn sample_groups(
+    positions: &[DVec3],
+    weights: &[f64],
+    proxy_depth: u32,
+) -> Vec<([i32; 3], DVec3, f64)> {
+    let mut groups = Vec::new();
+    for_each_group(positions, weights, proxy_depth, |cell, sum_p, sum_w| {
+        groups.push((cell, sum_p, sum_w))
+    });
+    groups
 }
 
 /// `Σ_slot x[slot] · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9]` (x fastest), one
