@@ -50,3 +50,34 @@ pub(crate) fn merge_groups<'a>(
     }
     merged
 }
+
+/// The base's right-hand sides ρ_d and fields V_d, d ≤ B: the sums, node by node, of the
+/// slabs' own parts, each computed on a tree whose depths up to B are the base's (so that the
+/// same index is the same node in every slab).
+#[derive(Debug, Default)]
+pub(crate) struct BaseParts {
+    pub(crate) rho: Vec<Vec<f64>>,
+    pub(crate) field_v: Vec<[Vec<f64>; 3]>,
+}
+
+impl BaseParts {
+    /// Adds one slab's ρ and V of depths 0..=`base_depth` (slabs added in order).
+    pub(crate) fn add(&mut self, rho: &[Vec<f64>], field_v: &[[Vec<f64>; 3]], base_depth: usize) {
+        if self.rho.is_empty() {
+            self.rho = rho[..=base_depth].to_vec();
+            self.field_v = field_v[..=base_depth].to_vec();
+            return;
+        }
+        let add_into = |sum: &mut Vec<f64>, part: &Vec<f64>| {
+            sum.iter_mut().zip(part).for_each(|(s, p)| *s += p);
+        };
+        for (sum, part) in self.rho.iter_mut().zip(rho) {
+            add_into(sum, part);
+        }
+        for (sum, part) in self.field_v.iter_mut().zip(field_v) {
+            for (s, p) in sum.iter_mut().zip(part) {
+                add_into(s, p);
+            }
+        }
+    }
+}

@@ -1,6 +1,6 @@
 //! The out-of-core parts against the in-memory pipeline's.
 
-use super::base::coarse_cores;
+use super::base::{coarse_cores, BaseParts};
 use super::slabs::SlabLayout;
 use crate::bspline::Degree;
 use crate::density::{estimate, samples_by_depth, DensityField};
@@ -305,59 +305,41 @@ fn a_cascade_cut_at_the_base_depth_gives_the_whole_cascades_coefficients() {
             .num_threads(2)
             .build()
             .expect("a pool");
-        fn system(parts: &SystemParts, screening: f64, depths: Depths) -> System<'_> {
-            System {
-                tree: &parts.tree,
-                rho: parts.rho.clone(),
-                field_v: parts.field_v.clone(),
-                positions: &parts.positions,
-                screening_weights: &parts.screening_weights,
-                screening,
-                depths,
-            }
-        }
-        let screening = crate::system::depth_weight(params.point_weight, params.depth);
-        let whole_parts = sphere_system(&params);
-        let finest = whole_parts.tree.max_depth();
-        let whole = cascade(
-            system(&whole_parts, screening, Depths::All),
-            &params,
-            &pool,
-            &mut |_| true,
-            &mut Vec::new(),
-        )
-        .expect("solved")
-        .coefficients;
-        for base_depth in [3usize, 5] {
-            let mut base_parts = sphere_system(&params);
-            base_parts.tree.levels.truncate(base_depth + 1);
-            base_parts.rho.truncate(base_depth + 1);
-            base_parts.field_v.truncate(base_depth + 1);
-            let base = cascade(
-                system(
-                    &base_parts,
-                    screening,
-                    Depths::Base {
-                        last: base_depth,
-                        finest,
-                    },
-                ),
-                &params,
-                &pool,
-                &mut |_| true,
-                &mut Vec::new(),
-            )
-            .expect("solved");
-            assert_eq!(base.coefficients.len(), base_depth + 1);
-            let above = cascade(
-                system(&whole_parts, screening, Depths::Above(base)),
+        let solve = |parts: &SystemParts, depths: Depths| {
+            cascade(
+                System {
+                    tree: &parts.tree,
+                    rho: parts.rho.clone(),
+                    field_v: parts.field_v.clone(),
+                    positions: &parts.positions,
+                    screening_weights: &parts.screening_weights,
+                    screening: crate::system::depth_weight(params.point_weight, params.depth),
+                    depths,
+                },
                 &params,
                 &pool,
                 &mut |_| true,
                 &mut Vec::new(),
             )
             .expect("solved")
-            .coefficients;
+        };
+        let whole_parts = sphere_system(&params);
+        let finest = whole_parts.tree.max_depth();
+        let whole = solve(&whole_parts, Depths::All).coefficients;
+        for base_depth in [3usize, 5] {
+            let mut base_parts = sphere_system(&params);
+            base_parts.tree.levels.truncate(base_depth + 1);
+            base_parts.rho.truncate(base_depth + 1);
+            base_parts.field_v.truncate(base_depth + 1);
+            let base = solve(
+                &base_parts,
+                Depths::Base {
+                    last: base_depth,
+                    finest,
+                },
+            );
+            assert_eq!(base.coefficients.len(), base_depth + 1);
+            let above = solve(&whole_parts, Depths::Above(base)).coefficients;
             assert_eq!(above.len(), whole.len());
             for (d, (a, w)) in above.iter().zip(&whole).enumerate() {
                 assert!(
@@ -471,14 +453,7 @@ fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
             .collect();
         let own_cores: Vec<Vec<Vec<u64>>> = own.iter().map(|at| cloud.cores(at, &params)).collect();
         let base = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth as u32);
-        let mut rho_sum: Vec<Vec<f64>> = whole_rho[..=base_depth]
-            .iter()
-            .map(|r| vec![0.0; r.len()])
-            .collect();
-        let mut v_sum: Vec<[Vec<f64>; 3]> = whole_v[..=base_depth]
-            .iter()
-            .map(|v| [0, 1, 2].map(|a| vec![0.0; v[a].len()]))
-            .collect();
+        let mut sums = BaseParts::default();
         for (at, cores) in own.iter().zip(own_cores) {
             let mut slab_cores = base.clone();
             slab_cores.extend(cores.into_iter().skip(base_depth + 1));
@@ -492,18 +467,7 @@ fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
                 );
             }
             let (rho, v) = cloud.right_hand_sides(&tree, at, &params);
-            for d in 0..=base_depth {
-                rho_sum[d]
-                    .iter_mut()
-                    .zip(&rho[d])
-                    .for_each(|(s, r)| *s += r);
-                for a in 0..3 {
-                    v_sum[d][a]
-                        .iter_mut()
-                        .zip(&v[d][a])
-                        .for_each(|(s, x)| *s += x);
-                }
-            }
+            sums.add(&rho, &v, base_depth);
         }
         // Rounding relative to the largest value of any depth (a depth whose values cancel,
         // like the root's, has no scale of its own).
@@ -517,12 +481,12 @@ fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
         };
         for d in 0..=base_depth {
             assert!(
-                close(&rho_sum[d], &whole_rho[d], rho_scale),
+                close(&sums.rho[d], &whole_rho[d], rho_scale),
                 "degree {degree}: ρ at depth {d}"
             );
             for a in 0..3 {
                 assert!(
-                    close(&v_sum[d][a], &whole_v[d][a], v_scale),
+                    close(&sums.field_v[d][a], &whole_v[d][a], v_scale),
                     "degree {degree}: V at depth {d}"
                 );
             }
@@ -606,35 +570,18 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
     let base_cores = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth as u32);
 
     // The base: the slabs' own parts summed, solved on the base's depths alone.
-    let mut base_rho: Vec<Vec<f64>> = Vec::new();
-    let mut base_v: Vec<[Vec<f64>; 3]> = Vec::new();
+    let mut sums = BaseParts::default();
     for (at, cores) in own.iter().zip(&own_cores) {
         let mut slab_cores = base_cores.clone();
         slab_cores.extend(cores.iter().skip(base_depth + 1).cloned());
         let (rho, v) = cloud.right_hand_sides(&tree_of(slab_cores), at, &params);
-        if base_rho.is_empty() {
-            base_rho = rho[..=base_depth].to_vec();
-            base_v = v[..=base_depth].to_vec();
-            continue;
-        }
-        for d in 0..=base_depth {
-            base_rho[d]
-                .iter_mut()
-                .zip(&rho[d])
-                .for_each(|(s, r)| *s += r);
-            for a in 0..3 {
-                base_v[d][a]
-                    .iter_mut()
-                    .zip(&v[d][a])
-                    .for_each(|(s, x)| *s += x);
-            }
-        }
+        sums.add(&rho, &v, base_depth);
     }
     let base_tree = tree_of(base_cores.clone());
     let base = solve(
         &base_tree,
-        base_rho,
-        base_v,
+        sums.rho,
+        sums.field_v,
         Depths::Base {
             last: base_depth,
             finest,
