@@ -484,9 +484,9 @@ fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
                 close(&sums.rho[d], &whole_rho[d], rho_scale),
                 "degree {degree}: ρ at depth {d}"
             );
-            for a in 0..3 {
+            for (sum, whole) in sums.field_v[d].iter().zip(&whole_v[d]) {
                 assert!(
-                    close(&sums.field_v[d][a], &whole_v[d][a], v_scale),
+                    close(sum, whole, v_scale),
                     "degree {degree}: V at depth {d}"
                 );
             }
