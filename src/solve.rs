@@ -63,8 +63,9 @@ pub(crate) struct Solved {
     pub(crate) field_v: [Vec<f64>; 3],
 }
 
-/// Solves the system depth by depth from the root and returns z_d on K_d for every depth: the
-/// coarser solution prolonged to depth d plus the correction solved there. Each depth's
+/// Solves the system depth by depth from the root (or from the depth above a base, see
+/// [`Depths`]) and returns z_d on K_d for every depth: the coarser solution prolonged to depth
+/// d plus the correction solved there (with a base's V when the solve stops at one). Each depth's
 /// figures are appended to `solves`; `progress(fraction of the whole solve)` is called once
 /// per iteration and between the steps that set up each depth, and may cancel.
 ///
