@@ -1158,7 +1158,7 @@ pub fn read_points_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
 /// The vertices and the faces of a PLY file (see [`read_points_and_triangles_from`]).
 pub fn read_points_and_triangles(path: &Path) -> Result<PointsAndTriangles, PlyError> {
     let (reader, len) = open(path)?;
-    read_vertices_and_faces(reader, len, Normals::IfPresent, true)
+    read_vertices_and_faces(reader, len, Normals::IfPresent, true, None)
         .map_err(|e| PlyError::new(e).with_path(path))
 }
 
@@ -1171,7 +1171,7 @@ pub fn read_points_and_triangles(path: &Path) -> Result<PointsAndTriangles, PlyE
 pub fn read_points_and_triangles_from(
     reader: impl BufRead,
 ) -> Result<PointsAndTriangles, PlyError> {
-    read_vertices_and_faces(reader, None, Normals::IfPresent, true).map_err(PlyError::new)
+    read_vertices_and_faces(reader, None, Normals::IfPresent, true, None).map_err(PlyError::new)
 }
 
 /// The vertices of a PLY file and its faces as triangles (indices into the vertices).
@@ -1189,7 +1189,65 @@ fn read_vertex_points<R: BufRead>(
     file_len: Option<u64>,
     normals: Normals,
 ) -> Result<PlyPoints, PlyErrorKind> {
-    read_vertices_and_faces(r, file_len, normals, false).map(|(points, _)| points)
+    read_vertices_and_faces(r, file_len, normals, false, None).map(|(points, _)| points)
+}
+
+/// Reads the oriented points of a PLY file (as [`read_point_cloud`] does) in chunks of at most
+/// `chunk` points, handing each to `each` in file order, so that a file larger than memory can
+/// be read: nothing but one chunk is held. `each` returning an error stops the reading; that
+/// error comes back as the inner result, a problem with the file as the outer one.
+pub(crate) fn read_point_cloud_chunks<E>(
+    path: &Path,
+    chunk: usize,
+    mut each: impl FnMut(PlyPoints) -> Result<(), E>,
+) -> Result<Result<(), E>, PlyError> {
+    let (reader, len) = open(path)?;
+    let mut failure = None;
+    let mut hand_over = |points: PlyPoints| match each(points) {
+        Ok(()) => true,
+        Err(e) => {
+            failure = Some(e);
+            false
+        }
+    };
+    read_vertices_and_faces(
+        reader,
+        len,
+        Normals::Required,
+        false,
+        Some((chunk.max(1), &mut hand_over)),
+    )
+    .map_err(|e| PlyError::new(e).with_path(path))?;
+    Ok(failure.map_or(Ok(()), Err))
+}
+
+/// Where a chunked read hands its points: the chunk size and a consumer that returns false to
+/// stop.
+type Chunks<'a> = (usize, &'a mut dyn FnMut(PlyPoints) -> bool);
+
+/// Takes the points read so far out of `out`, `colors` and `channels` as one chunk.
+fn take_chunk(
+    out: &mut PlyPoints,
+    colors: &mut Vec<f32>,
+    channels: &mut [Vec<f32>],
+    components: usize,
+    channel_names: &[String],
+) -> PlyPoints {
+    use std::mem::take;
+    PlyPoints {
+        positions: take(&mut out.positions),
+        positions_f64: out.positions_f64.as_mut().map(take),
+        normals: take(&mut out.normals),
+        colors: (components > 0).then(|| Colors::from_flattened(components, &take(colors))),
+        color_type: out.color_type,
+        confidence: out.confidence.as_mut().map(take),
+        sensors: out.sensors.as_mut().map(take),
+        channels: channel_names
+            .iter()
+            .zip(channels.iter_mut())
+            .map(|(name, values)| Channel::new(name.clone(), take(values)))
+            .collect(),
+    }
 }
 
 /// The `face` element a reader reads along with the vertices: its index, how to read it, the
@@ -1229,12 +1287,14 @@ impl Faces {
 }
 
 /// [`read_vertex_points`], and with `faces` the `face` element's polygons as triangles too
-/// (none when the file has no `face` element).
+/// (none when the file has no `face` element). With `chunks`, the points are handed over in
+/// chunks as they are read (the returned points are then empty), until the consumer says stop.
 fn read_vertices_and_faces<R: BufRead>(
     mut r: R,
     file_len: Option<u64>,
     normals: Normals,
     faces: bool,
+    mut chunks: Option<Chunks<'_>>,
 ) -> Result<(PlyPoints, Vec<[u32; 3]>), PlyErrorKind> {
     let header = parse_header(&mut r)?;
     let Some(vi) = header.element("vertex") else {
@@ -1354,7 +1414,7 @@ fn read_vertices_and_faces<R: BufRead>(
         }
         None => None,
     };
-    let cap = capacity(vertex.count, size_checked);
+    let cap = capacity(vertex.count, size_checked).min(chunks.as_ref().map_or(usize::MAX, |c| c.0));
     let components = match rgba {
         Some((_, Some(_))) => 4,
         Some((_, None)) => 3,
@@ -1382,7 +1442,8 @@ fn read_vertices_and_faces<R: BufRead>(
     for (i, el) in header.elements[..vi].iter().enumerate() {
         Faces::read_or_skip(&mut faces, &mut body, i, el)?;
     }
-    body.read_element(vertex, &plan, |_, v, _| {
+    let mut stopped = false;
+    let read = body.read_element(vertex, &plan, |_, v, _| {
         out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
         if let Some(exact) = &mut out.positions_f64 {
             exact.push([v[0], v[1], v[2]]);
@@ -1402,8 +1463,40 @@ fn read_vertices_and_faces<R: BufRead>(
         for (k, channel) in channels.iter_mut().enumerate() {
             channel.push(v[14 + k] as f32);
         }
+        if let Some((size, each)) = chunks.as_mut() {
+            if out.positions.len() >= *size {
+                let chunk = take_chunk(
+                    &mut out,
+                    &mut colors,
+                    &mut channels,
+                    components,
+                    &channel_names,
+                );
+                if !each(chunk) {
+                    stopped = true;
+                    return Err("the consumer of the points stopped the reading".into());
+                }
+            }
+        }
         Ok(())
-    })?;
+    });
+    if stopped {
+        return Ok((out, Vec::new()));
+    }
+    read?;
+    if let Some((_, each)) = chunks.as_mut() {
+        if !out.positions.is_empty() {
+            let chunk = take_chunk(
+                &mut out,
+                &mut colors,
+                &mut channels,
+                components,
+                &channel_names,
+            );
+            each(chunk);
+        }
+        return Ok((out, Vec::new()));
+    }
     if components > 0 {
         out.colors = Some(Colors::from_flattened(components, &colors));
     }
@@ -2093,6 +2186,95 @@ mod tests {
     /// A file name in the temporary directory, unique to this process and test.
     fn temp_path(name: &str) -> PathBuf {
         std::env::temp_dir().join(format!("psr-ply-test-{}-{name}", std::process::id()))
+    }
+
+    /// Proves: reading a file in chunks hands over every point once, in file order, with its
+    /// normal, colour, confidence, sensor and channels, in chunks of the asked size (the last
+    /// shorter), ASCII and binary; and a consumer's error stops the reading and comes back.
+    #[test]
+    fn chunks_hand_over_the_whole_cloud_in_order() {
+        let one = sample_points(true);
+        let mut points = one.clone();
+        for _ in 0..4 {
+            points.positions.extend_from_slice(&one.positions);
+            points.normals.extend_from_slice(&one.normals);
+            let (Some(Colors::Rgb(all)), Some(Colors::Rgb(more))) =
+                (&mut points.colors, &one.colors)
+            else {
+                unreachable!("sample_points has RGB colours")
+            };
+            all.extend_from_slice(more);
+            points
+                .confidence
+                .as_mut()
+                .unwrap()
+                .extend_from_slice(one.confidence.as_ref().unwrap());
+            points
+                .sensors
+                .as_mut()
+                .unwrap()
+                .extend_from_slice(one.sensors.as_ref().unwrap());
+            for (all, more) in points.channels.iter_mut().zip(&one.channels) {
+                all.values.extend_from_slice(&more.values);
+            }
+        }
+        for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian] {
+            let path = temp_path(&format!("chunks-{format:?}.ply"));
+            std::fs::write(&path, to_bytes(&points, format)).unwrap();
+            let whole = read_point_cloud(&path).unwrap();
+            for size in [1, 4, 15, 100] {
+                let mut start = 0;
+                let mut sizes = Vec::new();
+                read_point_cloud_chunks(&path, size, |chunk: PlyPoints| -> Result<(), ()> {
+                    let range = start..start + chunk.positions.len();
+                    assert_eq!(chunk.positions, whole.positions[range.clone()]);
+                    assert_eq!(chunk.normals, whole.normals[range.clone()]);
+                    let Some(Colors::Rgb(colors)) = &chunk.colors else {
+                        panic!("colours")
+                    };
+                    let Some(Colors::Rgb(all)) = &whole.colors else {
+                        panic!("colours")
+                    };
+                    assert_eq!(colors[..], all[range.clone()]);
+                    assert_eq!(
+                        chunk.confidence.unwrap(),
+                        whole.confidence.as_ref().unwrap()[range.clone()]
+                    );
+                    assert_eq!(
+                        chunk.sensors.unwrap(),
+                        whole.sensors.as_ref().unwrap()[range.clone()]
+                    );
+                    for (c, w) in chunk.channels.iter().zip(&whole.channels) {
+                        assert_eq!(
+                            (&c.name, &c.values[..]),
+                            (&w.name, &w.values[range.clone()])
+                        );
+                    }
+                    sizes.push(range.len());
+                    start = range.end;
+                    Ok(())
+                })
+                .unwrap()
+                .unwrap();
+                assert_eq!(start, 15, "{format:?}, chunks of {size}");
+                assert!(
+                    sizes.iter().rev().skip(1).all(|&n| n == size)
+                        && sizes[sizes.len() - 1] <= size
+                );
+            }
+            let mut calls = 0;
+            let stopped = read_point_cloud_chunks(&path, 4, |_| {
+                calls += 1;
+                if calls == 2 {
+                    Err("full disk")
+                } else {
+                    Ok(())
+                }
+            })
+            .unwrap();
+            assert_eq!((stopped, calls), (Err("full disk"), 2));
+            std::fs::remove_file(&path).unwrap();
+        }
     }
 
     /// Proves: read_points reads a cloud with no normals (empty normals), and reads the
