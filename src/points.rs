@@ -445,6 +445,33 @@ impl Affine {
     }
 }
 
+/// The bounding box of positions, gathered in parts ([`UnitCubeMap::fit_bounds`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Bounds {
+    pub(crate) lo: DVec3,
+    pub(crate) hi: DVec3,
+}
+
+impl Default for Bounds {
+    /// The empty box.
+    fn default() -> Self {
+        Bounds {
+            lo: DVec3::splat(f64::INFINITY),
+            hi: DVec3::splat(f64::NEG_INFINITY),
+        }
+    }
+}
+
+impl Bounds {
+    /// Grows the box to hold `positions`.
+    pub(crate) fn extend(&mut self, positions: impl IntoIterator<Item = DVec3>) {
+        for v in positions {
+            self.lo = self.lo.min(v);
+            self.hi = self.hi.max(v);
+        }
+    }
+}
+
 /// The similarity that maps input coordinates into the unit cube: `unit = (p − origin) / size`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UnitCubeMap {
@@ -471,12 +498,16 @@ impl UnitCubeMap {
     }
 
     fn fit_to(positions: impl Iterator<Item = DVec3>, scale: f64) -> Self {
-        let mut lo = DVec3::splat(f64::INFINITY);
-        let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for v in positions {
-            lo = lo.min(v);
-            hi = hi.max(v);
-        }
+        let mut bounds = Bounds::default();
+        bounds.extend(positions);
+        Self::fit_bounds(&bounds, scale)
+    }
+
+    /// [`UnitCubeMap::fit`] from the bounding box of the positions, gathered by
+    /// [`Bounds::extend`] in any number of parts (the out-of-core scan reads its input in
+    /// chunks): the same map as the positions fitted at once.
+    pub(crate) fn fit_bounds(bounds: &Bounds, scale: f64) -> Self {
+        let (lo, hi) = (bounds.lo, bounds.hi);
         let extent = (hi - lo).max_element();
         let magnitude = lo.abs().max(hi.abs()).max_element();
         // A zero extent (all points coincide) gets a cube a little larger than f32 resolution at

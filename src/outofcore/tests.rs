@@ -681,3 +681,26 @@ fn the_base_proxies_are_the_merge_of_the_slabs_groups() {
         }
     }
 }
+
+/// Proves the scan's cube is the in-memory one: the bounding box gathered chunk by chunk fits
+/// the same unit-cube map as all the positions at once, for any chunk size.
+#[test]
+fn the_cube_fitted_from_chunks_is_the_cube_fitted_at_once() {
+    use crate::points::{Bounds, UnitCubeMap};
+    let positions: Vec<[f32; 3]> = cloud()
+        .iter()
+        .map(|p| [p.x as f32 * 3.0 - 1e3, p.y as f32 + 0.5, -(p.z as f32)])
+        .collect();
+    let whole = UnitCubeMap::fit(&positions, 1.1);
+    for chunk in [1, 7, 1000, positions.len()] {
+        let mut bounds = Bounds::default();
+        for part in positions.chunks(chunk) {
+            bounds.extend(part.iter().map(|p| DVec3::from(p.map(f64::from))));
+        }
+        assert_eq!(
+            UnitCubeMap::fit_bounds(&bounds, 1.1),
+            whole,
+            "chunks of {chunk}"
+        );
+    }
+}
