@@ -1195,7 +1195,8 @@ fn read_vertex_points<R: BufRead>(
 /// Reads the oriented points of a PLY file (as [`read_point_cloud`] does) in chunks of at most
 /// `chunk` points, handing each to `each` in file order, so that a file larger than memory can
 /// be read: nothing but one chunk is held. `each` returning an error stops the reading; that
-/// error comes back as the inner result, a problem with the file as the outer one.
+/// error comes back as the inner result, a problem with the file as the outer one (found after
+/// some chunks were handed over, whose use the caller then undoes).
 pub(crate) fn read_point_cloud_chunks<E>(
     path: &Path,
     chunk: usize,
