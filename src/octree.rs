@@ -643,22 +643,34 @@ impl Octree {
         watch: &Watch,
         budget: &(dyn Fn(&[u64]) -> Result<()> + Sync),
     ) -> Result<Octree> {
-        let sample_cells: Vec<Vec<Coord>> = at_depth
-            .iter()
-            .enumerate()
-            .map(|(d, at)| {
-                let inv_h = (d as f64).exp2();
-                at.iter()
-                    .map(|s| cell_of(positions[s.sample as usize], inv_h))
-                    .collect()
-            })
-            .collect();
-        Octree::build_watched(sample_cells, full_depth, boundary, degree, watch, budget)
+        Octree::build_watched(
+            sample_cells(at_depth, positions),
+            full_depth,
+            boundary,
+            degree,
+            watch,
+            budget,
+        )
     }
 
     pub fn max_depth(&self) -> u32 {
         self.levels.len() as u32 - 1
     }
+}
+
+/// The cell of each sample splatted at each depth (`at_depth[d]`, at `positions` in the unit
+/// cube), what [`Octree::core_sets`] builds the cores from.
+pub(crate) fn sample_cells(at_depth: &[Vec<DepthSample>], positions: &[DVec3]) -> Vec<Vec<Coord>> {
+    at_depth
+        .iter()
+        .enumerate()
+        .map(|(d, at)| {
+            let inv_h = (d as f64).exp2();
+            at.iter()
+                .map(|s| cell_of(positions[s.sample as usize], inv_h))
+                .collect()
+        })
+        .collect()
 }
 
 /// The node coordinates (per axis, inclusive) a core at depth `d` may hold: one node beyond the

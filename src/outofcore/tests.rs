@@ -4,8 +4,7 @@ use super::base::{coarse_cores, BaseParts};
 use super::slabs::SlabLayout;
 use crate::bspline::Degree;
 use crate::density::{estimate, samples_by_depth, DensityField};
-use crate::grid::cell_of;
-use crate::octree::Octree;
+use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
 use crate::solve::Solved;
 use crate::Boundary;
@@ -34,21 +33,18 @@ fn cloud() -> Vec<DVec3> {
     points
 }
 
-/// The cells holding the samples splatted at each depth, for the samples `keep` admits.
-fn sample_cells(
+/// The samples splatted at each depth that lie where `keep` says.
+fn at_depth_where(
     positions: &[DVec3],
     at_depth: &[Vec<crate::density::DepthSample>],
     keep: impl Fn(DVec3) -> bool,
-) -> Vec<Vec<[i32; 3]>> {
+) -> Vec<Vec<crate::density::DepthSample>> {
     at_depth
         .iter()
-        .enumerate()
-        .map(|(d, at)| {
-            let inv_h = (d as f64).exp2();
+        .map(|at| {
             at.iter()
-                .map(|s| positions[s.sample as usize])
-                .filter(|&p| keep(p))
-                .map(|p| cell_of(p, inv_h))
+                .copied()
+                .filter(|s| keep(positions[s.sample as usize]))
                 .collect()
         })
         .collect()
@@ -75,7 +71,7 @@ fn the_core_sets_of_the_cloud_are_the_union_of_its_slabs() {
             let coarsest = Octree::coarsest_depth(boundary, degree);
             let at_depth = samples_by_depth(&mut density, &confidence, 9, 3, coarsest);
             let whole = Octree::core_sets(
-                sample_cells(&positions, &at_depth, |_| true),
+                sample_cells(&at_depth, &positions),
                 3,
                 boundary,
                 degree,
@@ -87,9 +83,10 @@ fn the_core_sets_of_the_cloud_are_the_union_of_its_slabs() {
             let slabs: Vec<Vec<Vec<u64>>> = walls
                 .windows(2)
                 .map(|w| {
-                    let cells = sample_cells(&positions, &at_depth, |p| {
+                    let at = at_depth_where(&positions, &at_depth, |p| {
                         (w[0]..w[1]).contains(&p.x) || (w[1] == 1.0 && p.x >= 1.0)
                     });
+                    let cells = sample_cells(&at, &positions);
                     Octree::core_sets(cells, 3, boundary, degree, &watch, &unlimited)
                         .expect("not cancelled")
                 })
@@ -189,15 +186,7 @@ impl Cloud {
         &self,
         keep: impl Fn(DVec3) -> bool,
     ) -> Vec<Vec<crate::density::DepthSample>> {
-        self.at_depth
-            .iter()
-            .map(|at| {
-                at.iter()
-                    .copied()
-                    .filter(|s| keep(self.samples.positions[s.sample as usize]))
-                    .collect()
-            })
-            .collect()
+        at_depth_where(&self.samples.positions, &self.at_depth, keep)
     }
 
     /// The core sets of the samples `at_depth`.
@@ -206,18 +195,8 @@ impl Cloud {
         at_depth: &[Vec<crate::density::DepthSample>],
         params: &crate::Params,
     ) -> Vec<Vec<u64>> {
-        let cells = at_depth
-            .iter()
-            .enumerate()
-            .map(|(d, at)| {
-                let inv_h = (d as f64).exp2();
-                at.iter()
-                    .map(|s| cell_of(self.samples.positions[s.sample as usize], inv_h))
-                    .collect()
-            })
-            .collect();
         Octree::core_sets(
-            cells,
+            sample_cells(at_depth, &self.samples.positions),
             params.effective_full_depth(),
             params.boundary,
             params.node_degree(),
@@ -373,7 +352,7 @@ fn a_slabs_tree_with_its_padding_is_the_whole_tree_over_its_columns() {
     let finest = at_depth.len() - 1;
     let cores_of = |keep: &dyn Fn(DVec3) -> bool| {
         Octree::core_sets(
-            sample_cells(&positions, &at_depth, keep),
+            sample_cells(&at_depth_where(&positions, &at_depth, keep), &positions),
             3,
             boundary,
             degree,
