@@ -67,21 +67,9 @@ impl DensityField {
     /// Splats a unit weight per sample (times its confidence, when given) at `depth`, and
     /// restricts the counts to every coarser depth.
     pub fn splat(positions: &[DVec3], confidence: Option<&[f64]>, depth: u32) -> Self {
-        let inv_h = (depth as f64).exp2();
-        let mut counts: KeyMap<f64> = KeyMap::default();
-        for (s, &p) in positions.iter().enumerate() {
-            let c = confidence.map_or(1.0, |w| w[s]);
-            for (node, w) in trilinear(p, inv_h) {
-                *counts.entry(morton(node)).or_insert(0.0) += w * c;
-            }
-        }
-        let mut levels = vec![counts];
-        for _ in 0..depth {
-            let coarser = restrict(levels.last().expect("the kernel depth's counts"));
-            levels.push(coarser);
-        }
-        levels.reverse();
-        DensityField { depth, levels }
+        let mut counts = KernelCounts::new(depth);
+        counts.add(positions, confidence);
+        counts.into_field()
     }
 
     /// W(q) = Σ_o count_o B_o(q) at the kernel depth.
@@ -114,6 +102,47 @@ impl DensityField {
             }
         }
         sum
+    }
+}
+
+/// The samples' counts at the kernel depth, gathered in any number of parts (the out-of-core
+/// path reads its points in chunks): [`DensityField::splat`] of all the points is
+/// [`KernelCounts::add`] of each part, then [`KernelCounts::into_field`] (the counts summed in
+/// another order when the parts are not the points in order: equal to rounding).
+pub(crate) struct KernelCounts {
+    depth: u32,
+    counts: KeyMap<f64>,
+}
+
+impl KernelCounts {
+    pub(crate) fn new(depth: u32) -> Self {
+        KernelCounts {
+            depth,
+            counts: KeyMap::default(),
+        }
+    }
+
+    /// Splats a unit weight per sample (times its confidence, when given) at the kernel depth.
+    pub(crate) fn add(&mut self, positions: &[DVec3], confidence: Option<&[f64]>) {
+        let inv_h = (self.depth as f64).exp2();
+        for (s, &p) in positions.iter().enumerate() {
+            let c = confidence.map_or(1.0, |w| w[s]);
+            for (node, w) in trilinear(p, inv_h) {
+                *self.counts.entry(morton(node)).or_insert(0.0) += w * c;
+            }
+        }
+    }
+
+    /// The field: the counts, restricted to every coarser depth.
+    pub(crate) fn into_field(self) -> DensityField {
+        let depth = self.depth;
+        let mut levels = vec![self.counts];
+        for _ in 0..depth {
+            let coarser = restrict(levels.last().expect("the kernel depth's counts"));
+            levels.push(coarser);
+        }
+        levels.reverse();
+        DensityField { depth, levels }
     }
 }
 

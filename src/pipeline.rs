@@ -324,6 +324,7 @@ pub(crate) fn run(
         field_v,
         positions: &samples.positions,
         screening_weights: &screening_weights,
+        proxy_groups: None,
         screening: system::depth_weight(params.point_weight, params.depth),
         depths: Depths::All,
     };

@@ -17,6 +17,9 @@ use crate::system::{
     divergence_of_prolonged, fill_mirrors, fill_mirrors_field, prolong, proxy_depth,
     update_on_core, DepthOperator, ProlongedField, Proxies,
 };
+
+/// A cell of a proxy depth with its samples' Σ w·p and Σ w ([`crate::system::sample_groups`]).
+pub(crate) type ProxyGroup = ([i32; 3], DVec3, f64);
 use crate::{DepthSolve, Params};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -34,6 +37,10 @@ pub(crate) struct System<'a> {
     /// The samples in the unit cube (Morton order) and their screening weights.
     pub(crate) positions: &'a [DVec3],
     pub(crate) screening_weights: &'a [f64],
+    /// Instead of the samples: their groups, already summed, for every depth solved (index d
+    /// at [`proxy_depth`] of d, as [`crate::system::sample_groups`] makes them). The
+    /// out-of-core base's, merged from its slabs' (`crate::outofcore::base::merge_groups`).
+    pub(crate) proxy_groups: Option<&'a [Vec<ProxyGroup>]>,
     /// The screening term's weight α_d ([`crate::system::depth_weight`]).
     pub(crate) screening: f64,
     /// Which depths to solve: all of them ([`Depths::All`]) as the in-memory pipeline does, or
@@ -86,6 +93,7 @@ pub(crate) fn cascade(
         mut field_v,
         positions,
         screening_weights,
+        proxy_groups,
         screening,
         depths: which,
     } = system;
@@ -125,13 +133,16 @@ pub(crate) fn cascade(
                 Err(Error::Cancelled)
             }
         };
-        let proxies = pool.install(|| {
-            Proxies::build(
+        let proxies = pool.install(|| match proxy_groups {
+            Some(groups) => {
+                Proxies::from_groups(level, &groups[d], proxy_depth(d as u32, max_depth))
+            }
+            None => Proxies::build(
                 level,
                 positions,
                 screening_weights,
                 proxy_depth(d as u32, max_depth),
-            )
+            ),
         });
         go_on()?;
         let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));

@@ -38,5 +38,7 @@ mod transfer;
 pub(crate) use crate::octree::{fill_mirrors, fill_mirrors_field};
 pub(crate) use operator::DepthOperator;
 pub(crate) use rhs::{divergence, divergence_of_prolonged, right_hand_sides, update_on_core};
-pub(crate) use screening::{depth_weight, proxy_depth, sample_groups, sample_weights, Proxies};
+pub(crate) use screening::{
+    depth_weight, proxy_depth, sample_groups, sample_weights, sample_weights_from_totals, Proxies,
+};
 pub(crate) use transfer::{prolong, ProlongedField};

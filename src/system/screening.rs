@@ -15,6 +15,16 @@ use rayon::prelude::*;
 pub(crate) fn sample_weights(areas: &[f64], confidence: &[f64]) -> Vec<f64> {
     let total_area: f64 = areas.iter().zip(confidence).map(|(a, c)| a * c).sum();
     let total_confidence: f64 = confidence.iter().sum();
+    sample_weights_from_totals(confidence, total_area, total_confidence)
+}
+
+/// [`sample_weights`] from the totals over all the samples (Σ area × confidence, Σ
+/// confidence), for samples that are part of them (the out-of-core path's slabs).
+pub(crate) fn sample_weights_from_totals(
+    confidence: &[f64],
+    total_area: f64,
+    total_confidence: f64,
+) -> Vec<f64> {
     confidence
         .iter()
         .map(|c| c * total_area / total_confidence)
