@@ -17,7 +17,71 @@
 //! the components across walls, the PLY written slab by slab, and the front ends.
 
 pub(crate) mod base;
+pub(crate) mod passes;
+pub(crate) mod scan;
+pub(crate) mod scratch;
 pub(crate) mod slabs;
+
+use crate::ply::PlyError;
+use crate::Error;
+use std::fmt;
+use std::io;
+use std::path::PathBuf;
+
+/// Why a reconstruction out of core failed.
+#[derive(Debug)]
+pub enum OutOfCoreError {
+    /// The input file could not be read.
+    Input(PlyError),
+    /// The points or the parameters were refused, or the reconstruction failed, as the
+    /// in-memory path would say (a point's index is its index in the file).
+    Reconstruction(Error),
+    /// The temporary directory or a file in it could not be created, written or read (a full
+    /// disk, a directory without write permission).
+    Scratch {
+        /// what was being done, e.g. "write a slab file"
+        action: &'static str,
+        /// the file or directory
+        path: PathBuf,
+        /// the operating system's error
+        source: io::Error,
+    },
+}
+
+impl fmt::Display for OutOfCoreError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            OutOfCoreError::Input(e) => write!(f, "{e}"),
+            OutOfCoreError::Reconstruction(e) => write!(f, "{e}"),
+            OutOfCoreError::Scratch {
+                action,
+                path,
+                source,
+            } => write!(
+                f,
+                "could not {action} ({}): {source}; choose another temporary directory with \
+                 enough free space",
+                path.display()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for OutOfCoreError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            OutOfCoreError::Input(e) => Some(e),
+            OutOfCoreError::Reconstruction(e) => Some(e),
+            OutOfCoreError::Scratch { source, .. } => Some(source),
+        }
+    }
+}
+
+impl From<Error> for OutOfCoreError {
+    fn from(e: Error) -> Self {
+        OutOfCoreError::Reconstruction(e)
+    }
+}
 
 #[cfg(test)]
 mod tests;

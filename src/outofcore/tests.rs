@@ -292,6 +292,7 @@ fn a_cascade_cut_at_the_base_depth_gives_the_whole_cascades_coefficients() {
                     field_v: parts.field_v.clone(),
                     positions: &parts.positions,
                     screening_weights: &parts.screening_weights,
+                    proxy_groups: None,
                     screening: crate::system::depth_weight(params.point_weight, params.depth),
                     depths,
                 },
@@ -509,6 +510,7 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
                 field_v,
                 positions: &cloud.samples.positions,
                 screening_weights: &weights,
+                proxy_groups: None,
                 screening,
                 depths,
             },
@@ -682,4 +684,123 @@ fn the_cube_fitted_from_chunks_is_the_cube_fitted_at_once() {
             "chunks of {chunk}"
         );
     }
+}
+
+/// The bumpy sphere's points (input coordinates) written as a binary PLY in `dir`.
+fn bumpy_sphere_file(dir: &std::path::Path) -> (std::path::PathBuf, crate::PointSet) {
+    let n = 60_000;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let mut points = crate::ply::PlyPoints::default();
+    for i in 0..n {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        if (z > 0.6 && i % 16 != 0) || (z < -0.6 && i % 64 != 0) {
+            continue;
+        }
+        let r = (1.0 - z * z).sqrt();
+        let t = golden * i as f64;
+        let bump = 1.0 + 0.05 * (5.0 * t.sin() * z).sin();
+        let u = [r * t.cos(), r * t.sin(), z];
+        points.positions.push(u.map(|c| (c * bump) as f32));
+        points.normals.push(u.map(|c| c as f32));
+    }
+    let path = dir.join("bumpy_sphere.ply");
+    crate::ply::write_point_cloud(&path, &points, crate::ply::PlyFormat::BinaryLittleEndian)
+        .expect("written");
+    let set = crate::PointSet::from_slices(&points.positions, &points.normals).expect("valid");
+    (path, set)
+}
+
+/// Proves the passes over files: the bumpy sphere read from a PLY in chunks, binned to four
+/// slabs, its base solved from the slabs' summed parts and each slab above it, gives χ within
+/// the in-memory solver's own error of the in-memory χ at every sample, the same isovalue to
+/// that error, and one χ across every wall: the two slabs beside a wall evaluate the same
+/// value, bit for bit, near it. The temporary directory is gone once the result is dropped.
+#[test]
+fn the_passes_over_files_solve_the_in_memory_chi_with_one_chi_across_walls() {
+    use super::passes::{load_solution, solve_slabs, Plan};
+    let dir = super::scratch::Scratch::create(None).expect("a directory for the input");
+    let (path, points) = bumpy_sphere_file(dir.path());
+    let params = crate::Params::default()
+        .with_depth(8)
+        .with_full_depth(3)
+        .with_threads(2);
+    let in_memory = crate::reconstruct_with_implicit(&points, &params)
+        .expect("reconstructed")
+        .1;
+    let converged = crate::reconstruct_with_implicit(
+        &points,
+        &params
+            .clone()
+            .with_solver_tolerance(1e-9)
+            .with_max_solver_iterations(3000),
+    )
+    .expect("reconstructed")
+    .1;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool");
+    let plan = Plan {
+        base_depth: 4,
+        slabs: 4,
+        padding: 12,
+        chunk: 5_000,
+        temp_dir: Some(dir.path().to_path_buf()),
+    };
+    let solved =
+        solve_slabs(&path, &params, &plan, &pool, &mut |_, _| true).expect("solved out of core");
+    assert_eq!(solved.layout.len(), 4);
+    let scratch_dir = solved.scratch.path().to_path_buf();
+    assert!(scratch_dir.is_dir());
+    let map = solved.scan.map;
+    let chis: Vec<_> = (0..4)
+        .map(|k| load_solution(&solved, k, &pool).expect("loaded"))
+        .collect();
+    let (mut worst_slab, mut worst_in_memory) = (0.0f64, 0.0f64);
+    for p in points.positions() {
+        let unit = map.to_unit(*p);
+        let k = solved
+            .layout
+            .slab_of_column(solved.layout.column_of(unit.x));
+        let input = p.map(f64::from);
+        let mem = in_memory.value(input);
+        worst_slab = worst_slab.max((chis[k].value(unit) - mem).abs());
+        worst_in_memory = worst_in_memory.max((mem - converged.value(input)).abs());
+    }
+    println!(
+        "χ: slabs vs in memory {worst_slab:e}, in memory vs converged {worst_in_memory:e}; \
+         γ {} vs {} (converged {})",
+        solved.isovalue,
+        in_memory.isovalue(),
+        converged.isovalue()
+    );
+    assert!(worst_slab > 0.0 && worst_slab < worst_in_memory);
+    assert!(
+        (solved.isovalue - in_memory.isovalue()).abs()
+            < (in_memory.isovalue() - converged.isovalue()).abs()
+    );
+    // One χ across each wall: points within two finest cells of it, on a grid across y and z.
+    let finest_h = (-(solved.finest as f64)).exp2();
+    let mut compared = 0;
+    for k in 0..3 {
+        let wall = solved.layout.walls[k + 1] as f64 / (1u64 << solved.layout.wall_depth) as f64;
+        for i in 0..40 {
+            for j in 0..40 {
+                for dx in [-2.0, -0.5, 0.0, 0.7, 2.0] {
+                    let q = glam::DVec3::new(
+                        wall + dx * finest_h,
+                        0.2 + 0.6 * i as f64 / 39.0,
+                        0.2 + 0.6 * j as f64 / 39.0,
+                    );
+                    let (a, b) = (chis[k].value(q), chis[k + 1].value(q));
+                    assert_eq!(a.to_bits(), b.to_bits(), "wall {k} at {q}: {a} vs {b}");
+                    compared += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(compared, 3 * 40 * 40 * 5);
+    drop(chis);
+    drop(solved);
+    assert!(!scratch_dir.exists(), "the temporary directory is removed");
 }

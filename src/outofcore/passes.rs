@@ -1,0 +1,535 @@
+//! The passes of a reconstruction out of core, in order (`docs/out-of-core.md`, "Phases"):
+//! the input scanned, its columns counted and its points binned to slab files (`scan.rs`);
+//! then over the slabs, one in memory at a time: their own core sets up to the base depth
+//! (pass A), their own parts of the base's right-hand sides and screening groups (pass B),
+//! the base solved once, each slab's finer depths solved over its points and padding (pass C),
+//! and every slab's coefficients made its owners' where slabs overlap, with the isovalue's
+//! partial sums (pass D). What it leaves: one solution file per slab, each slab's χ agreeing
+//! with its neighbours' near their walls, and the isovalue.
+
+use super::base::{coarse_cores, merge_groups, BaseParts};
+use super::scan::{bin, column_counts, scan, Scan};
+use super::scratch::{read_lists, read_slab, write_lists, Scratch};
+use super::slabs::SlabLayout;
+use super::OutOfCoreError;
+use crate::density::{estimate, samples_by_depth, DensityField, DepthSample};
+use crate::evaluate::Indicator;
+use crate::octree::{sample_cells, Octree};
+use crate::parallel::Watch;
+use crate::points::{PointSet, Samples};
+use crate::solve::{cascade, Depths, ProxyGroup, Solved, System};
+use crate::system::{
+    depth_weight, divergence, fill_mirrors, proxy_depth, right_hand_sides, sample_groups,
+    sample_weights_from_totals,
+};
+use crate::{Params, Result};
+use std::path::{Path, PathBuf};
+
+/// How the run is cut: the base depth, the slabs asked for, their padding.
+#[derive(Debug, Clone)]
+pub(crate) struct Plan {
+    /// B: depths 0..=B are solved once for the whole cloud (at least the full depth, below
+    /// the reconstruction's depth).
+    pub(crate) base_depth: u32,
+    /// The slabs asked for (fewer are made when the points fill fewer columns).
+    pub(crate) slabs: usize,
+    /// Columns of depth B + 2 each slab reads beyond its walls (12: three nodes of depth B,
+    /// the reach of a sample in the tree and its halo, see `tests.rs`).
+    pub(crate) padding: u32,
+    /// Points per chunk read from the input.
+    pub(crate) chunk: usize,
+    /// Where the temporary directory goes (the system's when `None`).
+    pub(crate) temp_dir: Option<PathBuf>,
+}
+
+/// What the passes leave for the extraction.
+pub(crate) struct SolvedSlabs {
+    /// The temporary directory, removed when this is dropped.
+    pub(crate) scratch: Scratch,
+    pub(crate) scan: Scan,
+    /// The parameters as the in-memory path would use them for this cube.
+    pub(crate) params: Params,
+    pub(crate) layout: SlabLayout,
+    /// The samples' input files, one per slab.
+    pub(crate) point_files: Vec<PathBuf>,
+    /// The base's core sets (depths 0..=B), shared by every slab's tree.
+    pub(crate) base_cores: Vec<Vec<u64>>,
+    /// The density of all the samples (the slabs' samples' depths and areas come from it).
+    pub(crate) field: DensityField,
+    /// The finest depth any sample reaches: every slab's tree has it.
+    pub(crate) finest: u32,
+    /// Σ area × confidence and Σ confidence over all the samples (the screening weights').
+    pub(crate) totals: (f64, f64),
+    pub(crate) isovalue: f64,
+}
+
+/// One slab's samples as the in-memory pipeline prepares all of them: in Morton order in the
+/// unit cube, with their areas and their splats per depth, and which of them the slab owns.
+pub(crate) struct SlabSamples {
+    pub(crate) samples: Samples,
+    pub(crate) area: Vec<f64>,
+    pub(crate) at_depth: Vec<Vec<DepthSample>>,
+    pub(crate) owned: Vec<bool>,
+}
+
+impl SlabSamples {
+    /// The splats of the samples the slab owns.
+    fn own_at_depth(&self) -> Vec<Vec<DepthSample>> {
+        self.at_depth
+            .iter()
+            .map(|at| {
+                at.iter()
+                    .copied()
+                    .filter(|s| self.owned[s.sample as usize])
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// The parts of the run every pass reads.
+struct Run<'a> {
+    params: &'a Params,
+    scan: &'a Scan,
+    layout: &'a SlabLayout,
+    files: &'a [PathBuf],
+    field: &'a DensityField,
+    pool: &'a rayon::ThreadPool,
+    watch: Watch,
+}
+
+impl Run<'_> {
+    /// Slab k's samples; their splats reach `finest` (when given) at least.
+    fn load(
+        &self,
+        k: usize,
+        finest: Option<u32>,
+    ) -> std::result::Result<SlabSamples, OutOfCoreError> {
+        let records = read_slab(&self.files[k])?;
+        let params = self.params;
+        let positions: Vec<[f64; 3]> = records.iter().map(|r| r.position).collect();
+        let normals: Vec<[f32; 3]> = records.iter().map(|r| r.normal).collect();
+        let weights: Vec<f32> = records.iter().map(|r| r.confidence).collect();
+        drop(records);
+        let mut set = PointSet::new();
+        set.extend_weighted_f64(
+            &positions,
+            &normals,
+            self.scan.weighted.then_some(weights.as_slice()),
+        )?;
+        drop((positions, normals, weights));
+        let samples = self
+            .pool
+            .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
+        drop(set);
+        let mut density = self.pool.install(|| {
+            estimate(
+                self.field,
+                &samples.positions,
+                params.depth,
+                params.samples_per_node as f64,
+                &self.watch,
+            )
+        })?;
+        let mut at_depth = samples_by_depth(
+            &mut density,
+            &samples.confidence,
+            params.depth,
+            params.effective_full_depth(),
+            Octree::coarsest_depth(params.boundary, params.node_degree()),
+        );
+        if let Some(finest) = finest {
+            at_depth.resize_with(finest as usize + 1, Vec::new);
+        }
+        let layout = self.layout;
+        let owned = samples
+            .positions
+            .iter()
+            .map(|p| layout.slab_of_column(layout.column_of(p.x)) == k)
+            .collect();
+        Ok(SlabSamples {
+            samples,
+            area: density.area,
+            at_depth,
+            owned,
+        })
+    }
+
+    /// The core sets of the samples `at_depth` of `slab` (every depth).
+    fn cores(&self, slab: &SlabSamples, at_depth: &[Vec<DepthSample>]) -> Result<Vec<Vec<u64>>> {
+        let params = self.params;
+        self.pool.install(|| {
+            Octree::core_sets(
+                sample_cells(at_depth, &slab.samples.positions),
+                params.effective_full_depth(),
+                params.boundary,
+                params.node_degree(),
+                &self.watch,
+                &|_| Ok(()),
+            )
+        })
+    }
+
+    /// The tree whose depths 0..=B are the base's and whose finer depths are `cores`'.
+    fn slab_tree(&self, base_cores: &[Vec<u64>], cores: Vec<Vec<u64>>) -> Result<Octree> {
+        let mut all = base_cores.to_vec();
+        all.extend(cores.into_iter().skip(base_cores.len()));
+        let params = self.params;
+        self.pool
+            .install(|| Octree::from_cores(all, params.boundary, params.node_degree(), &self.watch))
+    }
+
+    /// ρ of every depth and V of every depth but the finest, of the samples `at_depth` on
+    /// `tree`, as the pipeline's splat and system stages compute them.
+    fn right_hand_sides(
+        &self,
+        tree: &Octree,
+        slab: &SlabSamples,
+        at_depth: &[Vec<DepthSample>],
+    ) -> Result<RightHandSides> {
+        let finest = tree.max_depth() as usize;
+        self.pool.install(|| {
+            let splat = |d: usize| {
+                crate::splat::splat_level(&tree.levels[d], &slab.samples, &at_depth[d], self.params)
+            };
+            let mut rho_finest = divergence(&tree.levels[finest], splat(finest)?)?;
+            fill_mirrors(&tree.levels[finest], &mut rho_finest);
+            let field_v = (0..finest).map(splat).collect::<Result<Vec<_>>>()?;
+            let rho = right_hand_sides(tree, rho_finest, &field_v, self.pool, |_| Ok(()))?;
+            Ok((rho, field_v))
+        })
+    }
+
+    fn solve(
+        &self,
+        tree: &Octree,
+        rho: Vec<Vec<f64>>,
+        field_v: Vec<[Vec<f64>; 3]>,
+        screening: Screening<'_>,
+        depths: Depths,
+    ) -> Result<Solved> {
+        let (positions, screening_weights, proxy_groups) = match screening {
+            Screening::Samples(positions, weights) => (positions, weights, None),
+            Screening::Groups(groups) => (&[][..], &[][..], Some(groups)),
+        };
+        cascade(
+            System {
+                tree,
+                rho,
+                field_v,
+                positions,
+                screening_weights,
+                proxy_groups,
+                screening: depth_weight(self.params.point_weight, self.params.depth),
+                depths,
+            },
+            self.params,
+            self.pool,
+            &mut |_| !self.watch.is_cancelled(),
+            &mut Vec::new(),
+        )
+    }
+}
+
+/// ρ of every depth and V of every depth but the finest.
+type RightHandSides = (Vec<Vec<f64>>, Vec<[Vec<f64>; 3]>);
+
+/// What a solve screens with: samples, or groups already summed.
+enum Screening<'a> {
+    Samples(&'a [glam::DVec3], &'a [f64]),
+    Groups(&'a [Vec<ProxyGroup>]),
+}
+
+/// Slab k's files of its solution: its core sets above the base, its coefficients of every
+/// depth.
+fn solution_files(scratch: &Scratch, k: usize) -> [PathBuf; 2] {
+    [
+        scratch.file(&format!("slab-{k}.cores")),
+        scratch.file(&format!("slab-{k}.coefficients")),
+    ]
+}
+
+/// Slab k's χ from its solution files (its tree rebuilt from the base's cores and its own).
+pub(crate) fn load_solution(
+    solved: &SolvedSlabs,
+    k: usize,
+    pool: &rayon::ThreadPool,
+) -> std::result::Result<Indicator, OutOfCoreError> {
+    load_solution_in(&solved.scratch, k, &solved.base_cores, &solved.params, pool)
+}
+
+fn load_solution_in(
+    scratch: &Scratch,
+    k: usize,
+    base_cores: &[Vec<u64>],
+    params: &Params,
+    pool: &rayon::ThreadPool,
+) -> std::result::Result<Indicator, OutOfCoreError> {
+    let [cores_file, coefficients_file] = solution_files(scratch, k);
+    let mut cores = base_cores.to_vec();
+    cores.extend(read_lists::<u64>(&cores_file)?);
+    let coefficients = read_lists::<f64>(&coefficients_file)?;
+    let tree = pool.install(|| {
+        Octree::from_cores(cores, params.boundary, params.node_degree(), &Watch::new())
+    })?;
+    Ok(Indicator { tree, coefficients })
+}
+
+/// The slab owning a node of depth `d` whose cell's lower x is `x` (the slab of the column
+/// holding that corner); `None` beyond the cube (mirror nodes, which follow their images).
+fn owner_of(layout: &SlabLayout, d: u32, x: i32) -> Option<usize> {
+    let column = if d >= layout.wall_depth {
+        x >> (d - layout.wall_depth)
+    } else {
+        x << (layout.wall_depth - d)
+    };
+    let columns = 1i32 << layout.wall_depth;
+    (0..columns)
+        .contains(&column)
+        .then(|| layout.slab_of_column(column as u32))
+}
+
+/// Runs the passes on the PLY file at `path` (oriented points) with `params`, cut as `plan`
+/// says. `keep_going(pass, fraction)` is asked between chunks and slabs; false cancels.
+pub(crate) fn solve_slabs(
+    path: &Path,
+    params: &Params,
+    plan: &Plan,
+    pool: &rayon::ThreadPool,
+    keep_going: &mut dyn FnMut(&str, f32) -> bool,
+) -> std::result::Result<SolvedSlabs, OutOfCoreError> {
+    params.validate()?;
+    let cancelled = || OutOfCoreError::Reconstruction(crate::Error::Cancelled);
+    let scan = scan(path, params.scale as f64, plan.chunk, &mut |_| {
+        keep_going("scan", 0.0)
+    })?;
+    let params = params.for_cube(scan.map.size);
+    let count = scan.count as f32;
+    let base_depth = plan.base_depth;
+    let full_depth = params.effective_full_depth();
+    if base_depth < full_depth || base_depth + 2 > params.depth {
+        return Err(crate::Error::InvalidParameter {
+            name: "base_depth",
+            value: base_depth.to_string(),
+            expected: "at least the full depth and at most the depth − 2",
+        }
+        .into());
+    }
+    let wall_depth = base_depth + 2;
+    let counts = column_counts(path, &scan.map, wall_depth, plan.chunk, &mut |done| {
+        keep_going("columns", done as f32 / count)
+    })?;
+    let layout = SlabLayout::balanced(&counts, wall_depth, plan.slabs, plan.padding);
+    let scratch = Scratch::create(plan.temp_dir.as_deref())?;
+    let binned = bin(
+        path,
+        &scan,
+        &layout,
+        params.effective_kernel_depth(),
+        &scratch,
+        plan.chunk,
+        &mut |done| keep_going("bin", done as f32 / count),
+    )?;
+    let field = binned.kernel_counts.into_field();
+    let run = Run {
+        params: &params,
+        scan: &scan,
+        layout: &layout,
+        files: &binned.files,
+        field: &field,
+        pool,
+        watch: Watch::new(),
+    };
+    let slabs = layout.len();
+    let b = base_depth as usize;
+
+    // Pass A: each slab's own core sets up to B, the finest depth, the screening totals.
+    let mut own_cores: Vec<Vec<Vec<u64>>> = Vec::with_capacity(slabs);
+    let mut finest = 0u32;
+    let (mut total_area, mut total_confidence) = (0.0f64, 0.0f64);
+    for k in 0..slabs {
+        if !keep_going("base", k as f32 / (2 * slabs + 1) as f32) {
+            return Err(cancelled());
+        }
+        let slab = run.load(k, None)?;
+        finest = finest.max(slab.at_depth.len() as u32 - 1);
+        for (s, owned) in slab.owned.iter().enumerate() {
+            if *owned {
+                total_area += slab.area[s] * slab.samples.confidence[s];
+                total_confidence += slab.samples.confidence[s];
+            }
+        }
+        let mut cores = run.cores(&slab, &slab.own_at_depth())?;
+        cores.truncate(b + 1);
+        own_cores.push(cores);
+    }
+    if finest <= base_depth {
+        return Err(crate::Error::InvalidParameter {
+            name: "base_depth",
+            value: base_depth.to_string(),
+            expected: "below the finest depth the samples reach",
+        }
+        .into());
+    }
+    let base_cores = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth);
+    drop(own_cores);
+
+    // Pass B: each slab's own ρ and V up to B and its own screening groups, summed.
+    let mut sums = BaseParts::default();
+    let mut groups: Vec<Vec<Vec<ProxyGroup>>> = vec![Vec::new(); b + 1];
+    for k in 0..slabs {
+        if !keep_going("base", (slabs + k) as f32 / (2 * slabs + 1) as f32) {
+            return Err(cancelled());
+        }
+        let slab = run.load(k, Some(finest))?;
+        let own = slab.own_at_depth();
+        let tree = run.slab_tree(&base_cores, run.cores(&slab, &own)?)?;
+        let (rho, field_v) = run.right_hand_sides(&tree, &slab, &own)?;
+        sums.add(&rho, &field_v, b);
+        let (positions, confidence): (Vec<_>, Vec<_>) = slab
+            .samples
+            .positions
+            .iter()
+            .zip(&slab.samples.confidence)
+            .zip(&slab.owned)
+            .filter(|(_, owned)| **owned)
+            .map(|((p, c), _)| (*p, *c))
+            .unzip();
+        let weights = sample_weights_from_totals(&confidence, total_area, total_confidence);
+        for (d, per_slab) in groups.iter_mut().enumerate() {
+            per_slab.push(sample_groups(
+                &positions,
+                &weights,
+                proxy_depth(d as u32, finest),
+            ));
+        }
+    }
+    let groups: Vec<Vec<ProxyGroup>> = groups
+        .iter()
+        .map(|per_slab| merge_groups(per_slab.iter().map(|g| g.as_slice())))
+        .collect();
+    let base_tree = run.slab_tree(&base_cores, Vec::new())?;
+    let base = run.solve(
+        &base_tree,
+        sums.rho,
+        sums.field_v,
+        Screening::Groups(&groups),
+        Depths::Base { last: b, finest },
+    )?;
+    drop((base_tree, groups));
+
+    // Pass C: each slab's depths above B over its points and padding.
+    for k in 0..slabs {
+        if !keep_going("slabs", k as f32 / slabs as f32) {
+            return Err(cancelled());
+        }
+        let slab = run.load(k, Some(finest))?;
+        let cores = run.cores(&slab, &slab.at_depth)?;
+        let tree = run.slab_tree(&base_cores, cores.clone())?;
+        let (rho, field_v) = run.right_hand_sides(&tree, &slab, &slab.at_depth)?;
+        let weights =
+            sample_weights_from_totals(&slab.samples.confidence, total_area, total_confidence);
+        let solved = run.solve(
+            &tree,
+            rho,
+            field_v,
+            Screening::Samples(&slab.samples.positions, &weights),
+            Depths::Above(Solved {
+                coefficients: base.coefficients.clone(),
+                field_v: base.field_v.clone(),
+            }),
+        )?;
+        let [cores_file, coefficients_file] = solution_files(&scratch, k);
+        write_lists(&cores_file, &cores[b + 1..])?;
+        write_lists(&coefficients_file, &solved.coefficients)?;
+    }
+
+    // Pass D: every node's coefficient its owner's (so neighbours evaluate one χ near their
+    // walls), and the isovalue's partial sums over each slab's own samples.
+    let mut solutions: Vec<Option<Indicator>> = (0..slabs).map(|_| None).collect();
+    let loaded = |j: usize, solutions: &mut Vec<Option<Indicator>>| {
+        if solutions[j].is_none() {
+            solutions[j] = Some(load_solution_in(&scratch, j, &base_cores, &params, pool)?);
+        }
+        Ok::<(), OutOfCoreError>(())
+    };
+    let (mut weighted_sum, mut weight_sum) = (0.0f64, 0.0f64);
+    for k in 0..slabs {
+        if !keep_going("seams", k as f32 / slabs as f32) {
+            return Err(cancelled());
+        }
+        // The slabs whose own columns k's padding reaches (k's neighbours), in memory.
+        let padded = layout.padded(k);
+        let readers =
+            layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1;
+        for (j, solution) in solutions.iter_mut().enumerate() {
+            if !readers.contains(&j) {
+                *solution = None;
+            }
+        }
+        for j in readers.clone() {
+            loaded(j, &mut solutions)?;
+        }
+        let mut chi = solutions[k].take().expect("loaded");
+        for d in b + 1..chi.tree.levels.len() {
+            let level = &chi.tree.levels[d];
+            for i in 0..level.len() {
+                let coord = level.coord(i as u32);
+                // (A node whose owner is beyond the padding is too far from the walls to
+                // reach a point near them: it keeps the slab's value.)
+                let owner = owner_of(&layout, d as u32, coord[0])
+                    .filter(|&j| j != k)
+                    .and_then(|j| solutions[j].as_ref());
+                if let Some(owner) = owner {
+                    if let Some(o) = owner.tree.levels.get(d).and_then(|l| l.find(coord)) {
+                        chi.coefficients[d][i] = owner.coefficients[d][o as usize];
+                    }
+                }
+            }
+        }
+        let slab = run.load(k, Some(finest))?;
+        for (s, p) in slab.samples.positions.iter().enumerate() {
+            if slab.owned[s] {
+                let w = slab.area[s] * slab.samples.confidence[s];
+                weighted_sum += w * chi.value(*p);
+                weight_sum += w;
+            }
+        }
+        // Written beside the slab's own solution: the neighbours still read the original.
+        write_lists(
+            &scratch.file(&format!("slab-{k}.seamed")),
+            &chi.coefficients,
+        )?;
+        solutions[k] = Some(chi);
+    }
+    drop(solutions);
+    for k in 0..slabs {
+        let [_, coefficients_file] = solution_files(&scratch, k);
+        std::fs::rename(
+            scratch.file(&format!("slab-{k}.seamed")),
+            &coefficients_file,
+        )
+        .map_err(|source| OutOfCoreError::Scratch {
+            action: "rename a slab's solution",
+            path: coefficients_file,
+            source,
+        })?;
+    }
+    let isovalue = if weight_sum > 0.0 {
+        weighted_sum / weight_sum
+    } else {
+        0.0
+    };
+    Ok(SolvedSlabs {
+        scratch,
+        scan,
+        params,
+        layout,
+        point_files: binned.files,
+        base_cores,
+        field,
+        finest,
+        totals: (total_area, total_confidence),
+        isovalue,
+    })
+}

@@ -1,0 +1,180 @@
+//! The passes over the input file, each reading it in chunks (never whole): the scan (the
+//! points' count and the unit cube, every point validated as the in-memory path validates
+//! it), the histogram of the points over the wall depth's columns, and the binning of every
+//! point into the files of the slabs that read it, with the density's kernel counts.
+
+use super::scratch::{PointRecord, Scratch, SlabWriter};
+use super::slabs::SlabLayout;
+use super::OutOfCoreError;
+use crate::density::KernelCounts;
+use crate::ply::{read_point_cloud_chunks, PlyPoints};
+use crate::points::{Bounds, PointSet, UnitCubeMap};
+use crate::Error;
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+/// What the first pass learns about the input.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Scan {
+    pub(crate) count: u64,
+    /// The unit cube: the in-memory path's for the same points and scale.
+    pub(crate) map: UnitCubeMap,
+    /// Whether the points carry a confidence.
+    pub(crate) weighted: bool,
+    /// Whether they carry colours or other channels (which this path does not carry).
+    pub(crate) has_attributes: bool,
+}
+
+/// The input's points, chunk by chunk, as records (the values as read), each chunk checked as
+/// [`PointSet`] checks a batch (errors name the point's index in the file); `keep_going` is
+/// asked before each chunk with the number of points read so far, and `each` gets the chunk.
+fn for_each_chunk(
+    path: &Path,
+    chunk: usize,
+    keep_going: &mut dyn FnMut(u64) -> bool,
+    mut each: impl FnMut(&PlyPoints, Vec<PointRecord>) -> Result<(), OutOfCoreError>,
+) -> Result<(), OutOfCoreError> {
+    let mut offset = 0u64;
+    read_point_cloud_chunks(path, chunk, |points: PlyPoints| {
+        if !keep_going(offset) {
+            return Err(OutOfCoreError::Reconstruction(Error::Cancelled));
+        }
+        let weights = points.confidence.as_deref();
+        let checked = match &points.positions_f64 {
+            Some(exact) => PointSet::new().extend_weighted_f64(exact, &points.normals, weights),
+            None => PointSet::new().extend_weighted(&points.positions, &points.normals, weights),
+        };
+        checked.map_err(|e| OutOfCoreError::Reconstruction(at_offset(e, offset)))?;
+        let records = (0..points.normals.len())
+            .map(|i| PointRecord {
+                position: match &points.positions_f64 {
+                    Some(exact) => exact[i],
+                    None => points.positions[i].map(f64::from),
+                },
+                normal: points.normals[i],
+                confidence: weights.map_or(1.0, |w| w[i]),
+            })
+            .collect();
+        offset += points.normals.len() as u64;
+        each(&points, records)
+    })
+    .map_err(OutOfCoreError::Input)?
+}
+
+/// A batch's error with the point's index in the whole file.
+fn at_offset(error: Error, offset: u64) -> Error {
+    let shift = |index: usize| index + offset as usize;
+    match error {
+        Error::NonFinitePosition { index } => Error::NonFinitePosition {
+            index: shift(index),
+        },
+        Error::NonFiniteNormal { index } => Error::NonFiniteNormal {
+            index: shift(index),
+        },
+        Error::ZeroNormal { index } => Error::ZeroNormal {
+            index: shift(index),
+        },
+        Error::InvalidWeight { index } => Error::InvalidWeight {
+            index: shift(index),
+        },
+        other => other,
+    }
+}
+
+/// Pass 1: the count, the cube (`scale` as [`crate::Params::scale`]) and what the points carry.
+/// An input without points is [`Error::EmptyInput`].
+pub(crate) fn scan(
+    path: &Path,
+    scale: f64,
+    chunk: usize,
+    keep_going: &mut dyn FnMut(u64) -> bool,
+) -> Result<Scan, OutOfCoreError> {
+    let mut bounds = Bounds::default();
+    let mut count = 0u64;
+    let mut weighted = false;
+    let mut has_attributes = false;
+    for_each_chunk(path, chunk, keep_going, |points, records| {
+        bounds.extend(records.iter().map(|r| DVec3::from(r.position)));
+        count += records.len() as u64;
+        weighted |= points.confidence.is_some();
+        has_attributes |= points.colors.is_some() || !points.channels.is_empty();
+        Ok(())
+    })?;
+    if count == 0 {
+        return Err(OutOfCoreError::Reconstruction(Error::EmptyInput));
+    }
+    Ok(Scan {
+        count,
+        map: UnitCubeMap::fit_bounds(&bounds, scale),
+        weighted,
+        has_attributes,
+    })
+}
+
+/// Pass 2: the number of points in each column of `wall_depth` (2^wall_depth of them).
+pub(crate) fn column_counts(
+    path: &Path,
+    map: &UnitCubeMap,
+    wall_depth: u32,
+    chunk: usize,
+    keep_going: &mut dyn FnMut(u64) -> bool,
+) -> Result<Vec<u64>, OutOfCoreError> {
+    let mut counts = vec![0u64; 1 << wall_depth];
+    let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
+    for_each_chunk(path, chunk, keep_going, |_, records| {
+        for r in &records {
+            counts[columns.column_of(map.to_unit_f64(r.position).x) as usize] += 1;
+        }
+        Ok(())
+    })?;
+    Ok(counts)
+}
+
+/// What pass 3 leaves: each slab's file (its own points and its padding, in input order) and
+/// the number of points in it, and the density's counts of every point.
+pub(crate) struct Binned {
+    pub(crate) files: Vec<PathBuf>,
+    pub(crate) records: Vec<u64>,
+    pub(crate) kernel_counts: KernelCounts,
+}
+
+/// Pass 3: every point into the file of each slab that reads it (its owner's and, within the
+/// padding, its neighbours'), and splatted into the density's counts at `kernel_depth`.
+pub(crate) fn bin(
+    path: &Path,
+    scan: &Scan,
+    layout: &SlabLayout,
+    kernel_depth: u32,
+    scratch: &Scratch,
+    chunk: usize,
+    keep_going: &mut dyn FnMut(u64) -> bool,
+) -> Result<Binned, OutOfCoreError> {
+    let mut writers = (0..layout.len())
+        .map(|k| SlabWriter::create(scratch.file(&format!("slab-{k}.points"))))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut kernel_counts = KernelCounts::new(kernel_depth);
+    for_each_chunk(path, chunk, keep_going, |_, records| {
+        let unit: Vec<DVec3> = records
+            .iter()
+            .map(|r| scan.map.to_unit_f64(r.position))
+            .collect();
+        let confidence: Vec<f64> = records.iter().map(|r| r.confidence as f64).collect();
+        kernel_counts.add(&unit, Some(&confidence));
+        for (r, p) in records.iter().zip(&unit) {
+            for k in layout.slabs_reading(layout.column_of(p.x)) {
+                writers[k].push(*r)?;
+            }
+        }
+        Ok(())
+    })?;
+    let records = writers.iter().map(|w| w.records).collect();
+    let files = writers
+        .into_iter()
+        .map(SlabWriter::finish)
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Binned {
+        files,
+        records,
+        kernel_counts,
+    })
+}

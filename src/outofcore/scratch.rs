@@ -1,0 +1,287 @@
+//! The run's temporary directory and the slab files in it.
+//!
+//! Everything the out-of-core path writes goes into one directory it creates for itself under
+//! the directory the user chose (or the system's); [`Scratch`] owns it and removes it with
+//! everything in it when dropped, so it is gone after a success, an error, a cancel or a panic
+//! that unwinds.
+//!
+//! A slab's points are kept as fixed records in input order: the position in `f64` (the
+//! file's `double`, or its `float` widened exactly), the normal as read and the confidence
+//! (1 when the input has none), 40 bytes a point, little-endian.
+
+use super::OutOfCoreError;
+use std::fs::{self, File};
+use std::io::{self, BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The temporary directory of one run, removed with its contents when dropped.
+#[derive(Debug)]
+pub(crate) struct Scratch {
+    dir: PathBuf,
+}
+
+impl Scratch {
+    /// Creates a new, empty directory `psr-out-of-core-<pid>-<n>` under `parent` (the
+    /// system's temporary directory when `None`); a name already taken is skipped.
+    pub(crate) fn create(parent: Option<&Path>) -> Result<Scratch, OutOfCoreError> {
+        static RUNS: AtomicU64 = AtomicU64::new(0);
+        let parent = parent.map_or_else(std::env::temp_dir, Path::to_path_buf);
+        loop {
+            let n = RUNS.fetch_add(1, Ordering::Relaxed);
+            let dir = parent.join(format!("psr-out-of-core-{}-{n}", std::process::id()));
+            match fs::create_dir(&dir) {
+                Ok(()) => return Ok(Scratch { dir }),
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
+                Err(source) => {
+                    return Err(OutOfCoreError::Scratch {
+                        action: "create the temporary directory",
+                        path: dir,
+                        source,
+                    })
+                }
+            }
+        }
+    }
+
+    pub(crate) fn path(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The path of the file named `name` in the directory.
+    pub(crate) fn file(&self, name: &str) -> PathBuf {
+        self.dir.join(name)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        // Nothing to report to: a directory that cannot be removed is left to the system's
+        // cleaning of its temporary directory.
+        let _ = fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// One point as a slab file keeps it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PointRecord {
+    pub(crate) position: [f64; 3],
+    pub(crate) normal: [f32; 3],
+    pub(crate) confidence: f32,
+}
+
+const RECORD_BYTES: usize = 40;
+
+impl PointRecord {
+    fn to_bytes(self) -> [u8; RECORD_BYTES] {
+        let mut out = [0u8; RECORD_BYTES];
+        for (a, v) in self.position.iter().enumerate() {
+            out[8 * a..8 * a + 8].copy_from_slice(&v.to_le_bytes());
+        }
+        for (a, v) in self.normal.iter().enumerate() {
+            out[24 + 4 * a..28 + 4 * a].copy_from_slice(&v.to_le_bytes());
+        }
+        out[36..40].copy_from_slice(&self.confidence.to_le_bytes());
+        out
+    }
+
+    fn from_bytes(bytes: &[u8; RECORD_BYTES]) -> Self {
+        let f64_at = |i: usize| f64::from_le_bytes(bytes[i..i + 8].try_into().expect("8 bytes"));
+        let f32_at = |i: usize| f32::from_le_bytes(bytes[i..i + 4].try_into().expect("4 bytes"));
+        PointRecord {
+            position: [f64_at(0), f64_at(8), f64_at(16)],
+            normal: [f32_at(24), f32_at(28), f32_at(32)],
+            confidence: f32_at(36),
+        }
+    }
+}
+
+/// Appends records to one slab's file.
+pub(crate) struct SlabWriter {
+    path: PathBuf,
+    out: BufWriter<File>,
+    pub(crate) records: u64,
+}
+
+fn scratch_error(action: &'static str, path: &Path) -> impl FnOnce(io::Error) -> OutOfCoreError {
+    let path = path.to_path_buf();
+    move |source| OutOfCoreError::Scratch {
+        action,
+        path,
+        source,
+    }
+}
+
+impl SlabWriter {
+    pub(crate) fn create(path: PathBuf) -> Result<SlabWriter, OutOfCoreError> {
+        let file = File::create(&path).map_err(scratch_error("create a slab file", &path))?;
+        Ok(SlabWriter {
+            out: BufWriter::with_capacity(1 << 20, file),
+            path,
+            records: 0,
+        })
+    }
+
+    pub(crate) fn push(&mut self, record: PointRecord) -> Result<(), OutOfCoreError> {
+        self.records += 1;
+        self.out
+            .write_all(&record.to_bytes())
+            .map_err(scratch_error("write a slab file", &self.path))
+    }
+
+    /// Flushes the file and gives its path.
+    pub(crate) fn finish(mut self) -> Result<PathBuf, OutOfCoreError> {
+        self.out
+            .flush()
+            .map_err(scratch_error("write a slab file", &self.path))?;
+        Ok(self.path)
+    }
+}
+
+/// Every record of a slab file, in the order written.
+pub(crate) fn read_slab(path: &Path) -> Result<Vec<PointRecord>, OutOfCoreError> {
+    let file = File::open(path).map_err(scratch_error("open a slab file", path))?;
+    let len = file
+        .metadata()
+        .map_err(scratch_error("read a slab file", path))?
+        .len();
+    let count = (len / RECORD_BYTES as u64) as usize;
+    let mut records = Vec::with_capacity(count);
+    let mut input = BufReader::with_capacity(1 << 20, file);
+    let mut bytes = [0u8; RECORD_BYTES];
+    for _ in 0..count {
+        input
+            .read_exact(&mut bytes)
+            .map_err(scratch_error("read a slab file", path))?;
+        records.push(PointRecord::from_bytes(&bytes));
+    }
+    Ok(records)
+}
+
+/// Writes lists of 8-byte values (packed keys or coefficients), each with its length, to
+/// `path`: a slab's solution between the passes that make and read it.
+pub(crate) fn write_lists<T: Copy + Into<Word>>(
+    path: &Path,
+    lists: &[Vec<T>],
+) -> Result<(), OutOfCoreError> {
+    let error = || scratch_error("write a slab's solution", path);
+    let file = File::create(path).map_err(error())?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    out.write_all(&(lists.len() as u64).to_le_bytes())
+        .map_err(error())?;
+    for list in lists {
+        out.write_all(&(list.len() as u64).to_le_bytes())
+            .map_err(error())?;
+        for &v in list {
+            let word: Word = v.into();
+            out.write_all(&word.0.to_le_bytes()).map_err(error())?;
+        }
+    }
+    out.flush().map_err(error())
+}
+
+/// Reads what [`write_lists`] wrote.
+pub(crate) fn read_lists<T: From<Word>>(path: &Path) -> Result<Vec<Vec<T>>, OutOfCoreError> {
+    let error = || scratch_error("read a slab's solution", path);
+    let file = File::open(path).map_err(error())?;
+    let mut input = BufReader::with_capacity(1 << 20, file);
+    let mut word = [0u8; 8];
+    let mut next = |input: &mut BufReader<File>| -> Result<u64, OutOfCoreError> {
+        input.read_exact(&mut word).map_err(error())?;
+        Ok(u64::from_le_bytes(word))
+    };
+    let lists = next(&mut input)?;
+    let mut out = Vec::with_capacity(lists as usize);
+    for _ in 0..lists {
+        let len = next(&mut input)?;
+        let mut list = Vec::with_capacity(len as usize);
+        for _ in 0..len {
+            list.push(T::from(Word(next(&mut input)?)));
+        }
+        out.push(list);
+    }
+    Ok(out)
+}
+
+/// Eight bytes as they are stored: a `u64` as it is, an `f64` by its bits.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Word(u64);
+
+impl From<u64> for Word {
+    fn from(v: u64) -> Self {
+        Word(v)
+    }
+}
+
+impl From<f64> for Word {
+    fn from(v: f64) -> Self {
+        Word(v.to_bits())
+    }
+}
+
+impl From<Word> for u64 {
+    fn from(w: Word) -> Self {
+        w.0
+    }
+}
+
+impl From<Word> for f64 {
+    fn from(w: Word) -> Self {
+        f64::from_bits(w.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Proves the records come back as written, and the directory is gone after the guard is
+    /// dropped, whatever it holds.
+    #[test]
+    fn slab_files_round_trip_and_the_directory_goes_with_its_guard() {
+        let scratch = Scratch::create(None).expect("a temporary directory");
+        let dir = scratch.path().to_path_buf();
+        assert!(dir.is_dir());
+        let records: Vec<PointRecord> = (0..1000)
+            .map(|i| PointRecord {
+                position: [i as f64 * 0.1, -1e6 + i as f64, 1.0 / (i + 1) as f64],
+                normal: [0.0, (i as f32).sin(), 1.0],
+                confidence: i as f32 * 0.5,
+            })
+            .collect();
+        let mut writer = SlabWriter::create(scratch.file("slab-0.points")).expect("writable");
+        for &r in &records {
+            writer.push(r).expect("written");
+        }
+        assert_eq!(writer.records, 1000);
+        let path = writer.finish().expect("flushed");
+        assert_eq!(read_slab(&path).expect("readable"), records);
+        let lists = vec![vec![1.5f64, -0.0, f64::MIN_POSITIVE], vec![], vec![7.0]];
+        write_lists(&scratch.file("lists"), &lists).expect("written");
+        let back: Vec<Vec<f64>> = read_lists(&scratch.file("lists")).expect("read");
+        assert_eq!(
+            back.iter()
+                .flatten()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>(),
+            lists
+                .iter()
+                .flatten()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(back.iter().map(Vec::len).collect::<Vec<_>>(), vec![3, 0, 1]);
+        fs::create_dir(scratch.file("nested")).expect("a subdirectory");
+        drop(scratch);
+        assert!(!dir.exists(), "{} left behind", dir.display());
+    }
+
+    /// Proves a parent that cannot hold the directory gives an error naming the path.
+    #[test]
+    fn a_missing_parent_is_a_clear_error() {
+        let parent = std::env::temp_dir().join("psr-no-such-parent/deeper");
+        let error = Scratch::create(Some(&parent)).expect_err("no parent");
+        let message = error.to_string();
+        assert!(message.contains("psr-no-such-parent"), "{message}");
+    }
+}
