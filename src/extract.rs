@@ -62,6 +62,7 @@ use crate::octree::{Level, Octree, CORE, NONE, SPLIT};
 use crate::parallel::Watch;
 use glam::DVec3;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// A triangle mesh in unit-cube coordinates.
 #[derive(Debug, Default)]
@@ -586,6 +587,42 @@ pub(crate) fn extract_around_samples(
 /// Leaves planned and traced together (fixed, so the mesh does not depend on the thread count).
 const WAVE_BATCH: usize = 16384;
 
+/// What the out-of-core slabs (`crate::outofcore::seams`) ask of the trace besides the mesh.
+/// The default asks for nothing: the in-memory extraction.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Tracing {
+    /// Trace only the leaves whose x extent (finest-grid units, half-open) overlaps this
+    /// range; the surface is not followed into the others (vertices on their boundary with
+    /// traced leaves are still made).
+    pub(crate) window: Option<Range<i64>>,
+    /// Record every vertex's key and every triangle's leaf ([`Keyed`]).
+    pub(crate) keyed: bool,
+}
+
+/// Besides the mesh, when [`Tracing::keyed`]: what places its parts in the whole surface,
+/// whatever the trace order.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Keyed {
+    /// Per vertex: the key of the minimal edge it lies on ([`edge_key`]: bits 60–61 the axis,
+    /// 62–63 clear), or for a leaf's added centre vertex [`CENTRE_KEY`] | (its rank among that
+    /// leaf's centres) << 60 | the leaf's key.
+    pub(crate) vertex: Vec<u64>,
+    /// Per triangle: the lower x corner of its leaf, in finest-grid units.
+    pub(crate) leaf_x: Vec<i64>,
+}
+
+/// The bit that tells a centre vertex's key from an edge's (edge keys leave it clear).
+pub(crate) const CENTRE_KEY: u64 = 1 << 63;
+
+/// Whether a leaf's x extent (finest-grid units) overlaps `window`.
+fn in_window(leaf: &Leaf, finest: u32, window: &Option<Range<i64>>) -> bool {
+    window.as_ref().is_none_or(|w| {
+        let size = 1i64 << (finest - leaf.depth);
+        let lo = leaf.cell[0] * size;
+        lo < w.end && lo + size > w.start
+    })
+}
+
 /// Extracts {χ = γ} on the leaves of `chi`'s tree, following the surface from the leaves
 /// containing the finest-depth cells in `seeds` (any order, duplicates allowed). Fails with
 /// [`Error::TooLarge`] when the mesh would need vertex ids past 2³¹, and with
@@ -598,6 +635,25 @@ pub fn extract(
     with_normals: bool,
     watch: &Watch,
 ) -> Result<RawMesh> {
+    let tracing = Tracing::default();
+    extract_traced(chi, isovalue, seeds, with_normals, &tracing, watch).map(|(mesh, _)| mesh)
+}
+
+/// [`extract`], limited to the leaves in `tracing.window` when there is one, and with the
+/// [`Keyed`] parts when `tracing.keyed` (empty otherwise). The mesh over the traced leaves is
+/// the same as [`extract`]'s there: the same vertices bit for bit (each a pure function of its
+/// edge, or of its leaf for a centre) and the same triangles per leaf, in another order.
+/// Without a window or keys the extra work is one test per leaf found and one per batch.
+pub(crate) fn extract_traced(
+    chi: &Indicator,
+    isovalue: f64,
+    seeds: Vec<[i64; 3]>,
+    with_normals: bool,
+    tracing: &Tracing,
+    watch: &Watch,
+) -> Result<(RawMesh, Keyed)> {
+    let window = &tracing.window;
+    let mut keyed = Keyed::default();
     let finest = chi.tree.max_depth();
     let leaves = Leaves {
         tree: &chi.tree,
@@ -626,6 +682,7 @@ pub fn extract(
     let mut frontier: Vec<Leaf> = seeds
         .par_iter()
         .filter_map(|&c| leaves.containing(finest, c))
+        .filter(|leaf| in_window(leaf, finest, window))
         .collect();
     frontier.retain(|leaf| visited.insert(leaves.key(leaf), ()).is_none());
     watch.check()?;
@@ -753,7 +810,9 @@ pub fn extract(
                     }
                     new_edges.push(*c);
                     for around in leaves_around(leaf, block, c, finest).into_iter().flatten() {
-                        if visited.insert(leaves.key(&around), ()).is_none() {
+                        if in_window(&around, finest, window)
+                            && visited.insert(leaves.key(&around), ()).is_none()
+                        {
                             next_frontier.push(around);
                         }
                     }
@@ -776,6 +835,9 @@ pub fn extract(
             .map(|c| edge_vertex(chi, isovalue, h, c, with_normals))
             .collect();
         mesh.vertices.extend(placed.iter().map(|&(v, _)| v));
+        if tracing.keyed {
+            keyed.vertex.extend(new_edges.iter().map(|c| c.key));
+        }
         if with_normals {
             mesh.normals.extend(placed.iter().map(|&(_, n)| n));
         }
@@ -803,9 +865,25 @@ pub fn extract(
                 (triangles, centres)
             })
             .collect();
-        for (triangles, centres) in fans {
+        for (leaf, (triangles, centres)) in batch.iter().zip(fans) {
             debug_assert!(mesh.vertices.len() + centres.len() <= ADDED_CENTRE as usize);
             let base = mesh.vertices.len() as u32;
+            if tracing.keyed {
+                if centres.len() > 8 {
+                    return Err(Error::Internal(format!(
+                        "a leaf added {} centre vertices, more than its keys can number",
+                        centres.len()
+                    )));
+                }
+                let leaf_key = leaves.key(leaf);
+                keyed
+                    .vertex
+                    .extend((0..centres.len() as u64).map(|k| CENTRE_KEY | k << 60 | leaf_key));
+                let size = 1i64 << (finest - leaf.depth);
+                keyed
+                    .leaf_x
+                    .extend(std::iter::repeat_n(leaf.cell[0] * size, triangles.len()));
+            }
             if with_normals {
                 let inside = |v: &DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::ONE).all();
                 mesh.normals.extend(centres.iter().map(|v| {
@@ -836,7 +914,7 @@ pub fn extract(
             done = 0;
         }
     }
-    Ok(mesh)
+    Ok((mesh, keyed))
 }
 
 /// Moves every vertex along the surface normal so that the flat triangles straddle {χ = γ}
