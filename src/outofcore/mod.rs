@@ -20,6 +20,7 @@ pub(crate) mod base;
 pub(crate) mod passes;
 pub(crate) mod scan;
 pub(crate) mod scratch;
+pub(crate) mod seams;
 pub(crate) mod slabs;
 
 use crate::ply::PlyError;

@@ -243,6 +243,50 @@ struct SystemParts {
     screening_weights: Vec<f64>,
 }
 
+/// The bumpy sphere's χ solved in memory as the pipeline solves it, its isovalue, and its
+/// samples in the unit cube: the whole surface the slabs' seams are measured against.
+pub(super) fn bumpy_sphere_chi(
+    params: &crate::Params,
+) -> (crate::evaluate::Indicator, f64, Vec<DVec3>) {
+    use crate::solve::{cascade, Depths, System};
+    let cloud = bumpy_sphere(params);
+    let parts = sphere_system(params);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool");
+    let coefficients = cascade(
+        System {
+            tree: &parts.tree,
+            rho: parts.rho,
+            field_v: parts.field_v,
+            positions: &parts.positions,
+            screening_weights: &parts.screening_weights,
+            screening: crate::system::depth_weight(params.point_weight, params.depth),
+            depths: Depths::All,
+        },
+        params,
+        &pool,
+        &mut |_| true,
+        &mut Vec::new(),
+    )
+    .expect("solved")
+    .coefficients;
+    let chi = crate::evaluate::Indicator {
+        tree: parts.tree,
+        coefficients,
+    };
+    let isovalue = crate::isovalue::weighted_mean(
+        &chi,
+        &cloud.samples.positions,
+        &cloud.area,
+        &cloud.samples.confidence,
+        &Watch::new(),
+    )
+    .expect("not cancelled");
+    (chi, isovalue, cloud.samples.positions)
+}
+
 fn sphere_system(params: &crate::Params) -> SystemParts {
     let cloud = bumpy_sphere(params);
     let tree = Octree::from_cores(
