@@ -525,4 +525,41 @@ mod tests {
 
         assert!(!differ.is_empty(), "some vertices next to the walls move");
     }
+
+    /// Proves a slab's part does not depend on the thread count: the same vertices (bits),
+    /// keys, triangles and wall marks with one thread and with three.
+    #[test]
+    fn a_slabs_part_is_the_same_on_any_number_of_threads() {
+        let (chi, isovalue, positions) = sphere();
+        let n = 1i64 << chi.tree.max_depth();
+        let owned = n / 2 - 11..n / 2 + 17;
+        let m = margin(&chi.tree, &owned, true);
+        let traced = owned.start - m..owned.end + m;
+        let part = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a pool");
+            pool.install(|| {
+                let seeds = seeds(chi, positions, 997, &traced);
+                let part = slab_part(
+                    chi,
+                    *isovalue,
+                    seeds,
+                    owned.clone(),
+                    traced.clone(),
+                    false,
+                    true,
+                    &Watch::new(),
+                )
+                .expect("extracted");
+                let vertices: Vec<_> = part.vertices.iter().map(|&v| bits(v)).collect();
+                let normals: Vec<_> = part.normals.iter().map(|&v| bits(v)).collect();
+                (vertices, normals, part.keys, part.triangles, part.shared)
+            })
+        };
+        let one = part(1);
+        assert!(!one.3.is_empty());
+        assert!(one == part(3));
+    }
 }
