@@ -12,9 +12,11 @@
 //! that share the base's depths; its screening proxies from the slabs' merged sample groups
 //! ([`base::merge_groups`], [`crate::system::Proxies::from_groups`]); the cascade cut at the
 //! base ([`crate::solve::Depths`]); and, in one process, slabs solved above the shared base
-//! within the in-memory solver's own error of it. Not built: the input read in chunks and
-//! binned to slab files, the passes over the slabs, the isovalue's and the extraction's seams,
-//! the components across walls, the PLY written slab by slab, and the front ends.
+//! within the in-memory solver's own error of it; each slab's part of the mesh and the parts
+//! welded by their vertices' keys, bit for bit the in-memory mesh over the same χ
+//! ([`seams`]). Not built: the input read in chunks and binned to slab files, the passes over
+//! the slabs, the isovalue's seams, the seeds exchanged between slabs, the components across
+//! walls, the PLY written slab by slab, and the front ends.
 
 pub(crate) mod base;
 pub(crate) mod passes;
