@@ -130,6 +130,13 @@ impl Footprint {
     }
 }
 
+/// The bytes of the density field of `points` points at `kernel_depth`, predicted: the part
+/// of [`Footprint::predicted`] that the out-of-core path holds for the whole cloud while it
+/// works slab by slab.
+pub(crate) fn predicted_density_bytes(points: u64, kernel_depth: u32) -> u64 {
+    predicted_density_slots(points, kernel_depth).saturating_mul(PER_DENSITY_SLOT)
+}
+
 /// The density field's table slots for `points` points at `kernel_depth`, predicted: its
 /// finest table holds the nodes the samples' trilinear splats touch, at most the surface's or
 /// the points' count of core nodes ([`predicted_nodes`]'s rule without the saturation: the

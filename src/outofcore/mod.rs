@@ -18,8 +18,10 @@
 //! the slabs, the isovalue's seams, the seeds exchanged between slabs, the components across
 //! walls, the PLY written slab by slab, and the front ends.
 
+pub(crate) mod assemble;
 pub(crate) mod base;
 pub(crate) mod passes;
+pub(crate) mod run;
 pub(crate) mod scan;
 pub(crate) mod scratch;
 pub(crate) mod seams;
@@ -49,6 +51,13 @@ pub enum OutOfCoreError {
         /// the operating system's error
         source: io::Error,
     },
+    /// The output file could not be created or written.
+    Output {
+        /// the output file
+        path: PathBuf,
+        /// the operating system's error
+        source: io::Error,
+    },
 }
 
 impl fmt::Display for OutOfCoreError {
@@ -66,6 +75,13 @@ impl fmt::Display for OutOfCoreError {
                  enough free space",
                 path.display()
             ),
+            OutOfCoreError::Output { path, source } => {
+                write!(
+                    f,
+                    "could not write the mesh to {}: {source}",
+                    path.display()
+                )
+            }
         }
     }
 }
@@ -75,7 +91,9 @@ impl std::error::Error for OutOfCoreError {
         match self {
             OutOfCoreError::Input(e) => Some(e),
             OutOfCoreError::Reconstruction(e) => Some(e),
-            OutOfCoreError::Scratch { source, .. } => Some(source),
+            OutOfCoreError::Scratch { source, .. } | OutOfCoreError::Output { source, .. } => {
+                Some(source)
+            }
         }
     }
 }

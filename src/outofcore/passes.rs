@@ -8,7 +8,7 @@
 //! with its neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
-use super::scan::{bin, column_counts, scan, Scan};
+use super::scan::{bin, column_counts, scan, Input, Scan};
 use super::scratch::{read_lists, read_slab, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::OutOfCoreError;
@@ -31,15 +31,72 @@ pub(crate) struct Plan {
     /// B: depths 0..=B are solved once for the whole cloud (at least the full depth, below
     /// the reconstruction's depth).
     pub(crate) base_depth: u32,
-    /// The slabs asked for (fewer are made when the points fill fewer columns).
-    pub(crate) slabs: usize,
+    /// How many slabs.
+    pub(crate) slabs: SlabCount,
     /// Columns of depth B + 2 each slab reads beyond its walls (12: three nodes of depth B,
     /// the reach of a sample in the tree and its halo, see `tests.rs`).
     pub(crate) padding: u32,
     /// Points per chunk read from the input.
     pub(crate) chunk: usize,
+    /// Whether the points' confidence weighs them.
+    pub(crate) confidence: bool,
     /// Where the temporary directory goes (the system's when `None`).
     pub(crate) temp_dir: Option<PathBuf>,
+}
+
+/// How many slabs a run cuts the cloud into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum SlabCount {
+    /// This many (fewer when the points fill fewer columns).
+    Exactly(usize),
+    /// The fewest whose largest, with its padding, fits this many bytes by the memory
+    /// accounting (`memory.rs`) with the density field of the whole cloud.
+    Within(u64),
+}
+
+/// The fewest slabs for `budget` bytes (see [`SlabCount::Within`]), from the points' column
+/// counts; or, when no number of slabs fits, the smallest budget that any does (the most
+/// slabs' need).
+fn slabs_within(
+    budget: u64,
+    counts: &[u64],
+    wall_depth: u32,
+    padding: u32,
+    params: &Params,
+) -> std::result::Result<usize, u64> {
+    let total: u64 = counts.iter().sum();
+    let shared = crate::memory::predicted_density_bytes(total, params.effective_kernel_depth());
+    let need_of = |points: u64| {
+        crate::memory::Footprint::predicted(
+            points,
+            0,
+            params.depth,
+            params.effective_full_depth(),
+            params.effective_kernel_depth(),
+        )
+        .peak()
+        .saturating_add(shared)
+    };
+    let mut least = u64::MAX;
+    let mut previous_len = 0;
+    for slabs in 1..=counts.len() {
+        let layout = SlabLayout::balanced(counts, wall_depth, slabs, padding);
+        if layout.len() == previous_len {
+            // No more slabs can be cut: every further count gives this layout.
+            break;
+        }
+        previous_len = layout.len();
+        let largest = (0..layout.len())
+            .map(|k| layout.padded(k).map(|c| counts[c as usize]).sum::<u64>())
+            .max()
+            .unwrap_or(0);
+        let need = need_of(largest);
+        if need <= budget {
+            return Ok(layout.len());
+        }
+        least = least.min(need);
+    }
+    Err(least)
 }
 
 /// What the passes leave for the extraction.
@@ -58,9 +115,27 @@ pub(crate) struct SolvedSlabs {
     pub(crate) field: DensityField,
     /// The finest depth any sample reaches: every slab's tree has it.
     pub(crate) finest: u32,
-    /// Σ area × confidence and Σ confidence over all the samples (the screening weights').
-    pub(crate) totals: (f64, f64),
     pub(crate) isovalue: f64,
+}
+
+impl SolvedSlabs {
+    /// Slab k's samples (its own and its padding), as the passes prepared them.
+    pub(crate) fn slab_samples(
+        &self,
+        k: usize,
+        pool: &rayon::ThreadPool,
+    ) -> std::result::Result<SlabSamples, OutOfCoreError> {
+        Run {
+            params: &self.params,
+            scan: &self.scan,
+            layout: &self.layout,
+            files: &self.point_files,
+            field: &self.field,
+            pool,
+            watch: Watch::new(),
+        }
+        .load(k, Some(self.finest))
+    }
 }
 
 /// One slab's samples as the in-memory pipeline prepares all of them: in Morton order in the
@@ -300,7 +375,12 @@ pub(crate) fn solve_slabs(
 ) -> std::result::Result<SolvedSlabs, OutOfCoreError> {
     params.validate()?;
     let cancelled = || OutOfCoreError::Reconstruction(crate::Error::Cancelled);
-    let scan = scan(path, params.scale as f64, plan.chunk, &mut |_| {
+    let input = Input {
+        path,
+        chunk: plan.chunk,
+        confidence: plan.confidence,
+    };
+    let scan = scan(&input, params.scale as f64, &mut |_| {
         keep_going("scan", 0.0)
     })?;
     let params = params.for_cube(scan.map.size);
@@ -316,18 +396,30 @@ pub(crate) fn solve_slabs(
         .into());
     }
     let wall_depth = base_depth + 2;
-    let counts = column_counts(path, &scan.map, wall_depth, plan.chunk, &mut |done| {
+    let counts = column_counts(&input, &scan.map, wall_depth, &mut |done| {
         keep_going("columns", done as f32 / count)
     })?;
-    let layout = SlabLayout::balanced(&counts, wall_depth, plan.slabs, plan.padding);
+    let slabs = match plan.slabs {
+        SlabCount::Exactly(n) => n,
+        SlabCount::Within(budget) => {
+            slabs_within(budget, &counts, wall_depth, plan.padding, &params).map_err(|enough| {
+                crate::Error::OutOfMemory {
+                    what: "the largest slab a cut of the cloud can make, with its padding",
+                    needed: enough,
+                    limit: Some(budget),
+                    enough: Some(enough),
+                }
+            })?
+        }
+    };
+    let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
     let scratch = Scratch::create(plan.temp_dir.as_deref())?;
     let binned = bin(
-        path,
+        &input,
         &scan,
         &layout,
         params.effective_kernel_depth(),
         &scratch,
-        plan.chunk,
         &mut |done| keep_going("bin", done as f32 / count),
     )?;
     let field = binned.kernel_counts.into_field();
@@ -529,7 +621,6 @@ pub(crate) fn solve_slabs(
         base_cores,
         field,
         finest,
-        totals: (total_area, total_confidence),
         isovalue,
     })
 }

@@ -13,33 +13,55 @@ use crate::Error;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 
+/// The input file and how it is read.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Input<'a> {
+    pub(crate) path: &'a Path,
+    /// Points per chunk.
+    pub(crate) chunk: usize,
+    /// Whether the points' confidence (the `confidence` or `value` property) weighs them.
+    pub(crate) confidence: bool,
+}
+
 /// What the first pass learns about the input.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Scan {
     pub(crate) count: u64,
     /// The unit cube: the in-memory path's for the same points and scale.
     pub(crate) map: UnitCubeMap,
-    /// Whether the points carry a confidence.
+    /// Whether the points are weighed by their confidence.
     pub(crate) weighted: bool,
     /// Whether they carry colours or other channels (which this path does not carry).
     pub(crate) has_attributes: bool,
+    /// Whether the file stores positions in `double` (then the mesh is written in `double`
+    /// around a nearby origin, as the in-memory path writes it).
+    pub(crate) positions_f64: bool,
 }
 
 /// The input's points, chunk by chunk, as records (the values as read), each chunk checked as
 /// [`PointSet`] checks a batch (errors name the point's index in the file); `keep_going` is
 /// asked before each chunk with the number of points read so far, and `each` gets the chunk.
 fn for_each_chunk(
-    path: &Path,
-    chunk: usize,
+    input: &Input<'_>,
     keep_going: &mut dyn FnMut(u64) -> bool,
     mut each: impl FnMut(&PlyPoints, Vec<PointRecord>) -> Result<(), OutOfCoreError>,
 ) -> Result<(), OutOfCoreError> {
     let mut offset = 0u64;
-    read_point_cloud_chunks(path, chunk, |points: PlyPoints| {
+    read_point_cloud_chunks(input.path, input.chunk, |points: PlyPoints| {
         if !keep_going(offset) {
             return Err(OutOfCoreError::Reconstruction(Error::Cancelled));
         }
-        let weights = points.confidence.as_deref();
+        let weights = match (input.confidence, &points.confidence) {
+            (false, _) => None,
+            (true, Some(c)) => Some(c.as_slice()),
+            (true, None) => {
+                return Err(OutOfCoreError::Reconstruction(Error::InvalidParameter {
+                    name: "confidence",
+                    value: "true".into(),
+                    expected: "points with a confidence (or value) property",
+                }))
+            }
+        };
         let checked = match &points.positions_f64 {
             Some(exact) => PointSet::new().extend_weighted_f64(exact, &points.normals, weights),
             None => PointSet::new().extend_weighted(&points.positions, &points.normals, weights),
@@ -84,20 +106,19 @@ fn at_offset(error: Error, offset: u64) -> Error {
 /// Pass 1: the count, the cube (`scale` as [`crate::Params::scale`]) and what the points carry.
 /// An input without points is [`Error::EmptyInput`].
 pub(crate) fn scan(
-    path: &Path,
+    input: &Input<'_>,
     scale: f64,
-    chunk: usize,
     keep_going: &mut dyn FnMut(u64) -> bool,
 ) -> Result<Scan, OutOfCoreError> {
     let mut bounds = Bounds::default();
     let mut count = 0u64;
-    let mut weighted = false;
     let mut has_attributes = false;
-    for_each_chunk(path, chunk, keep_going, |points, records| {
+    let mut positions_f64 = false;
+    for_each_chunk(input, keep_going, |points, records| {
         bounds.extend(records.iter().map(|r| DVec3::from(r.position)));
         count += records.len() as u64;
-        weighted |= points.confidence.is_some();
         has_attributes |= points.colors.is_some() || !points.channels.is_empty();
+        positions_f64 |= points.positions_f64.is_some();
         Ok(())
     })?;
     if count == 0 {
@@ -106,22 +127,22 @@ pub(crate) fn scan(
     Ok(Scan {
         count,
         map: UnitCubeMap::fit_bounds(&bounds, scale),
-        weighted,
+        weighted: input.confidence,
         has_attributes,
+        positions_f64,
     })
 }
 
 /// Pass 2: the number of points in each column of `wall_depth` (2^wall_depth of them).
 pub(crate) fn column_counts(
-    path: &Path,
+    input: &Input<'_>,
     map: &UnitCubeMap,
     wall_depth: u32,
-    chunk: usize,
     keep_going: &mut dyn FnMut(u64) -> bool,
 ) -> Result<Vec<u64>, OutOfCoreError> {
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
-    for_each_chunk(path, chunk, keep_going, |_, records| {
+    for_each_chunk(input, keep_going, |_, records| {
         for r in &records {
             counts[columns.column_of(map.to_unit_f64(r.position).x) as usize] += 1;
         }
@@ -131,29 +152,27 @@ pub(crate) fn column_counts(
 }
 
 /// What pass 3 leaves: each slab's file (its own points and its padding, in input order) and
-/// the number of points in it, and the density's counts of every point.
+/// the density's counts of every point.
 pub(crate) struct Binned {
     pub(crate) files: Vec<PathBuf>,
-    pub(crate) records: Vec<u64>,
     pub(crate) kernel_counts: KernelCounts,
 }
 
 /// Pass 3: every point into the file of each slab that reads it (its owner's and, within the
 /// padding, its neighbours'), and splatted into the density's counts at `kernel_depth`.
 pub(crate) fn bin(
-    path: &Path,
+    input: &Input<'_>,
     scan: &Scan,
     layout: &SlabLayout,
     kernel_depth: u32,
     scratch: &Scratch,
-    chunk: usize,
     keep_going: &mut dyn FnMut(u64) -> bool,
 ) -> Result<Binned, OutOfCoreError> {
     let mut writers = (0..layout.len())
         .map(|k| SlabWriter::create(scratch.file(&format!("slab-{k}.points"))))
         .collect::<Result<Vec<_>, _>>()?;
     let mut kernel_counts = KernelCounts::new(kernel_depth);
-    for_each_chunk(path, chunk, keep_going, |_, records| {
+    for_each_chunk(input, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
             .map(|r| scan.map.to_unit_f64(r.position))
@@ -167,14 +186,12 @@ pub(crate) fn bin(
         }
         Ok(())
     })?;
-    let records = writers.iter().map(|w| w.records).collect();
     let files = writers
         .into_iter()
         .map(SlabWriter::finish)
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Binned {
         files,
-        records,
         kernel_counts,
     })
 }

@@ -44,6 +44,7 @@ impl Scratch {
         }
     }
 
+    #[cfg(test)]
     pub(crate) fn path(&self) -> &Path {
         &self.dir
     }

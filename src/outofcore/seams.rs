@@ -237,6 +237,7 @@ fn owned_part(
 /// first part's, and the others' triangles refer to it. Fails with [`Error::Internal`] when
 /// two parts disagree on a shared vertex's position or normal (they are computed from the same
 /// χ by the same code: a bug, or χ not the same on both sides of a wall).
+#[cfg(test)]
 pub(crate) fn weld(parts: &[SlabPart]) -> Result<RawMesh> {
     let mut mesh = RawMesh::default();
     let mut index: KeyMap<u32> = KeyMap::default();

@@ -262,6 +262,7 @@ pub(super) fn bumpy_sphere_chi(
             field_v: parts.field_v,
             positions: &parts.positions,
             screening_weights: &parts.screening_weights,
+            proxy_groups: None,
             screening: crate::system::depth_weight(params.point_weight, params.depth),
             depths: Depths::All,
         },
@@ -761,7 +762,7 @@ fn bumpy_sphere_file(dir: &std::path::Path) -> (std::path::PathBuf, crate::Point
 /// value, bit for bit, near it. The temporary directory is gone once the result is dropped.
 #[test]
 fn the_passes_over_files_solve_the_in_memory_chi_with_one_chi_across_walls() {
-    use super::passes::{load_solution, solve_slabs, Plan};
+    use super::passes::{load_solution, solve_slabs, Plan, SlabCount};
     let dir = super::scratch::Scratch::create(None).expect("a directory for the input");
     let (path, points) = bumpy_sphere_file(dir.path());
     let params = crate::Params::default()
@@ -786,9 +787,10 @@ fn the_passes_over_files_solve_the_in_memory_chi_with_one_chi_across_walls() {
         .expect("a pool");
     let plan = Plan {
         base_depth: 4,
-        slabs: 4,
+        slabs: SlabCount::Exactly(4),
         padding: 12,
         chunk: 5_000,
+        confidence: false,
         temp_dir: Some(dir.path().to_path_buf()),
     };
     let solved =

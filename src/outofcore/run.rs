@@ -1,0 +1,259 @@
+//! A reconstruction out of core from one file to another, top to bottom: the passes that solve
+//! the slabs (`passes.rs`), each slab's part of the mesh (`seams.rs`), the pieces across walls
+//! and the PLY (`assemble.rs`).
+
+use super::assemble::{self, Pieces};
+use super::passes::{load_solution, solve_slabs, Plan, SlabCount};
+use super::seams::{margin, slab_part, SlabPart};
+use super::OutOfCoreError;
+use crate::grid::cell_of;
+use crate::parallel::Watch;
+use crate::pipeline::{Progress, Stage};
+use crate::{Params, VertexPlacement, Workers};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How a reconstruction out of core ([`crate::reconstruct_out_of_core`]) cuts the cloud and
+/// where it keeps its temporary files. The memory budget is [`Params::max_memory`].
+#[derive(Debug, Clone, Default, PartialEq)]
+#[non_exhaustive]
+pub struct OutOfCore {
+    /// Slabs to cut the cloud into across x. `None`: the fewest whose largest fits
+    /// [`Params::max_memory`] (one of the two must be given).
+    pub slabs: Option<usize>,
+    /// The directory under which the run makes its temporary directory (the system's
+    /// temporary directory when `None`); it needs room for the points about twice over (40
+    /// bytes a point, plus the slabs' padding) and the mesh. Removed on success, error and
+    /// cancel.
+    pub temp_dir: Option<PathBuf>,
+    /// The depth up to which the system is solved once for the whole cloud (`None`: the
+    /// depth − 3, at most 7 and at least the full depth). Finer depths are solved slab by slab.
+    pub base_depth: Option<u32>,
+    /// Weigh the points by their `confidence` (or `value`) property, as
+    /// [`crate::PointSet::extend_weighted`] does (PoissonRecon's `--confidence`); a file
+    /// without one is then refused. Off by default: the property is ignored.
+    pub confidence: bool,
+}
+
+impl OutOfCore {
+    /// These options with `slabs` slabs.
+    pub fn with_slabs(mut self, slabs: Option<usize>) -> Self {
+        self.slabs = slabs;
+        self
+    }
+
+    /// These options with the temporary directory under `dir`.
+    pub fn with_temp_dir(mut self, dir: Option<PathBuf>) -> Self {
+        self.temp_dir = dir;
+        self
+    }
+
+    /// These options weighing the points by their confidence, or not.
+    pub fn with_confidence(mut self, confidence: bool) -> Self {
+        self.confidence = confidence;
+        self
+    }
+
+    /// These options with base depth `depth`.
+    pub fn with_base_depth(mut self, depth: Option<u32>) -> Self {
+        self.base_depth = depth;
+        self
+    }
+}
+
+/// What a reconstruction out of core did.
+#[derive(Debug, Clone, Default, PartialEq)]
+#[non_exhaustive]
+pub struct OutOfCoreReport {
+    /// Points read.
+    pub points: u64,
+    /// Slabs the cloud was cut into.
+    pub slabs: usize,
+    /// The depth used (from [`Params::width`] when set).
+    pub depth: u32,
+    /// Vertices written.
+    pub vertices: u64,
+    /// Triangles written.
+    pub triangles: u64,
+    /// Closed pieces left out for want of supporting samples (as [`crate::Stats`]'s
+    /// `unsupported_components`).
+    pub unsupported_components: usize,
+    /// The isovalue.
+    pub isovalue: f64,
+    /// The points carried colours or other channels, which this path does not carry onto the
+    /// mesh (the in-memory path does).
+    pub attributes_dropped: bool,
+    /// Seconds, start to end.
+    pub seconds: f64,
+}
+
+pub(crate) fn run(
+    input: &Path,
+    output: &Path,
+    params: &Params,
+    options: &OutOfCore,
+    progress: Progress<'_>,
+) -> Result<OutOfCoreReport, OutOfCoreError> {
+    let started = Instant::now();
+    params.validate()?;
+    if options.slabs == Some(0) {
+        return Err(crate::Error::InvalidParameter {
+            name: "slabs",
+            value: "0".into(),
+            expected: "at least 1 (or none: from the memory budget)",
+        }
+        .into());
+    }
+    if params.vertex_normals {
+        return Err(crate::Error::InvalidParameter {
+            name: "vertex_normals",
+            value: "true".into(),
+            expected: "false: a reconstruction out of core writes no vertex normals",
+        }
+        .into());
+    }
+    let workers = Workers::start(params.threads)?;
+    let pool = workers.pool();
+    let depth = params.depth;
+    let full_depth = params.effective_full_depth();
+    let base_depth = options
+        .base_depth
+        .unwrap_or_else(|| depth.saturating_sub(3).min(7).max(full_depth));
+    let plan = Plan {
+        base_depth,
+        slabs: match options.slabs {
+            Some(n) => SlabCount::Exactly(n),
+            None => SlabCount::Within(params.max_memory.ok_or(crate::Error::InvalidParameter {
+                name: "max_memory",
+                value: "none".into(),
+                expected: "a memory budget in bytes (or a number of slabs) for a reconstruction \
+                           out of core",
+            })?),
+        },
+        padding: 12,
+        chunk: 1 << 20,
+        confidence: options.confidence,
+        temp_dir: options.temp_dir.clone(),
+    };
+    let mut go_on = |stage: Stage, fraction: f32| progress(stage, fraction);
+    let solved = solve_slabs(input, params, &plan, pool, &mut |pass, fraction| {
+        let stage = match pass {
+            "scan" | "columns" | "bin" => Stage::Points,
+            "base" => Stage::System,
+            "slabs" => Stage::Solve,
+            _ => Stage::Isovalue,
+        };
+        go_on(stage, fraction)
+    })?;
+    let cancelled = || OutOfCoreError::Reconstruction(crate::Error::Cancelled);
+    let params = &solved.params;
+    let layout = &solved.layout;
+    let slabs = layout.len();
+    let finest = solved.finest;
+    if finest < layout.wall_depth {
+        return Err(crate::Error::InvalidParameter {
+            name: "base_depth",
+            value: base_depth.to_string(),
+            expected: "at most the finest depth the samples reach − 2",
+        }
+        .into());
+    }
+    let fitted = params.vertex_placement != VertexPlacement::OnIsosurface;
+    let watch = Watch::new();
+
+    // Each slab's part of the mesh, saved for the passes below.
+    let to_finest = finest - layout.wall_depth;
+    for k in 0..slabs {
+        if !go_on(Stage::Extract, k as f32 / (slabs as f32 * 2.0)) {
+            return Err(cancelled());
+        }
+        let chi = load_solution(&solved, k, pool)?;
+        let samples = solved.slab_samples(k, pool)?;
+        let inv_h = (finest as f64).exp2();
+        let seeds: Vec<[i64; 3]> = samples
+            .samples
+            .positions
+            .iter()
+            .map(|&p| cell_of(p, inv_h).map(i64::from))
+            .collect();
+        drop(samples);
+        let owned_columns = layout.owned(k);
+        let owned =
+            (owned_columns.start as i64) << to_finest..(owned_columns.end as i64) << to_finest;
+        let reach = margin(&chi.tree, &owned, fitted);
+        let traced = owned.start - reach..owned.end + reach;
+        let part = pool.install(|| {
+            slab_part(
+                &chi,
+                solved.isovalue,
+                seeds,
+                owned,
+                traced,
+                !fitted,
+                fitted,
+                &watch,
+            )
+        })?;
+        assemble::save_part(&part, &solved.scratch, k)?;
+    }
+
+    // The pieces across walls, their support, and the PLY.
+    let load =
+        |k: usize| -> Result<SlabPart, OutOfCoreError> { assemble::load_part(&solved.scratch, k) };
+    if !go_on(Stage::Extract, 0.6) {
+        return Err(cancelled());
+    }
+    let pieces = Pieces::label(slabs, load)?;
+    let min_samples = params.min_component_samples as u64;
+    let support = if min_samples == 0 {
+        Vec::new()
+    } else {
+        assemble::support(&pieces, slabs, finest, load, |k| {
+            let samples = solved.slab_samples(k, pool)?;
+            Ok(samples
+                .samples
+                .positions
+                .iter()
+                .zip(&samples.owned)
+                .filter(|(_, owned)| **owned)
+                .map(|(p, _)| *p)
+                .collect())
+        })?
+    };
+    let keep = |piece: u32| {
+        min_samples == 0 || piece == pieces.largest() || support[piece as usize] >= min_samples
+    };
+    let unsupported_components = pieces.count_where(|p| !keep(p));
+    if !go_on(Stage::Mesh, 0.0) {
+        return Err(cancelled());
+    }
+    let origin = solved
+        .scan
+        .positions_f64
+        .then(|| solved.scan.map.nearby_origin());
+    let (vertices, triangles) = assemble::write_ply(
+        output,
+        &solved.scratch,
+        slabs,
+        &pieces,
+        &keep,
+        &solved.scan.map,
+        origin,
+        &solved.field,
+        load,
+    )?;
+    if !go_on(Stage::Mesh, 1.0) {
+        return Err(cancelled());
+    }
+    Ok(OutOfCoreReport {
+        points: solved.scan.count,
+        slabs,
+        depth: params.depth,
+        vertices,
+        triangles,
+        unsupported_components,
+        isovalue: solved.isovalue,
+        attributes_dropped: solved.scan.has_attributes,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
