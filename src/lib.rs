@@ -65,6 +65,8 @@ pub use normals::{
     estimate_normals, estimate_normals_with_progress, orient_normals, orient_normals_with_progress,
     NormalEstimation, Orientation,
 };
+pub use outofcore::run::{OutOfCore, OutOfCoreReport};
+pub use outofcore::OutOfCoreError;
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
 pub use points::PointSet;
@@ -105,6 +107,47 @@ pub fn reconstruct_with_progress(
     progress: Progress<'_>,
 ) -> Result<Mesh> {
     run(points, params, progress, false).map(|(mesh, _)| mesh)
+}
+
+/// Reconstructs the oriented points of the PLY file `input` into the mesh `output` (binary
+/// PLY) without holding the whole cloud, its octree or its mesh in memory at once: the cloud
+/// is read in chunks and binned across x into slabs in a temporary directory; the depths up to
+/// a base depth are solved once for the whole cloud and the finer ones slab by slab, each over
+/// its points and a padding of its neighbours'; the slabs evaluate one χ near their walls, so
+/// the mesh is closed and manifold across them and each vertex on a wall is written once
+/// (`docs/out-of-core.md`). The slabs' count follows [`Params::max_memory`] (the budget; a
+/// budget too small for any cut is refused before the slabs are solved, with the smallest
+/// workable one in [`Error::OutOfMemory`]'s `enough`) or [`OutOfCore::slabs`].
+///
+/// The mesh is the in-memory [`reconstruct`]'s to within the in-memory solver's own tolerance:
+/// the finer depths are solved per slab, so χ differs from the in-memory one by less than that
+/// differs from its converged solution (tested), not bit for bit. Vertices carry the sampling
+/// density (`value`) as [`ply::write_mesh`] writes them; colours and channels are not carried
+/// on this path (the report says when the points had some), and vertex normals are refused
+/// ([`Params::vertex_normals`]: [`Error::InvalidParameter`]).
+pub fn reconstruct_out_of_core(
+    input: &std::path::Path,
+    output: &std::path::Path,
+    params: &Params,
+    options: &OutOfCore,
+) -> std::result::Result<OutOfCoreReport, OutOfCoreError> {
+    reconstruct_out_of_core_with_progress(input, output, params, options, &mut |_, _| true)
+}
+
+/// [`reconstruct_out_of_core`] with a progress callback that may cancel (then the result is
+/// `Err(OutOfCoreError::Reconstruction(Error::Cancelled))` and the temporary files are gone).
+/// The passes report as the in-memory stages they correspond to: reading and binning as
+/// [`Stage::Points`], the base as [`Stage::System`], the slabs as [`Stage::Solve`], the seams
+/// and the isovalue as [`Stage::Isovalue`], the slabs' meshes as [`Stage::Extract`] and the
+/// file as [`Stage::Mesh`].
+pub fn reconstruct_out_of_core_with_progress(
+    input: &std::path::Path,
+    output: &std::path::Path,
+    params: &Params,
+    options: &OutOfCore,
+    progress: Progress<'_>,
+) -> std::result::Result<OutOfCoreReport, OutOfCoreError> {
+    outofcore::run::run(input, output, params, options, progress)
 }
 
 /// The memory a reconstruction of `points` with `params` is estimated to need at its peak, in

@@ -318,6 +318,39 @@ struct Args {
     #[arg(long, value_name = "SIZE", value_parser = parse_size)]
     max_memory: Option<u64>,
 
+    /// Reconstruct without holding the whole cloud, octree or mesh in memory: the input is read
+    /// in chunks and binned across x into slabs in a temporary directory (--temp-dir), the
+    /// coarse depths are solved once for the whole cloud and the fine ones slab by slab, and
+    /// the mesh is written slab by slab into one PLY (seams closed, their vertices written
+    /// once). The slabs' count follows --max-memory (the budget; a budget no cut fits is
+    /// refused up front with the smallest workable one) or --slabs [default budget: half the
+    /// machine's memory]. For clouds bigger than memory (docs/out-of-core.md): the mesh is the
+    /// in-memory one to within the solver's tolerance. Needs a .ply input with normals and a
+    /// .ply output; carries no colours or other properties, writes no vertex normals, and
+    /// takes none of --grid, --trim*, --transform, --normals estimate|reorient. PoissonRecon:
+    /// none (its distributed reconstruction is a separate client/server program).
+    #[arg(long)]
+    out_of_core: bool,
+
+    /// With --out-of-core: cut the cloud into N slabs across x (fewer when the points fill
+    /// fewer columns) instead of choosing their count from --max-memory. PoissonRecon: none.
+    #[arg(long, value_name = "N", requires = "out_of_core")]
+    slabs: Option<usize>,
+
+    /// With --out-of-core: the depth up to which the system is solved once for the whole
+    /// cloud (at least --full-depth, at most the depth − 2; finer depths are solved slab by
+    /// slab) [default: depth − 3, at most 7]. PoissonRecon: --baseDepth (of its distributed
+    /// programs).
+    #[arg(long, value_name = "D", requires = "out_of_core")]
+    base_depth: Option<u32>,
+
+    /// With --out-of-core: where to make the temporary directory (it needs about twice the
+    /// points' size, 40 bytes a point, plus the mesh); removed on success, error and Ctrl-C
+    /// alike [default: the system's temporary directory]. PoissonRecon: --tempDir (of its
+    /// distributed programs).
+    #[arg(long, value_name = "DIR", requires = "out_of_core")]
+    temp_dir: Option<PathBuf>,
+
     /// Print the memory the reconstruction is estimated to need (from the point count and the
     /// depth: an upper bound for scanned surfaces, see docs/benchmarks.md) and exit without
     /// reconstructing; --out is checked but not written. PoissonRecon: none.
@@ -708,6 +741,9 @@ fn run(args: &Args) -> Result<(), Failure> {
         }
     }
 
+    if args.out_of_core {
+        return run_out_of_core(args, params);
+    }
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
     let mut progress = ProgressLine::default();
     let start = Instant::now();
@@ -882,6 +918,111 @@ fn run(args: &Args) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// `--out-of-core`: from the input file to the output file through `psr::reconstruct_out_of_core`.
+fn run_out_of_core(args: &Args, params: Params) -> Result<(), Failure> {
+    let mut refused: Vec<&str> = Vec::new();
+    for (given, option) in [
+        (args.grid.is_some(), "--grid"),
+        (args.trimming().is_some(), "--trim*"),
+        (args.transform.is_some(), "--transform"),
+        (
+            args.normals != NormalsArg::Auto,
+            "--normals estimate|reorient",
+        ),
+        (args.vertex_normals, "--vertex-normals"),
+        (args.estimate_memory, "--estimate-memory"),
+        (args.ascii, "--ascii"),
+        (args.no_density, "--no-density"),
+    ] {
+        if given {
+            refused.push(option);
+        }
+    }
+    if !refused.is_empty() {
+        return Err(Failure::Usage(format!(
+            "--out-of-core does not take {}",
+            refused.join(", ")
+        )));
+    }
+    if input_format(&args.input).map_err(Failure::Usage)? != InputFormat::Ply
+        || output_format(&args.output).map_err(Failure::Usage)? != OutputFormat::Ply
+    {
+        return Err(Failure::Usage(
+            "--out-of-core reads a .ply and writes a .ply".to_string(),
+        ));
+    }
+    let params = if args.slabs.is_none() && params.max_memory.is_none() {
+        params.with_max_memory(Some(physical_memory() / 2))
+    } else {
+        params
+    };
+    let options = psr::OutOfCore::default()
+        .with_slabs(args.slabs)
+        .with_base_depth(args.base_depth)
+        .with_temp_dir(args.temp_dir.clone())
+        .with_confidence(args.confidence);
+    let show_progress = !args.quiet && std::io::stderr().is_terminal();
+    let mut progress = ProgressLine::default();
+    let result = psr::reconstruct_out_of_core_with_progress(
+        &args.input,
+        &args.output,
+        &params,
+        &options,
+        &mut |stage, fraction| {
+            if show_progress {
+                progress.update(stage, fraction);
+            }
+            true
+        },
+    );
+    progress.clear();
+    let report = result.map_err(|e| match e {
+        psr::OutOfCoreError::Reconstruction(psr::Error::OutOfMemory { .. }) => {
+            Failure::OutOfMemory(format!("reconstruction failed: {e} (option --max-memory)"))
+        }
+        psr::OutOfCoreError::Reconstruction(psr::Error::InvalidParameter { name, .. }) => {
+            Failure::Usage(format!("{e} (option --{})", option_of(name)))
+        }
+        e => Failure::Run(format!("reconstruction failed: {e}")),
+    })?;
+    if !args.quiet {
+        if report.attributes_dropped {
+            eprintln!(
+                "psr: warning: the points' colours and other properties are not carried out of core"
+            );
+        }
+        eprintln!(
+            "psr: {} points, depth {}, {} slabs: {} vertices, {} triangles in {:.2}s{}",
+            report.points,
+            report.depth,
+            report.slabs,
+            report.vertices,
+            report.triangles,
+            report.seconds,
+            peak_resident_kib()
+                .map(|kib| format!(", peak {} MiB", kib / 1024))
+                .unwrap_or_default()
+        );
+    }
+    Ok(())
+}
+
+/// The machine's physical memory in bytes (8 GiB when it cannot be read).
+fn physical_memory() -> u64 {
+    // SAFETY: sysconf reads system constants; it has no preconditions.
+    let (pages, page) = unsafe {
+        (
+            libc::sysconf(libc::_SC_PHYS_PAGES),
+            libc::sysconf(libc::_SC_PAGE_SIZE),
+        )
+    };
+    if pages > 0 && page > 0 {
+        (pages as u64).saturating_mul(page as u64)
+    } else {
+        8 << 30
+    }
 }
 
 /// Reads the input in the format its name says.

@@ -107,6 +107,8 @@ mod implicit;
 // The memory limit and the estimates.
 mod memory;
 mod ply;
+// Reconstruction out of core, from file to file.
+mod outofcore;
 
 pub use self::attributes::{
     psr_mesh_channel, psr_mesh_channel_count, psr_mesh_channel_name, psr_mesh_color_components,
@@ -134,6 +136,7 @@ pub use self::normals::{
     psr_reconstructor_get_normal_orientation, psr_reconstructor_set_normal_neighbors,
     psr_reconstructor_set_normal_orientation, psr_reconstructor_set_viewpoint,
 };
+pub use self::outofcore::{psr_out_of_core_report, psr_reconstructor_solve_file_out_of_core};
 pub use self::params::{
     psr_boundary, psr_reconstructor_get_boundary, psr_reconstructor_get_degree,
     psr_reconstructor_get_depth, psr_reconstructor_get_full_depth,

@@ -111,7 +111,10 @@ fn path_of(function: &str, path: &CStr) -> Result<PathBuf, Failure> {
 ///
 /// # Safety
 /// `path` is NULL or a NUL-terminated string.
-unsafe fn path_argument(function: &str, path: *const c_char) -> Result<PathBuf, Failure> {
+pub(super) unsafe fn path_argument(
+    function: &str,
+    path: *const c_char,
+) -> Result<PathBuf, Failure> {
     if path.is_null() {
         return Err(Failure::null(function, "path"));
     }
