@@ -649,6 +649,48 @@ typedef struct {
     double seconds;
 } psr_depth_solve;
 
+/**
+ * What psr_reconstructor_solve_file_out_of_core did.
+ */
+typedef struct {
+    /**
+     * Points read from the input file.
+     */
+    uint64_t points;
+    /**
+     * Vertices written to the output file.
+     */
+    uint64_t vertices;
+    /**
+     * Triangles written to the output file.
+     */
+    uint64_t triangles;
+    /**
+     * Slabs the cloud was cut into.
+     */
+    uint64_t slabs;
+    /**
+     * The depth used (from the width when one is set).
+     */
+    uint32_t depth;
+    /**
+     * 1 when the points had colours or other properties, which this path does not carry.
+     */
+    uint32_t attributes_dropped;
+    /**
+     * Closed pieces left out for want of supporting samples (psr_reconstructor_set_min_component_samples).
+     */
+    uint64_t unsupported_components;
+    /**
+     * The isovalue.
+     */
+    double isovalue;
+    /**
+     * Seconds the run took.
+     */
+    double seconds;
+} psr_out_of_core_report;
+
 
 
 #ifdef __cplusplus
@@ -2156,6 +2198,41 @@ const uint32_t *psr_ply_triangles(const psr_ply *p);
  * or valid for writing `message_capacity` bytes.
  */
 psr_status psr_mesh_write_ply(const psr_mesh *m, const char *path, uint32_t flags, char *message, size_t message_capacity);
+
+/**
+ * Reconstructs the oriented points of the PLY file input_path into the mesh output_path
+ * (binary PLY: vertex x y z, float or, for double input, double; value, the sampling density;
+ * face vertex_indices as int) without holding the whole cloud, its octree or its mesh in
+ * memory at once (docs/out-of-core.md): the cloud is read in chunks and binned across x into
+ * slabs in a temporary directory made under temp_dir (NULL: the system's) and removed however
+ * the call ends; the coarse depths are solved once for the whole cloud and the finer ones slab
+ * by slab; the mesh is written slab by slab, closed across the slabs' walls, each wall vertex
+ * once. r's points are not used: its parameters, threads and progress callback are (the passes
+ * report as the stages they correspond to: reading PSR_STAGE_POINTS, the base PSR_STAGE_SYSTEM,
+ * the slabs PSR_STAGE_SOLVE, seams and isovalue PSR_STAGE_ISOVALUE, the slabs' meshes
+ * PSR_STAGE_EXTRACT, the file PSR_STAGE_MESH). slabs 0 chooses the fewest slabs whose largest
+ * fits r's memory limit (psr_reconstructor_set_max_memory; then one must be set); a limit no
+ * cut fits is refused with PSR_STATUS_OUT_OF_MEMORY before the slabs are solved, the message
+ * giving the smallest workable limit. use_confidence non-zero weighs the points by their
+ * confidence (or value) property. The mesh is the in-memory psr_reconstructor_solve's to within
+ * the solver's tolerance, not bit for bit; colours and channels are not carried and vertex
+ * normals are refused (PSR_STATUS_INVALID_PARAMETER). report may be NULL.
+ *
+ * r, input_path and output_path must not be NULL. Returns PSR_STATUS_OK,
+ * PSR_STATUS_NULL_ARGUMENT, PSR_STATUS_INVALID_ARGUMENT (an empty path, a call from r's own
+ * progress callback), PSR_STATUS_IO_ERROR (the input cannot be read, the output or a temporary
+ * file cannot be written: the message has the path and the system's reason),
+ * PSR_STATUS_INVALID_FILE (the input is not a PLY of oriented points), the statuses of
+ * psr_reconstructor_solve for the points and parameters (their indices are the file's),
+ * PSR_STATUS_OUT_OF_MEMORY, PSR_STATUS_CANCELLED, PSR_STATUS_HANDLE_POISONED or
+ * PSR_STATUS_INTERNAL_ERROR. On failure *report is left untouched and output_path may hold a
+ * partial file.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; the paths are NULL or NUL-terminated strings; `report` is NULL
+ * or valid for writing one psr_out_of_core_report.
+ */
+psr_status psr_reconstructor_solve_file_out_of_core(psr_reconstructor *r, const char *input_path, const char *output_path, const char *temp_dir, size_t slabs, int32_t use_confidence, psr_out_of_core_report *report);
 
 #ifdef __cplusplus
 }  // extern "C"
