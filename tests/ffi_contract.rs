@@ -4198,3 +4198,415 @@ fn mesh_write_ply_writes_what_the_program_writes_and_reads_back() {
     assert!(message.contains("no/such/dir"), "{message}");
     unsafe { psr_mesh_free(m) };
 }
+
+// ---------------------------------------------------------------------------------------------
+// Out of core: psr_reconstructor_solve_file_out_of_core
+// ---------------------------------------------------------------------------------------------
+
+/// A fresh, empty directory of its own under the system's temporary directory, removed with
+/// the value; `temp` is a subdirectory for the run's temporary directory, so that what the run
+/// leaves there can be listed.
+struct OutOfCoreDir(std::path::PathBuf);
+
+impl OutOfCoreDir {
+    fn new(test: &str) -> OutOfCoreDir {
+        let dir = std::env::temp_dir().join(format!("psr-ffi-ooc-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("temp")).unwrap();
+        OutOfCoreDir(dir)
+    }
+
+    fn path(&self, name: &str) -> std::path::PathBuf {
+        self.0.join(name)
+    }
+
+    /// What the runs left under `temp`.
+    fn left_in_temp(&self) -> Vec<String> {
+        std::fs::read_dir(self.path("temp"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect()
+    }
+}
+
+impl Drop for OutOfCoreDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Writes `n` oriented points on a sphere (binary PLY) to `path` with psr's writer, and returns
+/// them flattened as [`sphere`] gives them.
+fn write_sphere_ply(path: &std::path::Path, n: usize) -> (Vec<f32>, Vec<f32>) {
+    let (p, nrm) = sphere(n, [0.1, -0.2, 0.3], 1.0);
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = p.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    cloud.normals = nrm.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    psr::ply::write_point_cloud(path, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    (p, nrm)
+}
+
+/// A report whose every field is a value no run gives, to see that a failure leaves it alone.
+fn sentinel_report() -> psr_out_of_core_report {
+    psr_out_of_core_report {
+        points: 77,
+        vertices: 77,
+        triangles: 77,
+        slabs: 77,
+        depth: 77,
+        attributes_dropped: 77,
+        unsupported_components: 77,
+        isovalue: 77.0,
+        seconds: 77.0,
+    }
+}
+
+/// The parameters of these tests, on `r`: depth 6 and full depth 4. The slabs' shared base is
+/// solved to the depth − 3 but at least the full depth, and must stay 2 below the finest depth
+/// the samples reach (6 for 20,000 points on the unit sphere), so the default full depth of 5
+/// would be refused (PSR_STATUS_INVALID_PARAMETER, base_depth).
+fn out_of_core_parameters(r: *mut psr_reconstructor) {
+    unsafe {
+        assert_eq!(psr_reconstructor_set_depth(r, 6), psr_status::Ok);
+        assert_eq!(psr_reconstructor_set_full_depth(r, 4), psr_status::Ok);
+    }
+}
+
+/// psr_reconstructor_solve_file_out_of_core on paths, with the report it wrote (or left).
+fn solve_file_out_of_core(
+    r: *mut psr_reconstructor,
+    input: &std::path::Path,
+    output: &std::path::Path,
+    temp_dir: Option<&std::path::Path>,
+    slabs: usize,
+) -> (psr_status, psr_out_of_core_report) {
+    let (input, output) = (c_path(input), c_path(output));
+    let temp_dir = temp_dir.map(c_path);
+    let mut report = sentinel_report();
+    let status = unsafe {
+        psr_reconstructor_solve_file_out_of_core(
+            r,
+            input.as_ptr(),
+            output.as_ptr(),
+            temp_dir.as_ref().map_or(ptr::null(), |t| t.as_ptr()),
+            slabs,
+            0,
+            &mut report,
+        )
+    };
+    (status, report)
+}
+
+/// Proves: NULL for the handle or either path is PSR_STATUS_NULL_ARGUMENT, an empty path (the
+/// input, the output or the temporary directory's parent) PSR_STATUS_INVALID_ARGUMENT, a
+/// missing input PSR_STATUS_IO_ERROR with the path in psr_reconstructor_last_error, vertex
+/// normals and zero slabs without a memory limit PSR_STATUS_INVALID_PARAMETER naming the
+/// parameter; each leaves the report untouched and writes no output; a NULL report is allowed.
+#[test]
+fn out_of_core_refuses_null_and_empty_arguments_a_missing_file_and_bad_parameters() {
+    let dir = OutOfCoreDir::new("arguments");
+    let input = dir.path("sphere.ply");
+    write_sphere_ply(&input, 20_000);
+    let output = dir.path("mesh.ply");
+    let (cin, cout) = (c_path(&input), c_path(&output));
+    let empty = std::ffi::CString::new("").unwrap();
+    let r = new_handle();
+    unsafe {
+        let mut report = sentinel_report();
+        let call = |r, i, o, t, report: *mut psr_out_of_core_report| {
+            psr_reconstructor_solve_file_out_of_core(r, i, o, t, 3, 0, report)
+        };
+        assert_eq!(
+            call(
+                ptr::null_mut(),
+                cin.as_ptr(),
+                cout.as_ptr(),
+                ptr::null(),
+                &mut report
+            ),
+            psr_status::NullArgument
+        );
+        assert!(last_error(ptr::null()).contains("NULL"));
+        assert_eq!(
+            call(r, ptr::null(), cout.as_ptr(), ptr::null(), &mut report),
+            psr_status::NullArgument
+        );
+        assert!(last_error(r).contains("NULL"), "{}", last_error(r));
+        assert_eq!(
+            call(r, cin.as_ptr(), ptr::null(), ptr::null(), &mut report),
+            psr_status::NullArgument
+        );
+        for (i, o, t) in [
+            (empty.as_ptr(), cout.as_ptr(), ptr::null()),
+            (cin.as_ptr(), empty.as_ptr(), ptr::null()),
+            (cin.as_ptr(), cout.as_ptr(), empty.as_ptr()),
+        ] {
+            assert_eq!(
+                call(r, i, o, t, &mut report),
+                psr_status::InvalidArgument,
+                "{}",
+                last_error(r)
+            );
+            assert!(
+                last_error(r).starts_with("psr_reconstructor_solve_file_out_of_core"),
+                "{}",
+                last_error(r)
+            );
+        }
+        assert_eq!(report, sentinel_report(), "failures leave the report alone");
+    }
+    assert!(!output.exists(), "no output from refused arguments");
+
+    let missing = dir.path("no-such-cloud.ply");
+    let (status, report) = solve_file_out_of_core(r, &missing, &output, None, 3);
+    assert_eq!(status, psr_status::IoError, "{}", last_error(r));
+    assert!(
+        last_error(r).contains("no-such-cloud.ply"),
+        "the message names the path: {}",
+        last_error(r)
+    );
+    assert_eq!(report, sentinel_report());
+
+    // Zero slabs chooses them from the memory limit, so one must be set.
+    out_of_core_parameters(r);
+    let (status, report) = solve_file_out_of_core(r, &input, &output, None, 0);
+    assert_eq!(status, psr_status::InvalidParameter, "{}", last_error(r));
+    assert!(last_error(r).contains("max_memory"), "{}", last_error(r));
+    assert_eq!(report, sentinel_report());
+    // Vertex normals are not written on this path.
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_set_vertex_normals(r, true),
+            psr_status::Ok
+        )
+    };
+    let (status, _) = solve_file_out_of_core(r, &input, &output, None, 3);
+    assert_eq!(status, psr_status::InvalidParameter, "{}", last_error(r));
+    assert!(
+        last_error(r).contains("vertex_normals"),
+        "{}",
+        last_error(r)
+    );
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_set_vertex_normals(r, false),
+            psr_status::Ok
+        )
+    };
+    assert!(!output.exists());
+
+    // The handle still works, and report may be NULL.
+    let status = unsafe {
+        psr_reconstructor_solve_file_out_of_core(
+            r,
+            cin.as_ptr(),
+            cout.as_ptr(),
+            ptr::null(),
+            2,
+            0,
+            ptr::null_mut(),
+        )
+    };
+    assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+    assert!(output.exists());
+    unsafe { psr_reconstructor_free(r) };
+}
+
+/// Proves: a run on 20,000 oriented points at depth 6 in 3 slabs writes a closed, manifold
+/// mesh whose counts are the report's (read back with psr_ply_read), reports the points, the
+/// slabs and the depth, removes its temporary directory from the temp_dir given, reports its
+/// passes on the calling thread as stages in order (calls on the handle from the callback are
+/// refused), and has the in-memory solve's vertex count to within 1%.
+#[test]
+fn out_of_core_writes_the_mesh_its_report_describes_and_leaves_no_temporary_file() {
+    const N: usize = 20_000;
+    let dir = OutOfCoreDir::new("run");
+    let input = dir.path("sphere.ply");
+    let (p, nrm) = write_sphere_ply(&input, N);
+    let output = dir.path("mesh.ply");
+    let r = new_handle();
+    out_of_core_parameters(r);
+    let mut rec = Recorder {
+        reenter: r,
+        ..Default::default()
+    };
+    unsafe {
+        let user = ptr::addr_of_mut!(rec).cast::<c_void>();
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(r, Some(record), user),
+            psr_status::Ok
+        );
+    }
+    let (status, report) = solve_file_out_of_core(r, &input, &output, Some(&dir.path("temp")), 3);
+    assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+    assert!(
+        dir.left_in_temp().is_empty(),
+        "temporary files left: {:?}",
+        dir.left_in_temp()
+    );
+    assert_eq!(report.points, N as u64);
+    assert_eq!(report.slabs, 3);
+    assert_eq!(report.depth, 6);
+    assert_eq!(report.attributes_dropped, 0);
+    assert_eq!(report.unsupported_components, 0);
+    assert!(report.isovalue.is_finite() && report.isovalue != 77.0);
+    assert!(report.seconds >= 0.0 && report.seconds < 60.0);
+
+    // The file holds what the report says, as a closed manifold surface.
+    let (status, ply, message) = read_ply(c_path(&output).as_ptr());
+    assert_eq!(status, psr_status::Ok, "{message}");
+    let (nv, nt) = unsafe { (psr_ply_vertex_count(ply), psr_ply_triangle_count(ply)) };
+    assert_eq!(report.vertices, nv as u64);
+    assert_eq!(report.triangles, nt as u64);
+    let positions = values(unsafe { psr_ply_positions(ply) }, 3 * nv).unwrap();
+    let triangles = values(unsafe { psr_ply_triangles(ply) }, 3 * nt).unwrap();
+    assert!(
+        !unsafe { psr_ply_confidence(ply) }.is_null(),
+        "the densities are written as value"
+    );
+    unsafe { psr_ply_free(ply) };
+    let topology = psr_test_support::MeshTopology::of(
+        &triples(&positions),
+        &triangles
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect::<Vec<_>>(),
+    );
+    assert_eq!(topology.boundary_edges, 0, "{topology:?}");
+    assert_eq!(topology.non_manifold_edges, 0, "{topology:?}");
+    assert_eq!(topology.duplicate_vertices, 0, "{topology:?}");
+    assert_eq!(topology.components, 1, "{topology:?}");
+
+    // The passes were reported on this thread, as stages in order, each fraction in [0, 1];
+    // calls on r from the callback were refused.
+    let me = std::thread::current().id();
+    assert!(rec.threads.iter().all(|&t| t == me));
+    assert_eq!(rec.bad_fractions, 0);
+    assert_eq!(
+        rec.stages,
+        [
+            psr_stage::Points,
+            psr_stage::System,
+            psr_stage::Solve,
+            psr_stage::Isovalue,
+            psr_stage::Extract,
+            psr_stage::Mesh
+        ]
+    );
+    assert!(!rec.reentry_statuses.is_empty());
+    assert!(rec
+        .reentry_statuses
+        .iter()
+        .all(|&s| s == psr_status::InvalidArgument));
+
+    // The in-memory mesh of the same points and parameters has as many vertices, within 1%.
+    let memory = new_handle();
+    out_of_core_parameters(memory);
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_add_points(memory, p.as_ptr(), 0, nrm.as_ptr(), 0, N),
+            psr_status::Ok
+        );
+        let mut m = ptr::null_mut();
+        assert_eq!(psr_reconstructor_solve(memory, &mut m), psr_status::Ok);
+        let want = psr_mesh_vertex_count(m) as f64;
+        assert!(
+            (nv as f64 - want).abs() <= 0.01 * want,
+            "{nv} vertices out of core, {want} in memory"
+        );
+        psr_mesh_free(m);
+        psr_reconstructor_free(memory);
+        psr_reconstructor_free(r);
+    }
+}
+
+/// Proves: a progress callback that says stop at the first report of any of the passes'
+/// stages gets PSR_STATUS_CANCELLED, no call after it, the report untouched and no file left
+/// in the temp_dir given; the handle then runs to the end.
+#[test]
+fn out_of_core_cancelled_from_the_callback_leaves_no_temporary_file() {
+    let dir = OutOfCoreDir::new("cancel");
+    let input = dir.path("sphere.ply");
+    write_sphere_ply(&input, 20_000);
+    let output = dir.path("mesh.ply");
+    let temp = dir.path("temp");
+    let r = new_handle();
+    out_of_core_parameters(r);
+    for stage in [
+        psr_stage::Points,
+        psr_stage::System,
+        psr_stage::Solve,
+        psr_stage::Isovalue,
+        psr_stage::Extract,
+        psr_stage::Mesh,
+    ] {
+        let mut s = StopInside {
+            stage,
+            stopped_at: None,
+            calls_after_stop: 0,
+        };
+        unsafe {
+            let user = ptr::addr_of_mut!(s).cast::<c_void>();
+            assert_eq!(
+                psr_reconstructor_set_progress_callback(r, Some(stop_inside), user),
+                psr_status::Ok
+            );
+        }
+        let (status, report) = solve_file_out_of_core(r, &input, &output, Some(&temp), 3);
+        assert_eq!(
+            status,
+            psr_status::Cancelled,
+            "{stage:?}: {}",
+            last_error(r)
+        );
+        assert!(last_error(r).contains("cancelled"), "{}", last_error(r));
+        assert!(s.stopped_at.is_some(), "{stage:?} was reported");
+        assert_eq!(s.calls_after_stop, 0, "{stage:?}: called after the stop");
+        assert_eq!(report, sentinel_report(), "{stage:?}");
+        assert!(
+            dir.left_in_temp().is_empty(),
+            "{stage:?}: temporary files left: {:?}",
+            dir.left_in_temp()
+        );
+    }
+    unsafe {
+        assert_eq!(
+            psr_reconstructor_set_progress_callback(r, None, ptr::null_mut()),
+            psr_status::Ok
+        );
+    }
+    let (status, report) = solve_file_out_of_core(r, &input, &output, Some(&temp), 3);
+    assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+    assert_eq!(report.slabs, 3);
+    assert!(dir.left_in_temp().is_empty());
+    unsafe { psr_reconstructor_free(r) };
+}
+
+/// Proves: zero slabs with a memory limit chooses the slabs from it; a limit no cut fits is
+/// PSR_STATUS_OUT_OF_MEMORY before any slab is solved, its message giving a workable limit.
+#[test]
+fn out_of_core_slabs_from_the_memory_limit() {
+    let dir = OutOfCoreDir::new("budget");
+    let input = dir.path("sphere.ply");
+    write_sphere_ply(&input, 20_000);
+    let output = dir.path("mesh.ply");
+    let r = new_handle();
+    out_of_core_parameters(r);
+    unsafe { assert_eq!(psr_reconstructor_set_max_memory(r, 4096), psr_status::Ok) };
+    let (status, report) = solve_file_out_of_core(r, &input, &output, Some(&dir.path("temp")), 0);
+    assert_eq!(status, psr_status::OutOfMemory, "{}", last_error(r));
+    assert!(
+        last_error(r).contains("memory limit of 4.00 KiB")
+            && last_error(r).contains("allow at least"),
+        "{}",
+        last_error(r)
+    );
+    assert_eq!(report, sentinel_report());
+    assert!(dir.left_in_temp().is_empty(), "{:?}", dir.left_in_temp());
+    unsafe { assert_eq!(psr_reconstructor_set_max_memory(r, 1 << 30), psr_status::Ok) };
+    let (status, report) = solve_file_out_of_core(r, &input, &output, Some(&dir.path("temp")), 0);
+    assert_eq!(status, psr_status::Ok, "{}", last_error(r));
+    assert!(report.slabs >= 1 && report.points == 20_000, "{report:?}");
+    assert!(dir.left_in_temp().is_empty(), "{:?}", dir.left_in_temp());
+    unsafe { psr_reconstructor_free(r) };
+}

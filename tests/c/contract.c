@@ -11,7 +11,9 @@
  * and the trimmed mesh outliving its source; the target width, and the mesh's figures (depths, nodes per depth, psr_depth_solve
  * from this header and from a newer one, bad sizes and indices); the implicit function
  * (psr_implicit: evaluation, gradient, grid, bad arguments); PLY files through the library
- * (psr_mesh_write_ply, psr_ply_read: round trip, bad files and arguments).
+ * (psr_mesh_write_ply, psr_ply_read: round trip, bad files and arguments); reconstruction out
+ * of core (psr_reconstructor_solve_file_out_of_core: bad arguments, a missing file, its report
+ * against the file it wrote, cancellation, no temporary file left).
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -19,11 +21,13 @@
 #define _POSIX_C_SOURCE 200809L
 #include <psr.h>
 
+#include <dirent.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static int passed, failed;
@@ -1475,6 +1479,147 @@ static void test_ply_files(void) {
     psr_mesh_free(m);
 }
 
+/* The entries of directory dir other than . and .. (-1 when it cannot be read). */
+static int entries(const char *dir) {
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    int n = 0;
+    if (d == NULL) return -1;
+    while ((e = readdir(d)) != NULL)
+        n += strcmp(e->d_name, ".") != 0 && strcmp(e->d_name, "..") != 0;
+    closedir(d);
+    return n;
+}
+
+/* Writes n points of sphere() with their normals to path as an ASCII PLY; 1 on success. */
+static int write_sphere_ply(const char *path, size_t n) {
+    float *p = malloc(3 * n * sizeof(float)), *nr = malloc(3 * n * sizeof(float));
+    FILE *f = fopen(path, "w");
+    size_t i;
+    int ok = f != NULL && p != NULL && nr != NULL;
+    if (ok) {
+        sphere(n, p, nr);
+        fprintf(f, "ply\nformat ascii 1.0\nelement vertex %lu\n", (unsigned long)n);
+        fputs("property float x\nproperty float y\nproperty float z\n"
+              "property float nx\nproperty float ny\nproperty float nz\nend_header\n", f);
+        for (i = 0; i < n; i++)
+            fprintf(f, "%.9g %.9g %.9g %.9g %.9g %.9g\n", p[3 * i], p[3 * i + 1], p[3 * i + 2],
+                    nr[3 * i], nr[3 * i + 1], nr[3 * i + 2]);
+    }
+    if (f != NULL) ok = fclose(f) == 0 && ok;
+    free(p);
+    free(nr);
+    return ok;
+}
+
+/* A report no run gives, to see that a failure leaves *report alone. */
+static psr_out_of_core_report untouched_report(void) {
+    psr_out_of_core_report report;
+    memset(&report, 0, sizeof report);
+    report.points = report.vertices = report.triangles = report.slabs = 77;
+    report.depth = report.attributes_dropped = 77;
+    report.unsupported_components = 77;
+    report.isovalue = report.seconds = 77.0;
+    return report;
+}
+
+/* Reconstruction out of core, PLY file to PLY file: NULLs, empty paths, a missing input (the
+ * path in the message), zero slabs without a memory limit; 20,000 points at depth 6 in 3 slabs
+ * giving a closed genus-0 mesh whose counts are the report's (read back with psr_ply_read) and
+ * leaving nothing in the temp_dir given; a cancel from the progress callback in two of the
+ * passes, with no temporary file left and the report untouched. Depth 6 with full depth 4: the
+ * slabs' shared base is solved to the depth - 3 but at least the full depth, and must stay 2
+ * below the finest depth the samples reach (6 here). */
+static void test_out_of_core(void) {
+    enum { N = 20000 };
+    const psr_stage stops[2] = {PSR_STAGE_SOLVE, PSR_STAGE_EXTRACT};
+    const char *tmp = getenv("TMPDIR");
+    char dir[400], input[450], output[450], temp[450], missing[450];
+    psr_reconstructor *r = NULL;
+    psr_out_of_core_report report = untouched_report();
+    const psr_out_of_core_report untouched = untouched_report();
+    psr_ply *ply = NULL;
+    int k;
+
+    section("out of core: psr_reconstructor_solve_file_out_of_core, its report, temporary files");
+    snprintf(dir, sizeof dir, "%s/psr_contract_ooc_XXXXXX", tmp != NULL ? tmp : "/tmp");
+    if (mkdtemp(dir) == NULL) {
+        CHECK(!"mkdtemp");
+        return;
+    }
+    snprintf(input, sizeof input, "%s/sphere.ply", dir);
+    snprintf(output, sizeof output, "%s/mesh.ply", dir);
+    snprintf(temp, sizeof temp, "%s/temp", dir);
+    snprintf(missing, sizeof missing, "%s/missing.ply", dir);
+    CHECK(mkdir(temp, 0700) == 0);
+    CHECK(write_sphere_ply(input, N));
+    CHECK_STATUS(psr_reconstructor_new(&r), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_depth(r, 6), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_set_full_depth(r, 4), PSR_STATUS_OK);
+
+    /* Refusals: nothing written, the report untouched. */
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(NULL, input, output, temp, 3, 0, &report),
+                 PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, NULL, output, temp, 3, 0, &report),
+                 PSR_STATUS_NULL_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "NULL"));
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, NULL, temp, 3, 0, &report),
+                 PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, "", output, temp, 3, 0, &report),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, "", temp, 3, 0, &report),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, output, "", 3, 0, &report),
+                 PSR_STATUS_INVALID_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, missing, output, temp, 3, 0, &report),
+                 PSR_STATUS_IO_ERROR);
+    CHECK(contains(psr_reconstructor_last_error(r), missing));
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, output, temp, 0, 0, &report),
+                 PSR_STATUS_INVALID_PARAMETER);
+    CHECK(contains(psr_reconstructor_last_error(r), "max_memory"));
+    CHECK(memcmp(&report, &untouched, sizeof report) == 0);
+    CHECK(access(output, F_OK) != 0);
+    CHECK(entries(temp) == 0);
+
+    /* A run in 3 slabs: the file holds what the report says. */
+    CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, output, temp, 3, 0, &report),
+                 PSR_STATUS_OK);
+    CHECK(report.points == N && report.slabs == 3 && report.depth == 6);
+    CHECK(report.attributes_dropped == 0 && report.unsupported_components == 0);
+    CHECK(isfinite(report.isovalue) && report.seconds >= 0.0);
+    CHECK(entries(temp) == 0);
+    CHECK_STATUS(psr_ply_read(output, &ply, NULL, 0), PSR_STATUS_OK);
+    if (ply != NULL) {
+        CHECK(psr_ply_vertex_count(ply) == report.vertices);
+        CHECK(psr_ply_triangle_count(ply) == report.triangles);
+        CHECK(report.triangles > 1000);
+        /* Closed and of genus 0 (each edge in two triangles): V - E + F = V - F / 2 = 2. */
+        CHECK(2 * report.vertices == report.triangles + 4);
+        CHECK(psr_ply_confidence(ply) != NULL); /* the densities, as value */
+        psr_ply_free(ply);
+    }
+
+    /* A stop from the progress callback inside a pass: cancelled, nothing left behind. */
+    for (k = 0; k < 2; k++) {
+        struct stop_inside_state state = {PSR_STAGE_POINTS, 0, 0, -1.0f};
+        state.stage = stops[k];
+        report = untouched_report();
+        CHECK_STATUS(psr_reconstructor_set_progress_callback(r, stop_inside, &state), PSR_STATUS_OK);
+        CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, output, temp, 3, 0, &report),
+                     PSR_STATUS_CANCELLED);
+        CHECK(contains(psr_reconstructor_last_error(r), "cancelled"));
+        CHECK(state.stopped == 1 && state.calls_after_stop == 0);
+        CHECK(memcmp(&report, &untouched, sizeof report) == 0);
+        CHECK(entries(temp) == 0);
+    }
+    CHECK_STATUS(psr_reconstructor_set_progress_callback(r, NULL, NULL), PSR_STATUS_OK);
+    psr_reconstructor_free(r);
+    remove(input);
+    remove(output);
+    rmdir(temp);
+    CHECK(rmdir(dir) == 0);
+}
+
 int main(void) {
     printf("psr %s C contract test\n", psr_version());
     test_null_arguments();
@@ -1495,6 +1640,7 @@ int main(void) {
     test_implicit();
     test_memory();
     test_ply_files();
+    test_out_of_core();
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }
