@@ -537,53 +537,52 @@ pub(crate) fn solve_slabs(
     }
 
     // Pass D: every node's coefficient its owner's (so neighbours evaluate one χ near their
-    // walls), and the isovalue's partial sums over each slab's own samples.
-    let mut solutions: Vec<Option<Indicator>> = (0..slabs).map(|_| None).collect();
-    let loaded = |j: usize, solutions: &mut Vec<Option<Indicator>>| {
-        if solutions[j].is_none() {
-            solutions[j] = Some(load_solution_in(&scratch, j, &base_cores, &params, pool)?);
-        }
-        Ok::<(), OutOfCoreError>(())
-    };
+    // walls), and the isovalue's partial sums over each slab's own samples. One neighbour's
+    // solution in memory at a time beside the slab's.
     let (mut weighted_sum, mut weight_sum) = (0.0f64, 0.0f64);
     for k in 0..slabs {
         if !keep_going("seams", k as f32 / slabs as f32) {
             return Err(cancelled());
         }
-        // The slabs whose own columns k's padding reaches (k's neighbours), in memory.
+        let mut chi = load_solution_in(&scratch, k, &base_cores, &params, pool)?;
+        // The slabs whose own columns k's padding reaches.
         let padded = layout.padded(k);
         let readers =
             layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1;
-        for (j, solution) in solutions.iter_mut().enumerate() {
-            if !readers.contains(&j) {
-                *solution = None;
-            }
-        }
-        for j in readers.clone() {
-            loaded(j, &mut solutions)?;
-        }
-        let mut chi = solutions[k].take().expect("loaded");
-        for d in b + 1..chi.tree.levels.len() {
-            let level = &chi.tree.levels[d];
-            for i in 0..level.len() {
-                let coord = level.coord(i as u32);
-                // (A node whose owner is beyond the padding is too far from the walls to
-                // reach a point near them: it keeps the slab's value.)
-                let owner = owner_of(&layout, d as u32, coord[0])
-                    .filter(|&j| j != k)
-                    .and_then(|j| solutions[j].as_ref());
-                if let Some(owner) = owner {
-                    if let Some(o) = owner.tree.levels.get(d).and_then(|l| l.find(coord)) {
-                        chi.coefficients[d][i] = owner.coefficients[d][o as usize];
+        for j in readers.filter(|&j| j != k) {
+            let owner = load_solution_in(&scratch, j, &base_cores, &params, pool)?;
+            for d in b + 1..chi.tree.levels.len() {
+                let (Some(level), Some(theirs)) =
+                    (chi.tree.levels.get(d), owner.tree.levels.get(d))
+                else {
+                    continue;
+                };
+                for i in 0..level.len() {
+                    let coord = level.coord(i as u32);
+                    // (A node whose owner is beyond the padding is too far from the walls to
+                    // reach a point near them: it keeps the slab's value.)
+                    if owner_of(&layout, d as u32, coord[0]) == Some(j) {
+                        if let Some(o) = theirs.find(coord) {
+                            chi.coefficients[d][i] = owner.coefficients[d][o as usize];
+                        }
                     }
                 }
             }
         }
         let slab = run.load(k, Some(finest))?;
-        for (s, p) in slab.samples.positions.iter().enumerate() {
+        let values: Vec<f64> = pool.install(|| {
+            use rayon::prelude::*;
+            slab.samples
+                .positions
+                .par_iter()
+                .zip(&slab.owned)
+                .map(|(p, owned)| if *owned { chi.value(*p) } else { 0.0 })
+                .collect()
+        });
+        for (s, value) in values.iter().enumerate() {
             if slab.owned[s] {
                 let w = slab.area[s] * slab.samples.confidence[s];
-                weighted_sum += w * chi.value(*p);
+                weighted_sum += w * value;
                 weight_sum += w;
             }
         }
@@ -592,9 +591,7 @@ pub(crate) fn solve_slabs(
             &scratch.file(&format!("slab-{k}.seamed")),
             &chi.coefficients,
         )?;
-        solutions[k] = Some(chi);
     }
-    drop(solutions);
     for k in 0..slabs {
         let [_, coefficients_file] = solution_files(&scratch, k);
         std::fs::rename(
