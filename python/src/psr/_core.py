@@ -823,6 +823,37 @@ class Reconstructor:
         in the background (its results are freed) while the exception propagates. From other
         threads the solve runs on the calling thread.
         """
+
+        def call(handle: ctypes.c_void_p, state: _SolveState) -> int:
+            if keep_implicit:
+                status: int = LIB.psr_reconstructor_solve_implicit(
+                    handle, ctypes.byref(state.mesh_ptr), ctypes.byref(state.implicit_ptr)
+                )
+            else:
+                status = LIB.psr_reconstructor_solve(handle, ctypes.byref(state.mesh_ptr))
+            return status
+
+        state = self._run(progress, call)
+        mesh = Mesh._own(state.mesh_ptr, self._double) if state.mesh_ptr.value else None
+        implicit = Implicit._own(state.implicit_ptr) if state.implicit_ptr.value else None
+        if state.error is not None:
+            raise state.error
+        if state.status != Status.OK:
+            raise error_for(state.status, state.message)
+        assert mesh is not None
+        mesh.implicit = implicit
+        return mesh
+
+    def _run(
+        self,
+        progress: ProgressCallback | str | None,
+        call: Callable[[ctypes.c_void_p, _SolveState], int],
+    ) -> _SolveState:
+        """Runs ``call(handle, state)`` (a psr call that reports progress) as :meth:`solve`
+        describes: ``progress`` (or the constructor's) resolved, on a worker thread when called
+        from the main thread so that Ctrl-C is handled at once, on this one otherwise. Raises
+        what failed around the call; the call's status, message and the callback's exception
+        are in the returned state."""
         progress = progress if progress is not None else self.progress
         close_bar: Callable[[], None] | None = None
         if progress == "tqdm":
@@ -834,8 +865,8 @@ class Reconstructor:
         try:
             if on_main:
                 worker = threading.Thread(
-                    target=self._solve_call,
-                    args=(state, keep_implicit, True),
+                    target=self._locked_call,
+                    args=(state, call, True),
                     name="psr-solve",
                     daemon=True,
                 )
@@ -857,24 +888,21 @@ class Reconstructor:
                         state.free_results()
                     raise
             else:
-                self._solve_call(state, keep_implicit, False)
+                self._locked_call(state, call, False)
         finally:
             if close_bar is not None:
                 close_bar()
         if state.failure is not None:
             raise state.failure
-        mesh = Mesh._own(state.mesh_ptr, self._double) if state.mesh_ptr.value else None
-        implicit = Implicit._own(state.implicit_ptr) if state.implicit_ptr.value else None
-        if state.error is not None:
-            raise state.error
-        if state.status != Status.OK:
-            raise error_for(state.status, state.message)
-        assert mesh is not None
-        mesh.implicit = implicit
-        return mesh
+        return state
 
-    def _solve_call(self, state: _SolveState, keep_implicit: bool, cancellable: bool) -> None:
-        """The locked part of solve(): callback in, psr_reconstructor_solve, callback out."""
+    def _locked_call(
+        self,
+        state: _SolveState,
+        call: Callable[[ctypes.c_void_p, _SolveState], int],
+        cancellable: bool,
+    ) -> None:
+        """The locked part of :meth:`_run`: callback in, the call, callback out."""
         try:
             with self._lock:
                 handle = self._live()
@@ -890,12 +918,7 @@ class Reconstructor:
                         handle,
                     )
                 try:
-                    if keep_implicit:
-                        status = LIB.psr_reconstructor_solve_implicit(
-                            handle, ctypes.byref(state.mesh_ptr), ctypes.byref(state.implicit_ptr)
-                        )
-                    else:
-                        status = LIB.psr_reconstructor_solve(handle, ctypes.byref(state.mesh_ptr))
+                    status = call(handle, state)
                     state.status = status
                     state.message = _last_error(handle) if status != Status.OK else ""
                 finally:
