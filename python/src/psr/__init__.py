@@ -7,9 +7,11 @@
     >>> mesh.write_ply("mesh.ply")
 
 :func:`reconstruct` does one cloud; a :class:`Reconstructor` keeps parameters for many clouds
-and adds points in batches. Errors are :class:`PsrError` subclasses carrying psr's
-:class:`Status` and message. The shared library inside the package is loaded with ctypes: no
-compiler is needed at import time, and the GIL is released while psr works.
+and adds points in batches; :func:`reconstruct_out_of_core` reconstructs a PLY file into a PLY
+file without holding the whole cloud or its mesh in memory. Errors are :class:`PsrError`
+subclasses carrying psr's :class:`Status` and message. The shared library inside the package
+is loaded with ctypes: no compiler is needed at import time, and the GIL is released while psr
+works.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from ._core import (
     Implicit,
     Mesh,
     Orientation,
+    OutOfCoreReport,
     ProgressCallback,
     Reconstructor,
     SolveStats,
@@ -28,6 +31,7 @@ from ._core import (
     TrimThreshold,
     VertexPlacement,
     reconstruct,
+    reconstruct_out_of_core,
 )
 from ._errors import (
     CancelledError,
@@ -72,6 +76,7 @@ __all__ = [
     "Mesh",
     "NonFiniteError",
     "Orientation",
+    "OutOfCoreReport",
     "OutOfMemoryError",
     "PlyError",
     "PlyMesh",
@@ -93,5 +98,6 @@ __all__ = [
     "read_ply",
     "read_ply_mesh",
     "reconstruct",
+    "reconstruct_out_of_core",
     "write_ply",
 ]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import operator
+import os
 import threading
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -20,7 +21,8 @@ from ._errors import (
     Status,
     error_for,
 )
-from ._lib import LIB, PROGRESS_FN, DepthSolve, PointArrays, TrimOptions
+from ._lib import LIB, PROGRESS_FN, DepthSolve, OutOfCoreReportStruct, PointArrays, TrimOptions
+from ._ply import PathLike
 
 __all__ = [
     "Stage",
@@ -34,8 +36,10 @@ __all__ = [
     "Mesh",
     "Implicit",
     "SolveStats",
+    "OutOfCoreReport",
     "ProgressCallback",
     "reconstruct",
+    "reconstruct_out_of_core",
 ]
 
 
@@ -269,6 +273,31 @@ class SolveStats:
     iterations: int
     unknowns: int
     relative_residual: float
+    seconds: float
+
+
+@dataclass(frozen=True)
+class OutOfCoreReport:
+    """What a reconstruction out of core did (psr_out_of_core_report):
+    :meth:`Reconstructor.solve_file_out_of_core` and :func:`reconstruct_out_of_core`."""
+
+    #: Points read from the input file.
+    points: int
+    #: Vertices written to the output file.
+    vertices: int
+    #: Triangles written to the output file.
+    triangles: int
+    #: Slabs the cloud was cut into.
+    slabs: int
+    #: The depth used (the one ``width`` chose, if set).
+    depth: int
+    #: The points had colours or other properties, which this path does not carry.
+    attributes_dropped: bool
+    #: Closed pieces left out for want of supporting samples (``min_component_samples``).
+    unsupported_components: int
+    #: The isovalue the surface was extracted at.
+    isovalue: float
+    #: Seconds the run took.
     seconds: float
 
 
@@ -844,6 +873,80 @@ class Reconstructor:
         mesh.implicit = implicit
         return mesh
 
+    def solve_file_out_of_core(
+        self,
+        input: PathLike,
+        output: PathLike,
+        *,
+        temp_dir: PathLike | None = None,
+        slabs: int | None = None,
+        confidence: bool = False,
+        progress: ProgressCallback | str | None = None,
+    ) -> OutOfCoreReport:
+        """Reconstructs the oriented points of the PLY file ``input`` into the mesh ``output``
+        (binary PLY, as ``psr --out-of-core`` writes it) without holding the whole cloud, its
+        octree or its mesh in memory at once (psr_reconstructor_solve_file_out_of_core): the
+        cloud is read in chunks and cut across x into slabs kept in a temporary directory under
+        ``temp_dir`` (None: the system's), removed however the call ends. The mesh is closed
+        across the slabs and equals :meth:`solve`'s to within the solver's tolerance (not bit
+        for bit). Returns an :class:`OutOfCoreReport`.
+
+        This reconstructor's parameters, threads and progress callback are used, not its
+        points. ``slabs``: how many slabs (at least 1); None chooses the fewest that fit
+        ``max_memory``, which must then be set (else :class:`psr.InvalidParameterError`); a
+        limit no cut fits raises :class:`psr.OutOfMemoryError` before the slabs are solved,
+        naming the least workable limit. ``confidence=True`` weighs the points by their
+        ``confidence`` (or ``value``) property. Colours and channels are not carried (the report
+        says when the file had some); ``vertex_normals=True`` is refused.
+
+        ``progress`` is :meth:`solve`'s, and so are the GIL, Ctrl-C and the exceptions: the
+        passes report as the stages they correspond to (reading ``Stage.POINTS``, the base
+        ``SYSTEM``, the slabs ``SOLVE``, seams and isovalue ``ISOVALUE``, the slabs' meshes
+        ``EXTRACT``, the file ``MESH``). A missing or unreadable input, or an output or
+        temporary file that cannot be written, raises :class:`psr.FileError` (an OSError) with
+        the path; a file that is not a PLY of oriented points :class:`psr.PlyError`. After a
+        failure ``output`` may hold a partial file.
+        """
+        paths = (
+            _path("input", input),
+            _path("output", output),
+            None if temp_dir is None else _path("temp_dir", temp_dir),
+        )
+        if slabs is None:
+            count = 0
+        else:
+            count = _integer("slabs", slabs, 0, 2**64 - 1)
+            if count < 1:
+                raise InvalidParameterError(
+                    Status.INVALID_PARAMETER,
+                    f"slabs = {count} is out of range: at least 1 (or None: from max_memory)",
+                )
+        use_confidence = _bool("confidence", confidence)
+        report = OutOfCoreReportStruct()
+
+        def call(handle: ctypes.c_void_p, state: _SolveState) -> int:
+            status: int = LIB.psr_reconstructor_solve_file_out_of_core(
+                handle, *paths, count, int(use_confidence), ctypes.byref(report)
+            )
+            return status
+
+        state = self._run(progress, call)
+        if state.error is not None:
+            raise state.error
+        if state.status != Status.OK:
+            raise error_for(state.status, state.message)
+        return OutOfCoreReport(
+            points=int(report.points),
+            vertices=int(report.vertices),
+            triangles=int(report.triangles),
+            slabs=int(report.slabs),
+            depth=int(report.depth),
+            attributes_dropped=bool(report.attributes_dropped),
+            unsupported_components=int(report.unsupported_components),
+            isovalue=float(report.isovalue),
+            seconds=float(report.seconds),
+        )
+
     def _run(
         self,
         progress: ProgressCallback | str | None,
@@ -932,6 +1035,17 @@ class Reconstructor:
                 state.done.set()
                 if state.abandoned:
                     state.free_results()
+
+
+def _path(name: str, value: PathLike) -> bytes:
+    """A path argument as the C API takes it (bytes without NUL; psr refuses an empty one)."""
+    try:
+        encoded = os.fsencode(value)
+    except TypeError:
+        raise TypeError(f"{name} must be a path, not {type(value).__name__}") from None
+    if b"\0" in encoded:
+        raise InvalidArgumentError(Status.INVALID_ARGUMENT, f"{name} contains a NUL character")
+    return encoded
 
 
 #: How often the main thread wakes while psr works, so a Ctrl-C is handled within this time.
@@ -1401,3 +1515,72 @@ def reconstruct(
             transform=transform,
         )
         return r.solve(progress=progress, keep_implicit=keep_implicit)
+
+
+def reconstruct_out_of_core(
+    input: PathLike,
+    output: PathLike,
+    *,
+    depth: int = 8,
+    width: float = 0.0,
+    full_depth: int = 5,
+    kernel_depth: int = -1,
+    samples_per_node: float = 1.5,
+    scale: float = 1.1,
+    degree: int = 2,
+    point_weight: float | None = None,
+    threads: int = 0,
+    max_solver_iterations: int = 60,
+    solver_tolerance: float = 1e-2,
+    boundary: EnumLike[Boundary] = Boundary.NEUMANN,
+    splatting: EnumLike[Splatting] = Splatting.BSPLINE,
+    vertex_placement: EnumLike[VertexPlacement] = VertexPlacement.FITTED,
+    min_component_samples: int = 8,
+    max_memory: int | None = None,
+    slabs: int | None = None,
+    temp_dir: PathLike | None = None,
+    confidence: bool = False,
+    progress: ProgressCallback | str | None = None,
+) -> OutOfCoreReport:
+    """Reconstructs the oriented points of the PLY file ``input`` into the mesh ``output``
+    without holding the whole cloud, its octree or its mesh in memory at once (screened
+    Poisson, out of core); see :meth:`Reconstructor.solve_file_out_of_core`.
+
+    >>> report = psr.reconstruct_out_of_core("scan.ply", "mesh.ply", depth=11,
+    ...                                      max_memory=4 << 30)
+    >>> report.slabs, report.vertices
+
+    The parameters are :func:`reconstruct`'s that apply to this path, with their names and
+    defaults (points without normals, vertex normals and per-point attributes do not).
+    ``max_memory`` (bytes; None or 0: no limit) chooses the number of slabs unless ``slabs``
+    is given; one of the two is needed. ``temp_dir`` is where the temporary slab files go
+    (about twice the cloud's size; None: the system's temporary directory). ``confidence=True``
+    weighs the points by the file's ``confidence`` (or ``value``) property. Raises as
+    :meth:`Reconstructor.solve_file_out_of_core` does.
+    """
+    with Reconstructor(
+        depth=depth,
+        width=width,
+        full_depth=full_depth,
+        kernel_depth=kernel_depth,
+        samples_per_node=samples_per_node,
+        scale=scale,
+        degree=degree,
+        point_weight=point_weight,
+        threads=threads,
+        max_solver_iterations=max_solver_iterations,
+        solver_tolerance=solver_tolerance,
+        boundary=boundary,
+        splatting=splatting,
+        vertex_placement=vertex_placement,
+        min_component_samples=min_component_samples,
+        max_memory=0 if max_memory is None else max_memory,
+    ) as r:
+        return r.solve_file_out_of_core(
+            input,
+            output,
+            temp_dir=temp_dir,
+            slabs=slabs,
+            confidence=confidence,
+            progress=progress,
+        )

@@ -28,7 +28,15 @@ from ctypes import (
 )
 from typing import Any
 
-__all__ = ["LIB", "PROGRESS_FN", "PointArrays", "TrimOptions", "DepthSolve", "library_path"]
+__all__ = [
+    "LIB",
+    "PROGRESS_FN",
+    "PointArrays",
+    "TrimOptions",
+    "DepthSolve",
+    "OutOfCoreReportStruct",
+    "library_path",
+]
 
 # typedef bool (*psr_progress_fn)(void *user, psr_stage stage, float fraction);
 PROGRESS_FN = CFUNCTYPE(c_bool, c_void_p, c_int, c_float)
@@ -80,6 +88,22 @@ class DepthSolve(Structure):
         ("iterations", c_uint32),
         ("unknowns", c_uint64),
         ("relative_residual", c_double),
+        ("seconds", c_double),
+    ]
+
+
+class OutOfCoreReportStruct(Structure):
+    """psr_out_of_core_report."""
+
+    _fields_ = [
+        ("points", c_uint64),
+        ("vertices", c_uint64),
+        ("triangles", c_uint64),
+        ("slabs", c_uint64),
+        ("depth", c_uint32),
+        ("attributes_dropped", c_uint32),
+        ("unsupported_components", c_uint64),
+        ("isovalue", c_double),
         ("seconds", c_double),
     ]
 
@@ -161,6 +185,10 @@ _PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "psr_reconstructor_set_progress_callback": (_S, [_R, PROGRESS_FN, c_void_p]),
     "psr_reconstructor_solve": (_S, [_R, POINTER(_M)]),
     "psr_reconstructor_solve_implicit": (_S, [_R, POINTER(_M), POINTER(_F)]),
+    "psr_reconstructor_solve_file_out_of_core": (
+        _S,
+        [_R, c_char_p, c_char_p, c_char_p, c_size_t, c_int32, POINTER(OutOfCoreReportStruct)],
+    ),
     "psr_mesh_free": (None, [_M]),
     "psr_mesh_vertex_count": (c_size_t, [_M]),
     "psr_mesh_triangle_count": (c_size_t, [_M]),
