@@ -33,8 +33,9 @@ pub(crate) struct Plan {
     pub(crate) base_depth: u32,
     /// How many slabs.
     pub(crate) slabs: SlabCount,
-    /// Columns of depth B + 2 each slab reads beyond its walls (12: three nodes of depth B,
-    /// the reach of a sample in the tree and its halo, see `tests.rs`).
+    /// Columns of depth B + 2 each slab reads beyond its walls (the run takes 24, see
+    /// `run.rs`; the tree alone needs 6, three nodes of depth B + 1, and its halos 4 more,
+    /// see `tests.rs`).
     pub(crate) padding: u32,
     /// Points per chunk read from the input.
     pub(crate) chunk: usize,
