@@ -160,6 +160,18 @@ fn the_bunny_out_of_core_is_the_in_memory_mesh() {
     compare_with_in_memory("bunny", &input, &params, 3);
 }
 
+/// Proves the same on the Happy Buddha's scans at depth 10 in four slabs: the case that set
+/// the padding (with half of it the mesh gained a handle at a thin spot beside a wall).
+#[test]
+fn the_happy_buddha_out_of_core_is_the_in_memory_mesh() {
+    let test = "the_happy_buddha_out_of_core_is_the_in_memory_mesh";
+    let Some(input) = data_or_skip("happy_buddha_scans.ply", test) else {
+        return;
+    };
+    let params = Params::default().with_depth(10).with_threads(2);
+    compare_with_in_memory("buddha", &input, &params, 4);
+}
+
 /// Proves a budget no cut of the cloud fits is refused before the slabs are solved, with the
 /// smallest workable budget, and that budget then works; and that no temporary file is left.
 #[test]
@@ -253,6 +265,22 @@ fn cancels_and_bad_points_leave_no_temporary_files() {
             OutOfCoreError::Reconstruction(psr::Error::NonFinitePosition { index: 12_345 })
         ),
         "{error:?}"
+    );
+    assert!(dir.entries("tmp").is_empty());
+    // A depth that leaves no room above the complete depths for the slabs' own: named.
+    let shallow = psr::reconstruct_out_of_core(
+        &input,
+        &dir.path("mesh.ply"),
+        &params.clone().with_depth(6),
+        &options,
+    )
+    .expect_err("depth 6 with the full depth 5");
+    assert!(
+        matches!(
+            shallow,
+            OutOfCoreError::Reconstruction(psr::Error::InvalidParameter { name: "depth", .. })
+        ),
+        "{shallow:?}"
     );
     assert!(dir.entries("tmp").is_empty());
     let missing = psr::reconstruct_out_of_core(

@@ -28,9 +28,10 @@ use std::path::{Path, PathBuf};
 /// How the run is cut: the base depth, the slabs asked for, their padding.
 #[derive(Debug, Clone)]
 pub(crate) struct Plan {
-    /// B: depths 0..=B are solved once for the whole cloud (at least the full depth, below
-    /// the reconstruction's depth).
-    pub(crate) base_depth: u32,
+    /// B: depths 0..=B are solved once for the whole cloud (at least the full depth, at most
+    /// the depth − 2); `None`: the depth − 3, at most 7 (unless the full depth is more), and
+    /// lower when the samples do not reach two depths above it.
+    pub(crate) base_depth: Option<u32>,
     /// How many slabs.
     pub(crate) slabs: SlabCount,
     /// Columns of depth B + 2 each slab reads beyond its walls (the run takes 24, see
@@ -365,6 +366,103 @@ fn owner_of(layout: &SlabLayout, d: u32, x: i32) -> Option<usize> {
         .then(|| layout.slab_of_column(column as u32))
 }
 
+/// The cloud cut into slabs, binned, and pass A's sums: what a base depth decides.
+struct Cut {
+    layout: SlabLayout,
+    scratch: Scratch,
+    files: Vec<PathBuf>,
+    field: DensityField,
+    /// Each slab's own core sets up to the base depth.
+    own_cores: Vec<Vec<Vec<u64>>>,
+    /// The finest depth any sample reaches.
+    finest: u32,
+    /// Σ area × confidence and Σ confidence over all the samples (the screening weights').
+    total_area: f64,
+    total_confidence: f64,
+}
+
+/// Counts the columns of depth `base_depth` + 2, cuts them into slabs (as `plan` says), bins
+/// the points, and runs pass A: each slab's own core sets up to the base depth, the finest
+/// depth, the screening totals.
+fn cut(
+    input: &Input<'_>,
+    scan: &Scan,
+    params: &Params,
+    plan: &Plan,
+    base_depth: u32,
+    pool: &rayon::ThreadPool,
+    keep_going: &mut dyn FnMut(&str, f32) -> bool,
+) -> std::result::Result<Cut, OutOfCoreError> {
+    let count = scan.count as f32;
+    let wall_depth = base_depth + 2;
+    let counts = column_counts(input, &scan.map, wall_depth, &mut |done| {
+        keep_going("columns", done as f32 / count)
+    })?;
+    let slabs = match plan.slabs {
+        SlabCount::Exactly(n) => n,
+        SlabCount::Within(budget) => {
+            slabs_within(budget, &counts, wall_depth, plan.padding, params).map_err(|enough| {
+                crate::Error::OutOfMemory {
+                    what: "the largest slab a cut of the cloud can make, with its padding",
+                    needed: enough,
+                    limit: Some(budget),
+                    enough: Some(enough),
+                }
+            })?
+        }
+    };
+    let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
+    let scratch = Scratch::create(plan.temp_dir.as_deref())?;
+    let binned = bin(
+        input,
+        scan,
+        &layout,
+        params.effective_kernel_depth(),
+        &scratch,
+        &mut |done| keep_going("bin", done as f32 / count),
+    )?;
+    let field = binned.kernel_counts.into_field();
+    let run = Run {
+        params,
+        scan,
+        layout: &layout,
+        files: &binned.files,
+        field: &field,
+        pool,
+        watch: Watch::new(),
+    };
+    let slabs = layout.len();
+    let mut own_cores: Vec<Vec<Vec<u64>>> = Vec::with_capacity(slabs);
+    let mut finest = 0u32;
+    let (mut total_area, mut total_confidence) = (0.0f64, 0.0f64);
+    for k in 0..slabs {
+        if !keep_going("base", k as f32 / (2 * slabs + 1) as f32) {
+            return Err(OutOfCoreError::Reconstruction(crate::Error::Cancelled));
+        }
+        let slab = run.load(k, None)?;
+        finest = finest.max(slab.at_depth.len() as u32 - 1);
+        for (s, owned) in slab.owned.iter().enumerate() {
+            if *owned {
+                total_area += slab.area[s] * slab.samples.confidence[s];
+                total_confidence += slab.samples.confidence[s];
+            }
+        }
+        let mut cores = run.cores(&slab, &slab.own_at_depth())?;
+        cores.truncate(base_depth as usize + 1);
+        own_cores.push(cores);
+    }
+    Ok(Cut {
+        layout,
+        scratch,
+        files: binned.files,
+        field,
+        own_cores,
+        finest,
+        total_area,
+        total_confidence,
+    })
+}
+
 /// Runs the passes on the PLY file at `path` (oriented points) with `params`, cut as `plan`
 /// says. `keep_going(pass, fraction)` is asked between chunks and slabs; false cancels.
 pub(crate) fn solve_slabs(
@@ -385,85 +483,76 @@ pub(crate) fn solve_slabs(
         keep_going("scan", 0.0)
     })?;
     let params = params.for_cube(scan.map.size);
-    let count = scan.count as f32;
-    let base_depth = plan.base_depth;
     let full_depth = params.effective_full_depth();
-    if base_depth < full_depth || base_depth + 2 > params.depth {
-        return Err(crate::Error::InvalidParameter {
-            name: "base_depth",
-            value: base_depth.to_string(),
-            expected: "at least the full depth and at most the depth − 2",
-        }
-        .into());
-    }
-    let wall_depth = base_depth + 2;
-    let counts = column_counts(&input, &scan.map, wall_depth, &mut |done| {
-        keep_going("columns", done as f32 / count)
-    })?;
-    let slabs = match plan.slabs {
-        SlabCount::Exactly(n) => n,
-        SlabCount::Within(budget) => {
-            slabs_within(budget, &counts, wall_depth, plan.padding, &params).map_err(|enough| {
-                crate::Error::OutOfMemory {
-                    what: "the largest slab a cut of the cloud can make, with its padding",
-                    needed: enough,
-                    limit: Some(budget),
-                    enough: Some(enough),
-                }
-            })?
-        }
+    // The base holds the complete depths (a complete depth spans the cube, far from any slab)
+    // and leaves two depths above it for the walls.
+    let too_shallow = |depth: u32, what: &'static str| {
+        OutOfCoreError::from(crate::Error::InvalidParameter {
+            name: "depth",
+            value: depth.to_string(),
+            expected: what,
+        })
     };
-    let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
-    let scratch = Scratch::create(plan.temp_dir.as_deref())?;
-    let binned = bin(
-        &input,
-        &scan,
-        &layout,
-        params.effective_kernel_depth(),
-        &scratch,
-        &mut |done| keep_going("bin", done as f32 / count),
-    )?;
-    let field = binned.kernel_counts.into_field();
+    let mut base_depth = match plan.base_depth {
+        Some(b) if b < full_depth || b + 2 > params.depth => {
+            return Err(crate::Error::InvalidParameter {
+                name: "base_depth",
+                value: b.to_string(),
+                expected: "at least the full depth and at most the depth − 2",
+            }
+            .into())
+        }
+        Some(b) => b,
+        None if full_depth + 2 > params.depth => {
+            return Err(too_shallow(
+                params.depth,
+                "at least the full depth + 2 for a reconstruction out of core (lower the full \
+                 depth or raise the depth)",
+            ))
+        }
+        None => params
+            .depth
+            .saturating_sub(3)
+            .clamp(full_depth, 7.max(full_depth)),
+    };
+    // The cut and pass A; cut again with a lower base when the samples do not reach two
+    // depths above it (a sparse cloud at a depth its samples do not resolve).
+    let mut cut = cut(&input, &scan, &params, plan, base_depth, pool, keep_going)?;
+    if cut.finest < base_depth + 2 {
+        let lowest = cut.finest.saturating_sub(2);
+        if plan.base_depth.is_some() || lowest < full_depth {
+            return Err(too_shallow(
+                params.depth,
+                "a depth whose samples reach the base depth + 2 for a reconstruction out of \
+                 core (these reach only their density's depth: lower the full depth, or \
+                 reconstruct in memory)",
+            ));
+        }
+        base_depth = lowest;
+        drop(cut);
+        cut = self::cut(&input, &scan, &params, plan, base_depth, pool, keep_going)?;
+    }
+    let Cut {
+        layout,
+        scratch,
+        files,
+        field,
+        own_cores,
+        finest,
+        total_area,
+        total_confidence,
+    } = cut;
     let run = Run {
         params: &params,
         scan: &scan,
         layout: &layout,
-        files: &binned.files,
+        files: &files,
         field: &field,
         pool,
         watch: Watch::new(),
     };
     let slabs = layout.len();
     let b = base_depth as usize;
-
-    // Pass A: each slab's own core sets up to B, the finest depth, the screening totals.
-    let mut own_cores: Vec<Vec<Vec<u64>>> = Vec::with_capacity(slabs);
-    let mut finest = 0u32;
-    let (mut total_area, mut total_confidence) = (0.0f64, 0.0f64);
-    for k in 0..slabs {
-        if !keep_going("base", k as f32 / (2 * slabs + 1) as f32) {
-            return Err(cancelled());
-        }
-        let slab = run.load(k, None)?;
-        finest = finest.max(slab.at_depth.len() as u32 - 1);
-        for (s, owned) in slab.owned.iter().enumerate() {
-            if *owned {
-                total_area += slab.area[s] * slab.samples.confidence[s];
-                total_confidence += slab.samples.confidence[s];
-            }
-        }
-        let mut cores = run.cores(&slab, &slab.own_at_depth())?;
-        cores.truncate(b + 1);
-        own_cores.push(cores);
-    }
-    if finest <= base_depth {
-        return Err(crate::Error::InvalidParameter {
-            name: "base_depth",
-            value: base_depth.to_string(),
-            expected: "below the finest depth the samples reach",
-        }
-        .into());
-    }
     let base_cores = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth);
     drop(own_cores);
 
@@ -615,7 +704,7 @@ pub(crate) fn solve_slabs(
         scan,
         params,
         layout,
-        point_files: binned.files,
+        point_files: files,
         base_cores,
         field,
         finest,

@@ -26,8 +26,10 @@ pub struct OutOfCore {
     /// bytes a point, plus the slabs' padding) and the mesh. Removed on success, error and
     /// cancel.
     pub temp_dir: Option<PathBuf>,
-    /// The depth up to which the system is solved once for the whole cloud (`None`: the
-    /// depth − 3, at most 7 and at least the full depth). Finer depths are solved slab by slab.
+    /// The depth up to which the system is solved once for the whole cloud, at least the full
+    /// depth and at most the depth − 2 (`None`: the depth − 3, at most 7 and at least the full
+    /// depth, lowered when the samples do not reach two depths above it). Finer depths are
+    /// solved slab by slab.
     pub base_depth: Option<u32>,
     /// Weigh the points by their `confidence` (or `value`) property, as
     /// [`crate::PointSet::extend_weighted`] does (PoissonRecon's `--confidence`); a file
@@ -114,13 +116,8 @@ pub(crate) fn run(
     }
     let workers = Workers::start(params.threads)?;
     let pool = workers.pool();
-    let depth = params.depth;
-    let full_depth = params.effective_full_depth();
-    let base_depth = options
-        .base_depth
-        .unwrap_or_else(|| depth.saturating_sub(3).min(7).max(full_depth));
     let plan = Plan {
-        base_depth,
+        base_depth: options.base_depth,
         slabs: match options.slabs {
             Some(n) => SlabCount::Exactly(n),
             None => SlabCount::Within(params.max_memory.ok_or(crate::Error::InvalidParameter {
@@ -155,14 +152,6 @@ pub(crate) fn run(
     let layout = &solved.layout;
     let slabs = layout.len();
     let finest = solved.finest;
-    if finest < layout.wall_depth {
-        return Err(crate::Error::InvalidParameter {
-            name: "base_depth",
-            value: base_depth.to_string(),
-            expected: "at most the finest depth the samples reach − 2",
-        }
-        .into());
-    }
     let fitted = params.vertex_placement != VertexPlacement::OnIsosurface;
     let watch = Watch::new();
 

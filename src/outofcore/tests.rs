@@ -786,7 +786,7 @@ fn the_passes_over_files_solve_the_in_memory_chi_with_one_chi_across_walls() {
         .build()
         .expect("a pool");
     let plan = Plan {
-        base_depth: 4,
+        base_depth: Some(4),
         slabs: SlabCount::Exactly(4),
         padding: 12,
         chunk: 5_000,
