@@ -130,11 +130,12 @@ impl Footprint {
     }
 }
 
-/// The bytes of the density field of `points` points at `kernel_depth`, predicted: the part
-/// of [`Footprint::predicted`] that the out-of-core path holds for the whole cloud while it
-/// works slab by slab.
-pub(crate) fn predicted_density_bytes(points: u64, kernel_depth: u32) -> u64 {
-    predicted_density_slots(points, kernel_depth).saturating_mul(PER_DENSITY_SLOT)
+/// The bytes of a density field whose tables have `slots` slots ([`DensityField::slots`]): the
+/// part the out-of-core path holds for the whole cloud while it works slab by slab.
+///
+/// [`DensityField::slots`]: crate::density::DensityField
+pub(crate) fn density_bytes(slots: u64) -> u64 {
+    slots.saturating_mul(PER_DENSITY_SLOT)
 }
 
 /// The density field's table slots for `points` points at `kernel_depth`, predicted: its

@@ -8,7 +8,7 @@
 //! with its neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
-use super::scan::{bin, column_counts, scan, Input, Scan};
+use super::scan::{bin, columns_and_density, scan, Input, Scan};
 use super::scratch::{read_lists, read_slab, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::OutOfCoreError;
@@ -52,7 +52,8 @@ pub(crate) enum SlabCount {
     /// This many (fewer when the points fill fewer columns).
     Exactly(usize),
     /// The fewest whose largest, with its padding, fits this many bytes by the memory
-    /// accounting (`memory.rs`) with the density field of the whole cloud.
+    /// accounting (`memory.rs`) beside the density field of the whole cloud (its real size:
+    /// it is built before the slabs are counted).
     Within(u64),
 }
 
@@ -65,9 +66,8 @@ fn slabs_within(
     wall_depth: u32,
     padding: u32,
     params: &Params,
+    shared: u64,
 ) -> std::result::Result<usize, u64> {
-    let total: u64 = counts.iter().sum();
-    let shared = crate::memory::predicted_density_bytes(total, params.effective_kernel_depth());
     let need_of = |points: u64| {
         crate::memory::Footprint::predicted(
             points,
@@ -395,38 +395,38 @@ fn cut(
 ) -> std::result::Result<Cut, OutOfCoreError> {
     let count = scan.count as f32;
     let wall_depth = base_depth + 2;
-    let counts = column_counts(input, &scan.map, wall_depth, &mut |done| {
-        keep_going("columns", done as f32 / count)
-    })?;
+    let (counts, kernel_counts) = columns_and_density(
+        input,
+        &scan.map,
+        wall_depth,
+        params.effective_kernel_depth(),
+        &mut |done| keep_going("columns", done as f32 / count),
+    )?;
+    let field = kernel_counts.into_field();
+    let shared = crate::memory::density_bytes(field.slots() as u64);
     let slabs = match plan.slabs {
         SlabCount::Exactly(n) => n,
         SlabCount::Within(budget) => {
-            slabs_within(budget, &counts, wall_depth, plan.padding, params).map_err(|enough| {
-                crate::Error::OutOfMemory {
+            slabs_within(budget, &counts, wall_depth, plan.padding, params, shared).map_err(
+                |enough| crate::Error::OutOfMemory {
                     what: "the largest slab a cut of the cloud can make, with its padding",
                     needed: enough,
                     limit: Some(budget),
                     enough: Some(enough),
-                }
-            })?
+                },
+            )?
         }
     };
     let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
     let scratch = Scratch::create(plan.temp_dir.as_deref())?;
-    let binned = bin(
-        input,
-        scan,
-        &layout,
-        params.effective_kernel_depth(),
-        &scratch,
-        &mut |done| keep_going("bin", done as f32 / count),
-    )?;
-    let field = binned.kernel_counts.into_field();
+    let files = bin(input, scan, &layout, &scratch, &mut |done| {
+        keep_going("bin", done as f32 / count)
+    })?;
     let run = Run {
         params,
         scan,
         layout: &layout,
-        files: &binned.files,
+        files: &files,
         field: &field,
         pool,
         watch: Watch::new(),
@@ -454,7 +454,7 @@ fn cut(
     Ok(Cut {
         layout,
         scratch,
-        files: binned.files,
+        files,
         field,
         own_cores,
         finest,

@@ -133,65 +133,55 @@ pub(crate) fn scan(
     })
 }
 
-/// Pass 2: the number of points in each column of `wall_depth` (2^wall_depth of them).
-pub(crate) fn column_counts(
+/// Pass 2: the number of points in each column of `wall_depth` (2^wall_depth of them), and
+/// the density's kernel counts of every point at `kernel_depth` (so that the field's size is
+/// known when the slabs are counted).
+pub(crate) fn columns_and_density(
     input: &Input<'_>,
     map: &UnitCubeMap,
     wall_depth: u32,
+    kernel_depth: u32,
     keep_going: &mut dyn FnMut(u64) -> bool,
-) -> Result<Vec<u64>, OutOfCoreError> {
+) -> Result<(Vec<u64>, KernelCounts), OutOfCoreError> {
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
-    for_each_chunk(input, keep_going, |_, records| {
-        for r in &records {
-            counts[columns.column_of(map.to_unit_f64(r.position).x) as usize] += 1;
-        }
-        Ok(())
-    })?;
-    Ok(counts)
-}
-
-/// What pass 3 leaves: each slab's file (its own points and its padding, in input order) and
-/// the density's counts of every point.
-pub(crate) struct Binned {
-    pub(crate) files: Vec<PathBuf>,
-    pub(crate) kernel_counts: KernelCounts,
-}
-
-/// Pass 3: every point into the file of each slab that reads it (its owner's and, within the
-/// padding, its neighbours'), and splatted into the density's counts at `kernel_depth`.
-pub(crate) fn bin(
-    input: &Input<'_>,
-    scan: &Scan,
-    layout: &SlabLayout,
-    kernel_depth: u32,
-    scratch: &Scratch,
-    keep_going: &mut dyn FnMut(u64) -> bool,
-) -> Result<Binned, OutOfCoreError> {
-    let mut writers = (0..layout.len())
-        .map(|k| SlabWriter::create(scratch.file(&format!("slab-{k}.points"))))
-        .collect::<Result<Vec<_>, _>>()?;
     let mut kernel_counts = KernelCounts::new(kernel_depth);
     for_each_chunk(input, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
-            .map(|r| scan.map.to_unit_f64(r.position))
+            .map(|r| map.to_unit_f64(r.position))
             .collect();
         let confidence: Vec<f64> = records.iter().map(|r| r.confidence as f64).collect();
         kernel_counts.add(&unit, Some(&confidence));
-        for (r, p) in records.iter().zip(&unit) {
-            for k in layout.slabs_reading(layout.column_of(p.x)) {
+        for p in &unit {
+            counts[columns.column_of(p.x) as usize] += 1;
+        }
+        Ok(())
+    })?;
+    Ok((counts, kernel_counts))
+}
+
+/// Pass 3: every point into the file of each slab that reads it (its owner's and, within the
+/// padding, its neighbours'); the files, one per slab (its own points and its padding, in
+/// input order).
+pub(crate) fn bin(
+    input: &Input<'_>,
+    scan: &Scan,
+    layout: &SlabLayout,
+    scratch: &Scratch,
+    keep_going: &mut dyn FnMut(u64) -> bool,
+) -> Result<Vec<PathBuf>, OutOfCoreError> {
+    let mut writers = (0..layout.len())
+        .map(|k| SlabWriter::create(scratch.file(&format!("slab-{k}.points"))))
+        .collect::<Result<Vec<_>, _>>()?;
+    for_each_chunk(input, keep_going, |_, records| {
+        for r in &records {
+            let x = scan.map.to_unit_f64(r.position).x;
+            for k in layout.slabs_reading(layout.column_of(x)) {
                 writers[k].push(*r)?;
             }
         }
         Ok(())
     })?;
-    let files = writers
-        .into_iter()
-        .map(SlabWriter::finish)
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(Binned {
-        files,
-        kernel_counts,
-    })
+    writers.into_iter().map(SlabWriter::finish).collect()
 }
