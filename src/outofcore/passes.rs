@@ -284,6 +284,7 @@ impl Run<'_> {
         field_v: Vec<[Vec<f64>; 3]>,
         screening: Screening<'_>,
         depths: Depths,
+        progress: &mut dyn FnMut(f32) -> bool,
     ) -> Result<Solved> {
         let (positions, screening_weights, proxy_groups) = match screening {
             Screening::Samples(positions, weights) => (positions, weights, None),
@@ -302,7 +303,7 @@ impl Run<'_> {
             },
             self.params,
             self.pool,
-            &mut |_| !self.watch.is_cancelled(),
+            progress,
             &mut Vec::new(),
         )
     }
@@ -597,6 +598,7 @@ pub(crate) fn solve_slabs(
         sums.field_v,
         Screening::Groups(&groups),
         Depths::Base { last: b, finest },
+        &mut |f| keep_going("base", ((2 * slabs) as f32 + f) / (2 * slabs + 1) as f32),
     )?;
     drop((base_tree, groups));
 
@@ -620,6 +622,7 @@ pub(crate) fn solve_slabs(
                 coefficients: base.coefficients.clone(),
                 field_v: base.field_v.clone(),
             }),
+            &mut |f| keep_going("slabs", (k as f32 + f) / slabs as f32),
         )?;
         let [cores_file, coefficients_file] = solution_files(&scratch, k);
         write_lists(&cores_file, &cores[b + 1..])?;
