@@ -2225,8 +2225,8 @@ psr_status psr_mesh_write_ply(const psr_mesh *m, const char *path, uint32_t flag
  * PSR_STATUS_INVALID_FILE (the input is not a PLY of oriented points), the statuses of
  * psr_reconstructor_solve for the points and parameters (their indices are the file's),
  * PSR_STATUS_OUT_OF_MEMORY, PSR_STATUS_CANCELLED, PSR_STATUS_HANDLE_POISONED or
- * PSR_STATUS_INTERNAL_ERROR. On failure *report is left untouched and output_path may hold a
- * partial file.
+ * PSR_STATUS_INTERNAL_ERROR. On failure *report is left untouched and no file is left at
+ * output_path by this call (the mesh is written there last, and removed if that fails).
  *
  * # Safety
  * `r` is NULL or a live handle; the paths are NULL or NUL-terminated strings; `report` is NULL

@@ -965,6 +965,9 @@ fn run_out_of_core(args: &Args, params: Params) -> Result<(), Failure> {
         .with_confidence(args.confidence);
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
     let mut progress = ProgressLine::default();
+    // Ctrl-C (or a SIGTERM) asks the run to stop at its next progress report, so that its
+    // temporary directory (gigabytes for a large cloud) is removed before the program exits.
+    stop_on_interrupt();
     let result = psr::reconstruct_out_of_core_with_progress(
         &args.input,
         &args.output,
@@ -974,10 +977,14 @@ fn run_out_of_core(args: &Args, params: Params) -> Result<(), Failure> {
             if show_progress {
                 progress.update(stage, fraction);
             }
-            true
+            !INTERRUPTED.load(std::sync::atomic::Ordering::Relaxed)
         },
     );
     progress.clear();
+    if INTERRUPTED.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!("psr: interrupted; the temporary files are removed");
+        std::process::exit(130);
+    }
     let report = result.map_err(|e| match e {
         psr::OutOfCoreError::Reconstruction(psr::Error::OutOfMemory { .. }) => {
             Failure::OutOfMemory(format!("reconstruction failed: {e} (option --max-memory)"))
@@ -1007,6 +1014,23 @@ fn run_out_of_core(args: &Args, params: Params) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// Set by [`stop_on_interrupt`]'s handler.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// From now on SIGINT and SIGTERM set [`INTERRUPTED`] instead of ending the process.
+fn stop_on_interrupt() {
+    extern "C" fn on_signal(_: libc::c_int) {
+        // Only an atomic store: async-signal-safe.
+        INTERRUPTED.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+    let handler: extern "C" fn(libc::c_int) = on_signal;
+    // SAFETY: the handler does nothing but an atomic store, which is async-signal-safe.
+    unsafe {
+        libc::signal(libc::SIGINT, handler as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, handler as libc::sighandler_t);
+    }
 }
 
 /// The machine's physical memory in bytes (8 GiB when it cannot be read).

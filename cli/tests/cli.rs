@@ -1286,3 +1286,117 @@ fn max_memory_refuses_with_exit_3_and_estimate_memory_prints_a_figure() {
     assert!(bytes > 1 << 20 && stdout.contains("depth 8"), "{stdout}");
     assert!(!estimate.exists());
 }
+
+/// A binary PLY of `n` oriented points on the unit sphere (a golden-angle spiral).
+fn sphere_cloud(path: &Path, n: usize) {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let mut cloud = psr::ply::PlyPoints::default();
+    for i in 0..n {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let t = golden * i as f64;
+        let p = [r * t.cos(), r * t.sin(), z].map(|c| c as f32);
+        cloud.positions.push(p);
+        cloud.normals.push(p);
+    }
+    psr::ply::write_point_cloud(path, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+}
+
+/// Proves `--out-of-core` writes a closed mesh and says how many slabs it made, leaves its
+/// temporary directory empty, and refuses the options it does not take, naming them.
+#[test]
+fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
+    let dir = scratch("ooc");
+    let input = dir.join("sphere.ply");
+    sphere_cloud(&input, 50_000);
+    let tmp = dir.join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let output = dir.join("mesh.ply");
+    let out = psr_on(
+        &input,
+        &output,
+        &[
+            "--depth",
+            "8",
+            "--out-of-core",
+            "--slabs",
+            "3",
+            "--temp-dir",
+            tmp.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(stderr(&out).contains("3 slabs"), "{}", stderr(&out));
+    let (positions, triangles) = psr::ply::read_mesh(&output).unwrap();
+    // Closed: every edge in two triangles, so 3F = 2E, and a sphere: V − E + F = 2.
+    assert_eq!(positions.len() * 2, triangles.len() + 4);
+    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
+    let refused = psr_on(
+        &input,
+        &dir.join("mesh.obj"),
+        &[
+            "--depth",
+            "8",
+            "--out-of-core",
+            "--vertex-normals",
+            "--no-density",
+        ],
+    );
+    assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
+    let message = stderr(&refused);
+    assert!(
+        message.contains("--vertex-normals") && message.contains("--no-density"),
+        "{message}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves Ctrl-C during `--out-of-core` stops the run with exit status 130 and removes its
+/// temporary directory (gigabytes for a large cloud) rather than leaving it behind.
+#[test]
+fn out_of_core_interrupted_removes_its_temporary_files() {
+    let dir = scratch("ooc-interrupt");
+    let input = dir.join("sphere.ply");
+    sphere_cloud(&input, 400_000);
+    let tmp = dir.join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let mut child = Command::new(PSR)
+        .args([
+            "--in",
+            input.to_str().unwrap(),
+            "--out",
+            dir.join("mesh.ply").to_str().unwrap(),
+            "--depth",
+            "10",
+            "--out-of-core",
+            "--slabs",
+            "4",
+            "--temp-dir",
+            tmp.to_str().unwrap(),
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Interrupted once the run has made its temporary directory (mid-run, whatever the speed).
+    let started = std::time::Instant::now();
+    while std::fs::read_dir(&tmp).unwrap().count() == 0 {
+        assert!(
+            started.elapsed().as_secs() < 120,
+            "no temporary directory appeared"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "psr ended early");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // SAFETY: kill sends a signal to the child process we started; no memory is involved.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", stderr(&out));
+    assert_eq!(
+        std::fs::read_dir(&tmp).unwrap().count(),
+        0,
+        "temporary files left"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -381,12 +381,20 @@ pub(crate) fn write_ply(
         source,
     };
     let mut out = BufWriter::with_capacity(1 << 20, File::create(output).map_err(output_error)?);
-    out.write_all(header.as_bytes()).map_err(output_error)?;
-    for path in [&vertex_path, &face_path] {
-        let mut input = BufReader::new(File::open(path).map_err(io_error("read", path))?);
-        io::copy(&mut input, &mut out).map_err(output_error)?;
-        std::fs::remove_file(path).map_err(io_error("remove", path))?;
+    let written = (|| {
+        out.write_all(header.as_bytes()).map_err(output_error)?;
+        for path in [&vertex_path, &face_path] {
+            let mut input = BufReader::new(File::open(path).map_err(io_error("read", path))?);
+            io::copy(&mut input, &mut out).map_err(output_error)?;
+            std::fs::remove_file(path).map_err(io_error("remove", path))?;
+        }
+        out.flush().map_err(output_error)
+    })();
+    if written.is_err() {
+        // No partial mesh is left under the output's name.
+        drop(out);
+        let _ = std::fs::remove_file(output);
     }
-    out.flush().map_err(output_error)?;
+    written?;
     Ok((vertices, triangles))
 }

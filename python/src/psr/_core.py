@@ -904,8 +904,9 @@ class Reconstructor:
         ``SYSTEM``, the slabs ``SOLVE``, seams and isovalue ``ISOVALUE``, the slabs' meshes
         ``EXTRACT``, the file ``MESH``). A missing or unreadable input, or an output or
         temporary file that cannot be written, raises :class:`psr.FileError` (an OSError) with
-        the path; a file that is not a PLY of oriented points :class:`psr.PlyError`. After a
-        failure ``output`` may hold a partial file.
+        the path; a file that is not a PLY of oriented points :class:`psr.PlyError`. A failure
+        leaves no file at ``output`` (the mesh is written there last, and removed if that
+        fails).
         """
         paths = (
             _path("input", input),
