@@ -138,12 +138,8 @@ struct Cloud {
     at_depth: Vec<Vec<crate::density::DepthSample>>,
 }
 
-/// A bumpy sphere sampled at three densities (16 and 64 times sparser near the poles, so that
-/// samples are splatted at several depths and every depth's V has something to carry to the
-/// next), ready for `params`.
-fn bumpy_sphere(params: &crate::Params) -> Cloud {
-    use crate::points::{PointSet, Samples, UnitCubeMap};
-    let n = 40_000;
+/// The positions and normals of the bumpy sphere, from a spiral of `n` (thinned near the poles).
+fn bumpy_sphere_points(n: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     let mut positions = Vec::with_capacity(n);
     let mut normals = Vec::with_capacity(n);
@@ -159,6 +155,15 @@ fn bumpy_sphere(params: &crate::Params) -> Cloud {
         positions.push(u.map(|c| (c * bump) as f32));
         normals.push(u.map(|c| c as f32));
     }
+    (positions, normals)
+}
+
+/// A bumpy sphere sampled at three densities (16 and 64 times sparser near the poles, so that
+/// samples are splatted at several depths and every depth's V has something to carry to the
+/// next), ready for `params`.
+fn bumpy_sphere(params: &crate::Params) -> Cloud {
+    use crate::points::{PointSet, Samples, UnitCubeMap};
+    let (positions, normals) = bumpy_sphere_points(40_000);
     let points = PointSet::from_slices(&positions, &normals).expect("valid points");
     let map = UnitCubeMap::fit(points.positions(), params.scale as f64);
     let samples = Samples::in_morton_order(&points, &map, params.depth).expect("fits");
@@ -733,21 +738,8 @@ fn the_cube_fitted_from_chunks_is_the_cube_fitted_at_once() {
 
 /// The bumpy sphere's points (input coordinates) written as a binary PLY in `dir`.
 fn bumpy_sphere_file(dir: &std::path::Path) -> (std::path::PathBuf, crate::PointSet) {
-    let n = 60_000;
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     let mut points = crate::ply::PlyPoints::default();
-    for i in 0..n {
-        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-        if (z > 0.6 && i % 16 != 0) || (z < -0.6 && i % 64 != 0) {
-            continue;
-        }
-        let r = (1.0 - z * z).sqrt();
-        let t = golden * i as f64;
-        let bump = 1.0 + 0.05 * (5.0 * t.sin() * z).sin();
-        let u = [r * t.cos(), r * t.sin(), z];
-        points.positions.push(u.map(|c| (c * bump) as f32));
-        points.normals.push(u.map(|c| c as f32));
-    }
+    (points.positions, points.normals) = bumpy_sphere_points(60_000);
     let path = dir.join("bumpy_sphere.ply");
     crate::ply::write_point_cloud(&path, &points, crate::ply::PlyFormat::BinaryLittleEndian)
         .expect("written");
