@@ -1,22 +1,21 @@
 //! Reconstruction bigger than memory (issue 20): the slab decomposition of
-//! `docs/out-of-core.md`, under construction.
+//! `docs/out-of-core.md`, from one PLY file to another ([`run`], public as
+//! [`crate::reconstruct_out_of_core`]).
 //!
-//! The unit cube is cut across x into slabs of balanced point counts ([`slabs`]); the depths up
-//! to a base depth B are solved once for the whole cloud from the slabs' summed contributions
-//! ([`base`]), the finer depths slab by slab over the slab's points and a padding of its
-//! neighbours', with the base solution prolonged in.
+//! The unit cube is cut across x into slabs of balanced point counts ([`slabs`]); the input is
+//! read in chunks and binned to slab files in a temporary directory ([`scan`], [`scratch`]);
+//! the depths up to a base depth B are solved once for the whole cloud from the slabs' summed
+//! contributions ([`base`]), the finer depths slab by slab over the slab's points and a padding
+//! of its neighbours', with the base solution prolonged in, and every node then takes its
+//! owner's coefficient so that neighbours evaluate one χ near their walls ([`passes`]); each
+//! slab extracts its part of the mesh with its vertices keyed by their edges ([`seams`]), and
+//! the parts are joined into one PLY, the bubbles rule applied across walls ([`assemble`]).
 //!
-//! Built so far, each proved against the in-memory pipeline by `tests.rs`: the slab layout;
-//! the base's core sets as the union of the slabs' own ([`base::coarse_cores`], exact:
-//! [`crate::octree::Octree::core_sets`]); its ρ and V as sums of the slabs' own parts on trees
-//! that share the base's depths; its screening proxies from the slabs' merged sample groups
-//! ([`base::merge_groups`], [`crate::system::Proxies::from_groups`]); the cascade cut at the
-//! base ([`crate::solve::Depths`]); and, in one process, slabs solved above the shared base
-//! within the in-memory solver's own error of it; each slab's part of the mesh and the parts
-//! welded by their vertices' keys, bit for bit the in-memory mesh over the same χ
-//! ([`seams`]). Not built: the input read in chunks and binned to slab files, the passes over
-//! the slabs, the isovalue's seams, the seeds exchanged between slabs, the components across
-//! walls, the PLY written slab by slab, and the front ends.
+//! Proved against the in-memory pipeline by `tests.rs` part by part (the base's core sets,
+//! right-hand sides and screening proxies as sums of the slabs'; the cascade cut at the base
+//! bit for bit; the slabs' solve within the in-memory solver's own error; one χ across walls
+//! bit for bit; each slab's part of the mesh bit for bit over the same χ), and end to end by
+//! `tests/out_of_core.rs` against the in-memory meshes of a sphere and the shared scans.
 
 pub(crate) mod assemble;
 pub(crate) mod base;
