@@ -285,6 +285,10 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--grid", "--grid"),
         ("--grid-resolution", "none"),
         ("--max-memory", "none"),
+        ("--out-of-core", "none"),
+        ("--slabs", "none"),
+        ("--base-depth", "--baseDepth"),
+        ("--temp-dir", "--tempDir"),
         ("--estimate-memory", "none"),
     ];
     for (ours, theirs) in expected {
