@@ -38,11 +38,13 @@ pub(crate) struct Scan {
     pub(crate) positions_f64: bool,
 }
 
-/// The input's points, chunk by chunk, as records (the values as read), each chunk checked as
-/// [`PointSet`] checks a batch (errors name the point's index in the file); `keep_going` is
-/// asked before each chunk with the number of points read so far, and `each` gets the chunk.
+/// The input's points, chunk by chunk, as records (the values as read); with `check`, each
+/// chunk checked as [`PointSet`] checks a batch (errors name the point's index in the file: the
+/// scan does it, the passes after it read the points it checked); `keep_going` is asked before
+/// each chunk with the number of points read so far, and `each` gets the chunk.
 fn for_each_chunk(
     input: &Input<'_>,
+    check: bool,
     keep_going: &mut dyn FnMut(u64) -> bool,
     mut each: impl FnMut(&PlyPoints, Vec<PointRecord>) -> Result<(), OutOfCoreError>,
 ) -> Result<(), OutOfCoreError> {
@@ -62,11 +64,15 @@ fn for_each_chunk(
                 }))
             }
         };
-        let checked = match &points.positions_f64 {
-            Some(exact) => PointSet::new().extend_weighted_f64(exact, &points.normals, weights),
-            None => PointSet::new().extend_weighted(&points.positions, &points.normals, weights),
-        };
-        checked.map_err(|e| OutOfCoreError::Reconstruction(at_offset(e, offset)))?;
+        if check {
+            let checked = match &points.positions_f64 {
+                Some(exact) => PointSet::new().extend_weighted_f64(exact, &points.normals, weights),
+                None => {
+                    PointSet::new().extend_weighted(&points.positions, &points.normals, weights)
+                }
+            };
+            checked.map_err(|e| OutOfCoreError::Reconstruction(at_offset(e, offset)))?;
+        }
         let records = (0..points.normals.len())
             .map(|i| PointRecord {
                 position: match &points.positions_f64 {
@@ -114,7 +120,7 @@ pub(crate) fn scan(
     let mut count = 0u64;
     let mut has_attributes = false;
     let mut positions_f64 = false;
-    for_each_chunk(input, keep_going, |points, records| {
+    for_each_chunk(input, true, keep_going, |points, records| {
         bounds.extend(records.iter().map(|r| DVec3::from(r.position)));
         count += records.len() as u64;
         has_attributes |= points.colors.is_some() || !points.channels.is_empty();
@@ -146,7 +152,7 @@ pub(crate) fn columns_and_density(
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
     let mut kernel_counts = KernelCounts::new(kernel_depth);
-    for_each_chunk(input, keep_going, |_, records| {
+    for_each_chunk(input, false, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
             .map(|r| map.to_unit_f64(r.position))
@@ -174,7 +180,7 @@ pub(crate) fn bin(
     let mut writers = (0..layout.len())
         .map(|k| SlabWriter::create(scratch.file(&format!("slab-{k}.points"))))
         .collect::<Result<Vec<_>, _>>()?;
-    for_each_chunk(input, keep_going, |_, records| {
+    for_each_chunk(input, false, keep_going, |_, records| {
         for r in &records {
             let x = scan.map.to_unit_f64(r.position).x;
             for k in layout.slabs_reading(layout.column_of(x)) {
