@@ -3,7 +3,7 @@
 //! slab, each vertex on a wall written once (by the first slab that has it) and the triangles
 //! indexing it.
 
-use super::scratch::{read_lists, write_lists, Scratch};
+use super::scratch::{read_lists, scratch_error, write_lists, Scratch};
 use super::seams::SlabPart;
 use super::OutOfCoreError;
 use crate::components::vertex_components;
@@ -279,23 +279,21 @@ pub(crate) fn write_ply(
     density: &DensityField,
     mut part: impl FnMut(usize) -> Result<SlabPart, OutOfCoreError>,
 ) -> Result<(u64, u64), OutOfCoreError> {
-    let io_error = |action: &'static str, path: &Path| {
-        let path = path.to_path_buf();
-        move |source: io::Error| OutOfCoreError::Scratch {
-            action,
-            path,
-            source,
-        }
-    };
     let vertex_path = scratch.file("mesh.vertices");
     let face_path = scratch.file("mesh.faces");
     let mut vertex_out = BufWriter::with_capacity(
         1 << 20,
-        File::create(&vertex_path).map_err(io_error("create", &vertex_path))?,
+        File::create(&vertex_path).map_err(scratch_error(
+            "create the mesh's temporary files",
+            &vertex_path,
+        ))?,
     );
     let mut face_out = BufWriter::with_capacity(
         1 << 20,
-        File::create(&face_path).map_err(io_error("create", &face_path))?,
+        File::create(&face_path).map_err(scratch_error(
+            "create the mesh's temporary files",
+            &face_path,
+        ))?,
     );
     let mut shared_ids: HashMap<u64, u32> = HashMap::new();
     let mut vertices = 0u64;
@@ -344,9 +342,10 @@ pub(crate) fn write_ply(
                 }
             }
             entry.extend_from_slice(&(density.evaluate(q) as f32).to_le_bytes());
-            vertex_out
-                .write_all(&entry)
-                .map_err(io_error("write", &vertex_path))?;
+            vertex_out.write_all(&entry).map_err(scratch_error(
+                "write the mesh's temporary files",
+                &vertex_path,
+            ))?;
         }
         for t in &part.triangles {
             if !keep(of_vertex[t[0] as usize]) {
@@ -357,16 +356,21 @@ pub(crate) fn write_ply(
             for (a, &v) in t.iter().enumerate() {
                 entry[1 + 4 * a..5 + 4 * a].copy_from_slice(&(id[v as usize] as i32).to_le_bytes());
             }
-            face_out
-                .write_all(&entry)
-                .map_err(io_error("write", &face_path))?;
+            face_out.write_all(&entry).map_err(scratch_error(
+                "write the mesh's temporary files",
+                &face_path,
+            ))?;
             triangles += 1;
         }
     }
-    vertex_out
-        .flush()
-        .map_err(io_error("write", &vertex_path))?;
-    face_out.flush().map_err(io_error("write", &face_path))?;
+    vertex_out.flush().map_err(scratch_error(
+        "write the mesh's temporary files",
+        &vertex_path,
+    ))?;
+    face_out.flush().map_err(scratch_error(
+        "write the mesh's temporary files",
+        &face_path,
+    ))?;
     drop((vertex_out, face_out));
     let position_type = if origin.is_some() { "double" } else { "float" };
     let header = format!(
@@ -384,9 +388,12 @@ pub(crate) fn write_ply(
     let written = (|| {
         out.write_all(header.as_bytes()).map_err(output_error)?;
         for path in [&vertex_path, &face_path] {
-            let mut input = BufReader::new(File::open(path).map_err(io_error("read", path))?);
+            let mut input = BufReader::new(
+                File::open(path).map_err(scratch_error("read the mesh's temporary files", path))?,
+            );
             io::copy(&mut input, &mut out).map_err(output_error)?;
-            std::fs::remove_file(path).map_err(io_error("remove", path))?;
+            std::fs::remove_file(path)
+                .map_err(scratch_error("remove the mesh's temporary files", path))?;
         }
         out.flush().map_err(output_error)
     })();

@@ -104,7 +104,11 @@ pub(crate) struct SlabWriter {
     pub(crate) records: u64,
 }
 
-fn scratch_error(action: &'static str, path: &Path) -> impl FnOnce(io::Error) -> OutOfCoreError {
+/// The error of `action` on `path` in the temporary directory, for `map_err`.
+pub(crate) fn scratch_error(
+    action: &'static str,
+    path: &Path,
+) -> impl FnOnce(io::Error) -> OutOfCoreError {
     let path = path.to_path_buf();
     move |source| OutOfCoreError::Scratch {
         action,
