@@ -72,12 +72,22 @@ impl DensityField {
         counts.into_field()
     }
 
-    /// W(q) = Σ_o count_o B_o(q) at the kernel depth.
     /// The capacity of its tables, all depths: what the memory budget counts for it.
     pub(crate) fn slots(&self) -> usize {
         self.levels.iter().map(|l| l.capacity()).sum()
     }
 
+    /// The x index of every node of the kernel depth's counts (one entry a node, in no
+    /// particular order): where the samples' surface lies across x, at the kernel depth's
+    /// resolution (the out-of-core path's slab accounting measures each slab's share of the
+    /// surface by it).
+    pub(crate) fn kernel_node_x(&self) -> impl Iterator<Item = i32> + '_ {
+        self.levels[self.depth as usize]
+            .keys()
+            .map(|&key| unmorton(key)[0])
+    }
+
+    /// W(q) = Σ_o count_o B_o(q) at the kernel depth.
     pub fn evaluate(&self, q: DVec3) -> f64 {
         self.evaluate_at(self.depth, q)
     }

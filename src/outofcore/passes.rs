@@ -57,42 +57,84 @@ pub(crate) enum SlabCount {
     Within(u64),
 }
 
+/// How much of the samples' surface lies in each column of `wall_depth`: the density field's
+/// nodes of the kernel depth over the column (a node wider than a column spread evenly over
+/// the columns it spans, one narrower counted in the column holding it).
+fn surface_by_column(field: &DensityField, wall_depth: u32) -> Vec<f64> {
+    let columns = 1i64 << wall_depth;
+    let mut surface = vec![0.0f64; columns as usize];
+    let kernel_depth = field.depth;
+    for x in field.kernel_node_x() {
+        let x = i64::from(x);
+        if kernel_depth >= wall_depth {
+            let column = (x >> (kernel_depth - wall_depth)).clamp(0, columns - 1);
+            surface[column as usize] += 1.0;
+        } else {
+            let span = 1i64 << (wall_depth - kernel_depth);
+            let first = (x * span).clamp(0, columns);
+            let end = ((x + 1) * span).clamp(0, columns);
+            for column in first..end {
+                surface[column as usize] += 1.0 / span as f64;
+            }
+        }
+    }
+    surface
+}
+
 /// The fewest slabs for `budget` bytes (see [`SlabCount::Within`]), from the points' column
-/// counts; or, when no number of slabs fits, the smallest budget that any does (the most
-/// slabs' need).
+/// counts and the surface's (`surface_by_column`, measured at `kernel_depth`); or, when no
+/// number of slabs fits, the smallest budget that any does (the most slabs' need).
+///
+/// A slab's need is the memory accounting's (`memory.rs`) for its points with its padding and
+/// for its tree: the base's depths (0..=`base_depth`, shared by every slab's tree) predicted
+/// for the whole cloud and the finer depths for the slab's points and its part of the surface
+/// ([`crate::memory::nodes_of_measured_surface`]).
+#[allow(clippy::too_many_arguments)]
 fn slabs_within(
     budget: u64,
     counts: &[u64],
-    wall_depth: u32,
-    padding: u32,
+    surface: &[f64],
+    kernel_depth: u32,
+    layout_of: impl Fn(usize) -> SlabLayout,
+    base_depth: u32,
     params: &Params,
     shared: u64,
 ) -> std::result::Result<usize, u64> {
-    let need_of = |points: u64| {
-        crate::memory::Footprint::predicted(
+    let nodes = |points: u64, surface: f64| {
+        crate::memory::nodes_of_measured_surface(
             points,
-            0,
+            surface,
+            kernel_depth,
             params.depth,
             params.effective_full_depth(),
-            params.effective_kernel_depth(),
         )
-        .peak()
-        .saturating_add(shared)
+    };
+    let base = nodes(counts.iter().sum(), surface.iter().sum());
+    let need_of = |points: u64, surface: f64| {
+        let mut tree = nodes(points, surface);
+        tree[..=base_depth as usize].copy_from_slice(&base[..=base_depth as usize]);
+        crate::memory::Footprint::with_nodes(points, 0, &tree, 0)
+            .peak()
+            .saturating_add(shared)
     };
     let mut least = u64::MAX;
     let mut previous_len = 0;
     for slabs in 1..=counts.len() {
-        let layout = SlabLayout::balanced(counts, wall_depth, slabs, padding);
+        let layout = layout_of(slabs);
         if layout.len() == previous_len {
             // No more slabs can be cut: every further count gives this layout.
             break;
         }
         previous_len = layout.len();
-        let largest = (0..layout.len())
-            .map(|k| layout.padded(k).map(|c| counts[c as usize]).sum::<u64>())
+        let need = (0..layout.len())
+            .map(|k| {
+                let padded = layout.padded(k);
+                let points = padded.clone().map(|c| counts[c as usize]).sum::<u64>();
+                let surface = padded.map(|c| surface[c as usize]).sum::<f64>();
+                need_of(points, surface)
+            })
             .max()
             .unwrap_or(0);
-        let need = need_of(largest);
         if need <= budget {
             return Ok(layout.len());
         }
@@ -408,14 +450,25 @@ fn cut(
     let slabs = match plan.slabs {
         SlabCount::Exactly(n) => n,
         SlabCount::Within(budget) => {
-            slabs_within(budget, &counts, wall_depth, plan.padding, params, shared).map_err(
-                |enough| crate::Error::OutOfMemory {
-                    what: "the largest slab a cut of the cloud can make, with its padding",
-                    needed: enough,
-                    limit: Some(budget),
-                    enough: Some(enough),
-                },
-            )?
+            let surface = surface_by_column(&field, wall_depth);
+            let layout_of =
+                |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
+            slabs_within(
+                budget,
+                &counts,
+                &surface,
+                field.depth,
+                layout_of,
+                base_depth,
+                params,
+                shared,
+            )
+            .map_err(|enough| crate::Error::OutOfMemory {
+                what: "the largest slab a cut of the cloud can make, with its padding",
+                needed: enough,
+                limit: Some(budget),
+                enough: Some(enough),
+            })?
         }
     };
     let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
@@ -713,4 +766,96 @@ pub(crate) fn solve_slabs(
         finest,
         isovalue,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{slabs_within, surface_by_column, DensityField, SlabLayout};
+    use crate::Params;
+    use glam::DVec3;
+
+    /// Points on a sphere of radius 0.3 around (0.5, 0.5, 0.5) (a golden spiral).
+    fn sphere(n: usize) -> Vec<DVec3> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let t = golden * i as f64;
+                DVec3::splat(0.5) + 0.3 * DVec3::new(r * t.cos(), r * t.sin(), z)
+            })
+            .collect()
+    }
+
+    /// Proves the surface's measure counts every node of the kernel depth once, in the columns
+    /// over it, whether the columns are finer or coarser than the kernel depth's nodes.
+    #[test]
+    fn the_surface_by_column_counts_each_kernel_node_once_where_it_lies() {
+        let field = DensityField::splat(&sphere(20_000), None, 6);
+        let nodes = field.kernel_node_x().count() as f64;
+        for wall_depth in [4, 6, 9] {
+            let surface = surface_by_column(&field, wall_depth);
+            assert_eq!(surface.len(), 1 << wall_depth);
+            let total: f64 = surface.iter().sum();
+            assert!((total - nodes).abs() < 1e-6 * nodes, "{total} vs {nodes}");
+            // Nothing beyond the sphere's x range (0.2..0.8) and its splats' one node.
+            let columns = f64::from(1u32 << wall_depth);
+            let reach = 2.0 / 64.0;
+            for (c, s) in surface.iter().enumerate() {
+                let (lo, hi) = (c as f64 / columns, (c + 1) as f64 / columns);
+                if hi < 0.2 - reach || lo > 0.8 + reach {
+                    assert_eq!(*s, 0.0, "column {c} of depth {wall_depth}");
+                }
+            }
+        }
+    }
+
+    /// Proves a slab's predicted need follows its part of the surface: the need of the cut
+    /// falls as slabs are added (its tree shares the whole surface's nodes among the slabs,
+    /// not the whole surface's per slab), so a cloud whose tree outweighs its points fits a
+    /// budget a few slabs make room for; and a slab over more surface needs more.
+    #[test]
+    fn a_slab_needs_its_part_of_the_surface() {
+        // A sphere's surface and its samples are uniform across x (Archimedes): 10 million
+        // points at depth 12 over the middle 80 % of the columns of depth 9, the surface as
+        // the 10-million-point planet's field measures it (1.8 million nodes of depth 10).
+        let params = Params::default().with_depth(12);
+        let (wall_depth, base_depth, kernel_depth, padding) = (9u32, 7u32, 10u32, 24u32);
+        let columns = 1usize << wall_depth;
+        let filled = columns / 10..columns - columns / 10;
+        let mut counts = vec![0u64; columns];
+        let mut surface = vec![0.0f64; columns];
+        for c in filled.clone() {
+            counts[c] = 10_000_000 / filled.len() as u64;
+            surface[c] = 1.8e6 / filled.len() as f64;
+        }
+        let layout_of = |slabs| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
+        let fewest = |budget: u64, surface: &[f64]| {
+            slabs_within(
+                budget,
+                &counts,
+                surface,
+                kernel_depth,
+                layout_of,
+                base_depth,
+                &params,
+                0,
+            )
+        };
+        let least = fewest(0, &surface).expect_err("nothing fits no memory");
+        let mut previous = 0;
+        for gib in [16u64, 8, 6, 4] {
+            let slabs = fewest(gib << 30, &surface).expect("a few slabs fit");
+            assert!(
+                slabs > previous,
+                "{gib} GiB: {slabs} slabs after {previous}"
+            );
+            previous = slabs;
+        }
+        assert!(previous <= 16, "4 GiB takes {previous} slabs");
+        assert!(least < 2 << 30, "the most slabs need {least} bytes");
+        // The same points over four times the surface: more nodes, so more slabs.
+        let rougher: Vec<f64> = surface.iter().map(|s| 4.0 * s).collect();
+        assert!(fewest(6 << 30, &rougher).unwrap() > fewest(6 << 30, &surface).unwrap());
+    }
 }
