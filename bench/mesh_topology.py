@@ -1,0 +1,73 @@
+#!/usr/bin/env python3
+"""The topology of a large mesh, for benchmark records (docs/benchmarks.md, issue 20): whether
+it is closed, manifold and consistently oriented, its Euler characteristic and its duplicated
+vertices, with numpy alone (a 30-million-triangle mesh in a few minutes and about 8 GB).
+
+    python3 bench/mesh_topology.py planet_200m_d11.ply [more.ply ...]
+
+Reads binary little-endian PLYs as psr writes them (see bench/mesh_picture.py, whose reader it
+uses). Prints per mesh: V, E, F, V − E + F, the edges with one triangle (open), with more than
+two (non-manifold), the directed edges used twice (two triangles disagreeing in orientation
+across an edge, or a fold), and the vertices at the same position as another.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mesh_picture import read_mesh  # noqa: E402
+
+
+def topology(vertices: np.ndarray, triangles: np.ndarray) -> dict[str, int]:
+    t = triangles.astype(np.int64)
+    directed = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    del t
+    directed_keys = directed[:, 0] * (1 << 32) + directed[:, 1]
+    repeated_directed = directed_keys.shape[0] - np.unique(directed_keys).shape[0]
+    del directed_keys
+    directed.sort(axis=1)
+    keys = directed[:, 0] * (1 << 32) + directed[:, 1]
+    del directed
+    _, uses = np.unique(keys, return_counts=True)
+    del keys
+    by_position = vertices[np.lexsort(vertices.T)]
+    same = np.all(by_position[1:] == by_position[:-1], axis=1)
+    del by_position
+    v, e, f = vertices.shape[0], uses.shape[0], triangles.shape[0]
+    return {
+        "V": v,
+        "E": e,
+        "F": f,
+        "euler": v - e + f,
+        "open edges": int(np.sum(uses == 1)),
+        "non-manifold edges": int(np.sum(uses > 2)),
+        "directed edges used twice": int(repeated_directed),
+        "duplicated vertices": int(np.sum(same)),
+    }
+
+
+def main() -> int:
+    if len(sys.argv) < 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    for path in sys.argv[1:]:
+        figures = topology(*read_mesh(path))
+        closed = (
+            figures["open edges"] == 0
+            and figures["non-manifold edges"] == 0
+            and figures["directed edges used twice"] == 0
+        )
+        print(
+            f"{path}: "
+            + ", ".join(f"{k} {v:,}" for k, v in figures.items())
+            + (": a closed, consistently oriented 2-manifold" if closed else ": NOT closed")
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
