@@ -1,18 +1,18 @@
 //! The passes of a reconstruction out of core, in order (`docs/out-of-core.md`, "Phases"):
 //! the input scanned, its columns counted and its points binned to slab files (`scan.rs`);
-//! then over the slabs, one in memory at a time: their own core sets up to the base depth
-//! (pass A), their own parts of the base's right-hand sides and screening groups (pass B),
+//! then over the slabs, one in memory at a time: their samples prepared (kept for the passes
+//! after) and their own core sets up to the base depth (pass A), their own parts of the base's right-hand sides and screening groups (pass B),
 //! the base solved once, each slab's finer depths solved over its points and padding (pass C),
 //! and every slab's coefficients made its owners' where slabs overlap, with the isovalue's
-//! partial sums (pass D). What it leaves: one solution file per slab, each slab's χ agreeing
-//! with its neighbours' near their walls, and the isovalue.
+//! partial sums (pass D). What it leaves: one solution file and one file of prepared samples
+//! per slab, each slab's χ agreeing with its neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
 use super::scan::{bin, columns_and_density, scan, Input, Scan};
-use super::scratch::{read_lists, read_slab, write_lists, Scratch};
+use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::OutOfCoreError;
-use crate::density::{estimate, samples_by_depth, DensityField, DepthSample};
+use crate::density::{estimate, samples_by_depth, DensityField, DepthSample, SampleDensity};
 use crate::evaluate::Indicator;
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
@@ -206,6 +206,85 @@ impl SlabSamples {
     }
 }
 
+/// Keeps a slab's prepared samples (positions in the unit cube in Morton order, normals,
+/// confidence, and the density's area and depth of each) for the passes after the first:
+/// 56 bytes a sample (the normals and the confidence, `f32` as read, two to a word).
+fn write_prepared(
+    path: &Path,
+    samples: &Samples,
+    density: &SampleDensity,
+) -> std::result::Result<(), OutOfCoreError> {
+    let pair = |a: f32, b: f32| (u64::from(a.to_bits()) << 32) | u64::from(b.to_bits());
+    let positions: Vec<u64> = samples
+        .positions
+        .iter()
+        .flat_map(|p| p.to_array().map(f64::to_bits))
+        .collect();
+    let normals_and_confidence: Vec<u64> = samples
+        .normals
+        .iter()
+        .zip(&samples.confidence)
+        .flat_map(|(n, &c)| [pair(n[0], n[1]), pair(n[2], c as f32)])
+        .collect();
+    let bits = |values: &[f64]| values.iter().map(|v| v.to_bits()).collect::<Vec<u64>>();
+    write_lists(
+        path,
+        &[
+            positions,
+            normals_and_confidence,
+            bits(&density.area),
+            bits(&density.depth),
+        ],
+    )
+}
+
+/// Reads what [`write_prepared`] wrote: the same samples and density, bit for bit (the
+/// confidence is an `f32` as read, widened to `f64`, and a normal's components are `f32`).
+fn read_prepared(path: &Path) -> std::result::Result<(Samples, SampleDensity), OutOfCoreError> {
+    let lists: Vec<Vec<u64>> = read_lists(path)?;
+    let malformed = || {
+        OutOfCoreError::Reconstruction(crate::Error::Internal(
+            "a slab's prepared samples file is malformed".into(),
+        ))
+    };
+    let [positions, normals_and_confidence, area, depth] =
+        <[Vec<u64>; 4]>::try_from(lists).map_err(|_| malformed())?;
+    let n = area.len();
+    if positions.len() != 3 * n || normals_and_confidence.len() != 2 * n || depth.len() != n {
+        return Err(malformed());
+    }
+    let high = |w: u64| f32::from_bits((w >> 32) as u32);
+    let low = |w: u64| f32::from_bits(w as u32);
+    let samples = Samples {
+        positions: positions
+            .chunks_exact(3)
+            .map(|c| {
+                glam::DVec3::new(
+                    f64::from_bits(c[0]),
+                    f64::from_bits(c[1]),
+                    f64::from_bits(c[2]),
+                )
+            })
+            .collect(),
+        normals: normals_and_confidence
+            .chunks_exact(2)
+            .map(|c| [high(c[0]), low(c[0]), high(c[1])])
+            .collect(),
+        confidence: normals_and_confidence
+            .chunks_exact(2)
+            .map(|c| f64::from(low(c[1])))
+            .collect(),
+        attributes: Vec::new(),
+    };
+    let floats = |words: Vec<u64>| words.into_iter().map(f64::from_bits).collect::<Vec<f64>>();
+    let density = SampleDensity {
+        area: floats(area),
+        depth: floats(depth),
+        quantiles: Vec::new(),
+    };
+    Ok((samples, density))
+}
+
 /// The parts of the run every pass reads.
 struct Run<'a> {
     params: &'a Params,
@@ -218,38 +297,50 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
-    /// Slab k's samples; their splats reach `finest` (when given) at least.
+    /// Slab k's samples; their splats reach `finest` (when given) at least. The first load
+    /// prepares them from the slab's point file (Morton order, density) and keeps what it
+    /// prepared in the slab's prepared file in place of the point file; the later loads (five
+    /// more over the run) read that file, which gives the same samples bit for bit.
     fn load(
         &self,
         k: usize,
         finest: Option<u32>,
     ) -> std::result::Result<SlabSamples, OutOfCoreError> {
-        let records = read_slab(&self.files[k])?;
         let params = self.params;
-        let positions: Vec<[f64; 3]> = records.iter().map(|r| r.position).collect();
-        let normals: Vec<[f32; 3]> = records.iter().map(|r| r.normal).collect();
-        let weights: Vec<f32> = records.iter().map(|r| r.confidence).collect();
-        drop(records);
-        let mut set = PointSet::new();
-        set.extend_weighted_f64(
-            &positions,
-            &normals,
-            self.scan.weighted.then_some(weights.as_slice()),
-        )?;
-        drop((positions, normals, weights));
-        let samples = self
-            .pool
-            .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
-        drop(set);
-        let mut density = self.pool.install(|| {
-            estimate(
-                self.field,
-                &samples.positions,
-                params.depth,
-                params.samples_per_node as f64,
-                &self.watch,
-            )
-        })?;
+        let prepared_file = self.files[k].with_extension("prepared");
+        let (samples, mut density) = if prepared_file.exists() {
+            read_prepared(&prepared_file)?
+        } else {
+            let records = read_slab(&self.files[k])?;
+            let positions: Vec<[f64; 3]> = records.iter().map(|r| r.position).collect();
+            let normals: Vec<[f32; 3]> = records.iter().map(|r| r.normal).collect();
+            let weights: Vec<f32> = records.iter().map(|r| r.confidence).collect();
+            drop(records);
+            let mut set = PointSet::new();
+            set.extend_weighted_f64(
+                &positions,
+                &normals,
+                self.scan.weighted.then_some(weights.as_slice()),
+            )?;
+            drop((positions, normals, weights));
+            let samples = self
+                .pool
+                .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
+            drop(set);
+            let density = self.pool.install(|| {
+                estimate(
+                    self.field,
+                    &samples.positions,
+                    params.depth,
+                    params.samples_per_node as f64,
+                    &self.watch,
+                )
+            })?;
+            write_prepared(&prepared_file, &samples, &density)?;
+            std::fs::remove_file(&self.files[k])
+                .map_err(scratch_error("remove a slab file", &self.files[k]))?;
+            (samples, density)
+        };
         let mut at_depth = samples_by_depth(
             &mut density,
             &samples.confidence,
@@ -770,9 +861,63 @@ pub(crate) fn solve_slabs(
 
 #[cfg(test)]
 mod tests {
-    use super::{slabs_within, surface_by_column, DensityField, SlabLayout};
+    use super::{
+        read_prepared, slabs_within, surface_by_column, write_prepared, DensityField,
+        SampleDensity, Samples, SlabLayout,
+    };
     use crate::Params;
     use glam::DVec3;
+
+    /// Proves a slab's prepared samples read back bit for bit, and that a truncated file is an
+    /// error, not samples.
+    #[test]
+    fn prepared_samples_read_back_bit_for_bit() {
+        let positions = sphere(1000);
+        let samples = Samples {
+            normals: positions
+                .iter()
+                .map(|p| (*p - DVec3::splat(0.5)).normalize().as_vec3().to_array())
+                .collect(),
+            confidence: (0..1000).map(|i| f64::from(i as f32 * 0.37)).collect(),
+            positions,
+            attributes: Vec::new(),
+        };
+        let density = SampleDensity {
+            area: (0..1000).map(|i| 1.0 / (i as f64 + 3.0)).collect(),
+            depth: (0..1000)
+                .map(|i| 4.0 + (i as f64).sin().abs() * 3.1)
+                .collect(),
+            quantiles: Vec::new(),
+        };
+        let dir = std::env::temp_dir().join(format!("psr-prepared-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("slab-0.prepared");
+        write_prepared(&path, &samples, &density).unwrap();
+        let (read, read_density) = read_prepared(&path).unwrap();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let position_bits = |v: &[DVec3]| {
+            v.iter()
+                .flat_map(|p| p.to_array().map(f64::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            position_bits(&read.positions),
+            position_bits(&samples.positions)
+        );
+        let normal_bits = |v: &[[f32; 3]]| {
+            v.iter()
+                .flat_map(|n| n.map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(normal_bits(&read.normals), normal_bits(&samples.normals));
+        assert_eq!(bits(&read.confidence), bits(&samples.confidence));
+        assert_eq!(bits(&read_density.area), bits(&density.area));
+        assert_eq!(bits(&read_density.depth), bits(&density.depth));
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 8]).unwrap();
+        assert!(read_prepared(&path).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// Points on a sphere of radius 0.3 around (0.5, 0.5, 0.5) (a golden spiral).
     fn sphere(n: usize) -> Vec<DVec3> {
