@@ -1,11 +1,12 @@
 //! The passes of a reconstruction out of core, in order (`docs/out-of-core.md`, "Phases"):
 //! the input scanned, its columns counted and its points binned to slab files (`scan.rs`);
 //! then over the slabs, one in memory at a time: their samples prepared (kept for the passes
-//! after) and their own core sets up to the base depth (pass A), their own parts of the base's right-hand sides and screening groups (pass B),
-//! the base solved once, each slab's finer depths solved over its points and padding (pass C),
-//! and every slab's coefficients made its owners' where slabs overlap, with the isovalue's
-//! partial sums (pass D). What it leaves: one solution file and one file of prepared samples
-//! per slab, each slab's χ agreeing with its neighbours' near their walls, and the isovalue.
+//! after) and their own core sets up to the base depth (pass A), their own parts of the base's
+//! right-hand sides and screening groups (pass B), the base solved once, each slab's finer
+//! depths solved over its points and padding (pass C), and every slab's coefficients made its
+//! owners' where slabs overlap, with the isovalue's partial sums (pass D). What it leaves: one
+//! solution file and one file of prepared samples per slab, each slab's χ agreeing with its
+//! neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
 use super::scan::{bin, columns_and_density, scan, Input, Scan};
