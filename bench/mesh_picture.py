@@ -6,22 +6,23 @@ showcase in docs/benchmarks.md: the whole mesh and a close-up, side by side.
         --out docs/gallery/planet_200m_d11.png --title "200 M points, depth 11"
 
 Reads a binary little-endian PLY as psr writes it (float x y z, any further float vertex
-properties, faces as a uchar count and int indices, triangles only). Each vertex gets the
-area-weighted normal of its triangles; the vertices are drawn as pixels, orthographically,
-with a z-buffer (the nearest vertex per pixel) and Lambert shading. At the resolutions used
-here a mesh of millions of vertices has several vertices per pixel, so this shows the surface
-as a triangle rasteriser would, in seconds and with numpy alone. The close-up draws the
-triangles within a square window around the point of the surface nearest the viewer's centre
-line, each one painted (far to near, shaded by its own normal), so its detail is the mesh's
-own, triangle by triangle.
+properties, faces as a uchar count and int indices, triangles only) with bench/trim_render.py's
+reader. Each vertex gets the area-weighted normal of its triangles; the vertices are drawn as
+pixels, orthographically, with a z-buffer (the nearest vertex per pixel) and Lambert shading. At
+the resolutions used here a mesh of millions of vertices has several vertices per pixel, so this
+shows the surface as a triangle rasteriser would, in seconds and with numpy alone. The close-up
+draws the triangles within a square window around the point of the surface nearest the viewer's
+centre line, each one painted (far to near, shaded by its own normal), so its detail is the
+mesh's own, triangle by triangle.
 
-Needs numpy and matplotlib (bench/requirements.txt)."""
+Needs numpy (bench/requirements.txt) and matplotlib (`pip install matplotlib`)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import matplotlib
 
@@ -30,47 +31,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 
-
-def read_mesh(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (n×3 float32) and triangles (m×3 int32) of a binary PLY written by psr."""
-    with open(path, "rb") as f:
-        header = []
-        while True:
-            line = f.readline()
-            if not line:
-                raise ValueError(f"{path}: no end_header")
-            header.append(line.decode("ascii").strip())
-            if header[-1] == "end_header":
-                break
-        if "format binary_little_endian 1.0" not in header:
-            raise ValueError(f"{path}: not a binary little-endian PLY")
-        vertices = faces = 0
-        vertex_props: list[str] = []
-        element = None
-        for line in header:
-            words = line.split()
-            if words[:1] == ["element"]:
-                element = words[1]
-                if element == "vertex":
-                    vertices = int(words[2])
-                elif element == "face":
-                    faces = int(words[2])
-            elif words[:1] == ["property"] and element == "vertex":
-                if words[1] != "float":
-                    raise ValueError(f"{path}: vertex property {line!r} is not float")
-                vertex_props.append(words[2])
-            elif words[:1] == ["property"] and element == "face":
-                if words[1:4] != ["list", "uchar", "int"]:
-                    raise ValueError(f"{path}: faces are not a uchar-int list: {line!r}")
-        if vertex_props[:3] != ["x", "y", "z"]:
-            raise ValueError(f"{path}: the first vertex properties are not x y z")
-        v = np.fromfile(f, dtype=np.float32, count=vertices * len(vertex_props))
-        v = v.reshape(vertices, len(vertex_props))[:, :3].copy()
-        record = np.dtype([("n", "u1"), ("v", "<i4", (3,))])
-        t = np.fromfile(f, dtype=record, count=faces)
-        if t.shape[0] != faces or np.any(t["n"] != 3):
-            raise ValueError(f"{path}: truncated, or faces that are not triangles")
-        return v, t["v"].copy()
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from trim_render import read_ply  # noqa: E402
 
 
 def vertex_normals(v: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -165,7 +127,7 @@ def main() -> int:
     args = parser.parse_args()
 
     started = time.time()
-    v, t = read_mesh(args.mesh)
+    v, t = read_ply(args.mesh)
     print(f"{args.mesh}: {v.shape[0]:,} vertices, {t.shape[0]:,} triangles", file=sys.stderr)
     n = vertex_normals(v, t)
     rot = rotation(*args.view)

@@ -5,9 +5,9 @@ vertices, with numpy alone (a 30-million-triangle mesh in a few minutes and abou
 
     python3 bench/mesh_topology.py planet_200m_d11.ply [more.ply ...]
 
-Reads binary little-endian PLYs as psr writes them (see bench/mesh_picture.py, whose reader it
-uses). Prints per mesh: V, E, F, V − E + F, the edges with one triangle (open), with more than
-two (non-manifold), the directed edges used twice (two triangles disagreeing in orientation
+Reads binary little-endian PLYs as psr writes them (with bench/trim_render.py's reader).
+Prints per mesh: V, E, F, V − E + F, the edges with one triangle (open), with more than two
+(non-manifold), the directed edges used twice (two triangles disagreeing in orientation
 across an edge, or a fold), and the vertices at the same position as another.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mesh_picture import read_mesh  # noqa: E402
+from trim_render import read_ply  # noqa: E402
 
 
 def topology(vertices: np.ndarray, triangles: np.ndarray) -> dict[str, int]:
@@ -55,7 +55,7 @@ def main() -> int:
         print(__doc__, file=sys.stderr)
         return 2
     for path in sys.argv[1:]:
-        figures = topology(*read_mesh(path))
+        figures = topology(*read_ply(path))
         closed = (
             figures["open edges"] == 0
             and figures["non-manifold edges"] == 0
