@@ -312,35 +312,7 @@ impl Run<'_> {
         let (samples, mut density) = if prepared_file.exists() {
             read_prepared(&prepared_file)?
         } else {
-            let records = read_slab(&self.files[k])?;
-            let positions: Vec<[f64; 3]> = records.iter().map(|r| r.position).collect();
-            let normals: Vec<[f32; 3]> = records.iter().map(|r| r.normal).collect();
-            let weights: Vec<f32> = records.iter().map(|r| r.confidence).collect();
-            drop(records);
-            let mut set = PointSet::new();
-            set.extend_weighted_f64(
-                &positions,
-                &normals,
-                self.scan.weighted.then_some(weights.as_slice()),
-            )?;
-            drop((positions, normals, weights));
-            let samples = self
-                .pool
-                .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
-            drop(set);
-            let density = self.pool.install(|| {
-                estimate(
-                    self.field,
-                    &samples.positions,
-                    params.depth,
-                    params.samples_per_node as f64,
-                    &self.watch,
-                )
-            })?;
-            write_prepared(&prepared_file, &samples, &density)?;
-            std::fs::remove_file(&self.files[k])
-                .map_err(scratch_error("remove a slab file", &self.files[k]))?;
-            (samples, density)
+            self.prepare(k, &prepared_file)?
         };
         let mut at_depth = samples_by_depth(
             &mut density,
@@ -364,6 +336,45 @@ impl Run<'_> {
             at_depth,
             owned,
         })
+    }
+
+    /// Slab k's samples prepared from its point file (Morton order, density), kept in
+    /// `keep_in` for the later loads and the point file removed.
+    fn prepare(
+        &self,
+        k: usize,
+        keep_in: &Path,
+    ) -> std::result::Result<(Samples, SampleDensity), OutOfCoreError> {
+        let params = self.params;
+        let records = read_slab(&self.files[k])?;
+        let positions: Vec<[f64; 3]> = records.iter().map(|r| r.position).collect();
+        let normals: Vec<[f32; 3]> = records.iter().map(|r| r.normal).collect();
+        let weights: Vec<f32> = records.iter().map(|r| r.confidence).collect();
+        drop(records);
+        let mut set = PointSet::new();
+        set.extend_weighted_f64(
+            &positions,
+            &normals,
+            self.scan.weighted.then_some(weights.as_slice()),
+        )?;
+        drop((positions, normals, weights));
+        let samples = self
+            .pool
+            .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
+        drop(set);
+        let density = self.pool.install(|| {
+            estimate(
+                self.field,
+                &samples.positions,
+                params.depth,
+                params.samples_per_node as f64,
+                &self.watch,
+            )
+        })?;
+        write_prepared(keep_in, &samples, &density)?;
+        std::fs::remove_file(&self.files[k])
+            .map_err(scratch_error("remove a slab file", &self.files[k]))?;
+        Ok((samples, density))
     }
 
     /// The core sets of the samples `at_depth` of `slab` (every depth).
