@@ -66,6 +66,7 @@ pub use normals::{
     NormalEstimation, Orientation,
 };
 pub use outofcore::run::{OutOfCore, OutOfCoreReport};
+pub use outofcore::team::{Alone, Team};
 pub use outofcore::OutOfCoreError;
 pub use params::{Boundary, Params, Splatting, VertexPlacement};
 pub use pipeline::{Progress, Stage};
@@ -147,7 +148,28 @@ pub fn reconstruct_out_of_core_with_progress(
     options: &OutOfCore,
     progress: Progress<'_>,
 ) -> std::result::Result<OutOfCoreReport, OutOfCoreError> {
-    outofcore::run::run(input, output, params, options, progress)
+    outofcore::run::run(input, output, params, options, &Alone, progress)
+}
+
+/// [`reconstruct_out_of_core_with_progress`] run by every member of `team` (the ranks of an
+/// MPI job: the program `psr-mpi`, built with the `mpi` feature of psr-cli), each with the
+/// same arguments: in every pass each member does its own slabs (slab k is rank k mod N's),
+/// the sums over slabs are gathered and added in slab order on every member, and rank 0
+/// writes `output`. The mesh is the one [`reconstruct_out_of_core`] writes with the same
+/// parameters and slabs, bit for bit, whatever the team's size; the slabs are at least as many
+/// as the members. The members share the temporary directory ([`OutOfCore::temp_dir`] must
+/// name one every member sees), and each holds one slab at a time, so a member's peak memory
+/// is that of one slab. Every member returns the same report, or an error: its own, or
+/// [`OutOfCoreError::Member`] naming the member that failed.
+pub fn reconstruct_out_of_core_in_team(
+    input: &std::path::Path,
+    output: &std::path::Path,
+    params: &Params,
+    options: &OutOfCore,
+    team: &dyn Team,
+    progress: Progress<'_>,
+) -> std::result::Result<OutOfCoreReport, OutOfCoreError> {
+    outofcore::run::run(input, output, params, options, team, progress)
 }
 
 /// The memory a reconstruction of `points` with `params` is estimated to need at its peak, in

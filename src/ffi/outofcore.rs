@@ -125,6 +125,10 @@ pub unsafe extern "C" fn psr_reconstructor_solve_file_out_of_core(
             e @ (OutOfCoreError::Scratch { .. } | OutOfCoreError::Output { .. }) => {
                 Failure::new(psr_status::IoError, format!("{F}: {e}"))
             }
+            // (A run from C is a team of one: no other member to fail.)
+            e @ OutOfCoreError::Member { .. } => {
+                Failure::new(psr_status::InternalError, format!("{F}: {e}"))
+            }
         })?;
         if !report.is_null() {
             let out = psr_out_of_core_report {

@@ -25,6 +25,7 @@ pub(crate) mod scan;
 pub(crate) mod scratch;
 pub(crate) mod seams;
 pub(crate) mod slabs;
+pub(crate) mod team;
 
 use crate::ply::PlyError;
 use crate::Error;
@@ -57,6 +58,13 @@ pub enum OutOfCoreError {
         /// the operating system's error
         source: io::Error,
     },
+    /// Another member of the team ([`team::Team`]) failed; every other member ends with this.
+    Member {
+        /// the failed member's rank
+        rank: usize,
+        /// its error
+        message: String,
+    },
 }
 
 impl fmt::Display for OutOfCoreError {
@@ -81,6 +89,7 @@ impl fmt::Display for OutOfCoreError {
                     path.display()
                 )
             }
+            OutOfCoreError::Member { rank, message } => write!(f, "rank {rank} failed: {message}"),
         }
     }
 }
@@ -93,6 +102,7 @@ impl std::error::Error for OutOfCoreError {
             OutOfCoreError::Scratch { source, .. } | OutOfCoreError::Output { source, .. } => {
                 Some(source)
             }
+            OutOfCoreError::Member { .. } => None,
         }
     }
 }

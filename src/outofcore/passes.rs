@@ -12,6 +12,7 @@ use super::base::{coarse_cores, merge_groups, BaseParts};
 use super::scan::{bin, columns_and_density, scan, Input, Scan};
 use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
+use super::team::{agreed, from_first, gather, meet, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::density::{estimate, samples_by_depth, DensityField, DepthSample, SampleDensity};
 use crate::evaluate::Indicator;
@@ -529,56 +530,83 @@ struct Cut {
 
 /// Counts the columns of depth `base_depth` + 2, cuts them into slabs (as `plan` says), bins
 /// the points, and runs pass A: each slab's own core sets up to the base depth, the finest
-/// depth, the screening totals.
+/// depth, the screening totals. Every member of `team` counts the columns itself (the same
+/// count from the same file) and bins and prepares its own slabs.
+#[allow(clippy::too_many_arguments)]
 fn cut(
     input: &Input<'_>,
     scan: &Scan,
     params: &Params,
     plan: &Plan,
     base_depth: u32,
+    team: &dyn Team,
     pool: &rayon::ThreadPool,
     keep_going: &mut dyn FnMut(&str, f32) -> bool,
 ) -> std::result::Result<Cut, OutOfCoreError> {
     let count = scan.count as f32;
     let wall_depth = base_depth + 2;
-    let (counts, kernel_counts) = columns_and_density(
-        input,
-        &scan.map,
-        wall_depth,
-        params.effective_kernel_depth(),
-        &mut |done| keep_going("columns", done as f32 / count),
+    let counted = (|| {
+        let (counts, kernel_counts) = columns_and_density(
+            input,
+            &scan.map,
+            wall_depth,
+            params.effective_kernel_depth(),
+            &mut |done| keep_going("columns", done as f32 / count),
+        )?;
+        let field = kernel_counts.into_field();
+        let shared = crate::memory::density_bytes(field.slots() as u64);
+        let slabs = match plan.slabs {
+            SlabCount::Exactly(n) => n,
+            SlabCount::Within(budget) => {
+                let surface = surface_by_column(&field, wall_depth);
+                let layout_of =
+                    |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
+                slabs_within(
+                    budget,
+                    &counts,
+                    &surface,
+                    field.depth,
+                    layout_of,
+                    base_depth,
+                    params,
+                    shared,
+                )
+                .map_err(|enough| crate::Error::OutOfMemory {
+                    what: "the largest slab a cut of the cloud can make, with its padding",
+                    needed: enough,
+                    limit: Some(budget),
+                    enough: Some(enough),
+                })?
+            }
+        };
+        // Every member has a slab to do (when the points fill enough columns).
+        let slabs = slabs.max(team.size());
+        let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
+        Ok((field, layout))
+    })();
+    let (field, layout) = agreed(team, counted)?;
+    let scratch = from_first(
+        team,
+        || Scratch::create(plan.temp_dir.as_deref()),
+        |scratch, p| p.bytes(scratch.path().as_os_str().as_encoded_bytes()),
+        |u| {
+            let bytes = u.bytes()?;
+            // SAFETY: the bytes are those of an `OsStr` of rank 0 on the same platform, as
+            // `as_encoded_bytes` gave them (the members run the same program).
+            let dir = unsafe { std::ffi::OsStr::from_encoded_bytes_unchecked(bytes) };
+            Ok(Scratch::join(dir.into()))
+        },
     )?;
-    let field = kernel_counts.into_field();
-    let shared = crate::memory::density_bytes(field.slots() as u64);
-    let slabs = match plan.slabs {
-        SlabCount::Exactly(n) => n,
-        SlabCount::Within(budget) => {
-            let surface = surface_by_column(&field, wall_depth);
-            let layout_of =
-                |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
-            slabs_within(
-                budget,
-                &counts,
-                &surface,
-                field.depth,
-                layout_of,
-                base_depth,
-                params,
-                shared,
-            )
-            .map_err(|enough| crate::Error::OutOfMemory {
-                what: "the largest slab a cut of the cloud can make, with its padding",
-                needed: enough,
-                limit: Some(budget),
-                enough: Some(enough),
-            })?
-        }
-    };
-    let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
-    let scratch = Scratch::create(plan.temp_dir.as_deref())?;
-    let files = bin(input, scan, &layout, &scratch, &mut |done| {
-        keep_going("bin", done as f32 / count)
-    })?;
+    let members = team.size();
+    let binned = bin(
+        input,
+        scan,
+        &layout,
+        &scratch,
+        &|k| k % members == team.rank(),
+        &mut |done| keep_going("bin", done as f32 / count),
+    );
+    let files = agreed(team, binned)?;
     let run = Run {
         params,
         scan,
@@ -592,22 +620,47 @@ fn cut(
     let mut own_cores: Vec<Vec<Vec<u64>>> = Vec::with_capacity(slabs);
     let mut finest = 0u32;
     let (mut total_area, mut total_confidence) = (0.0f64, 0.0f64);
-    for k in 0..slabs {
-        if !keep_going("base", k as f32 / (2 * slabs + 1) as f32) {
-            return Err(OutOfCoreError::Reconstruction(crate::Error::Cancelled));
-        }
-        let slab = run.load(k, None)?;
-        finest = finest.max(slab.at_depth.len() as u32 - 1);
-        for (s, owned) in slab.owned.iter().enumerate() {
-            if *owned {
-                total_area += slab.area[s] * slab.samples.confidence[s];
-                total_confidence += slab.samples.confidence[s];
+    rounds(
+        team,
+        slabs,
+        |k| {
+            if !keep_going("base", k as f32 / (2 * slabs + 1) as f32) {
+                return Err(OutOfCoreError::Reconstruction(crate::Error::Cancelled));
             }
-        }
-        let mut cores = run.cores(&slab, &slab.own_at_depth())?;
-        cores.truncate(base_depth as usize + 1);
-        own_cores.push(cores);
-    }
+            let slab = run.load(k, None)?;
+            let (mut area, mut confidence) = (0.0f64, 0.0f64);
+            for (s, owned) in slab.owned.iter().enumerate() {
+                if *owned {
+                    area += slab.area[s] * slab.samples.confidence[s];
+                    confidence += slab.samples.confidence[s];
+                }
+            }
+            let mut cores = run.cores(&slab, &slab.own_at_depth())?;
+            cores.truncate(base_depth as usize + 1);
+            let mut p = Packer::default();
+            p.u64(slab.at_depth.len() as u64 - 1);
+            p.f64(area);
+            p.f64(confidence);
+            p.u64(cores.len() as u64);
+            for keys in &cores {
+                p.u64s(keys);
+            }
+            Ok(p.bytes)
+        },
+        |_, bytes| {
+            let mut u = Unpacker::new(bytes);
+            finest = finest.max(u.u64()? as u32);
+            total_area += u.f64()?;
+            total_confidence += u.f64()?;
+            let depths = u.u64()?;
+            own_cores.push(
+                (0..depths)
+                    .map(|_| u.u64s())
+                    .collect::<std::result::Result<_, _>>()?,
+            );
+            Ok(())
+        },
+    )?;
     Ok(Cut {
         layout,
         scratch,
@@ -621,11 +674,13 @@ fn cut(
 }
 
 /// Runs the passes on the PLY file at `path` (oriented points) with `params`, cut as `plan`
-/// says. `keep_going(pass, fraction)` is asked between chunks and slabs; false cancels.
+/// says, each member of `team` doing its own slabs. `keep_going(pass, fraction)` is asked
+/// between chunks and slabs; false cancels.
 pub(crate) fn solve_slabs(
     path: &Path,
     params: &Params,
     plan: &Plan,
+    team: &dyn Team,
     pool: &rayon::ThreadPool,
     keep_going: &mut dyn FnMut(&str, f32) -> bool,
 ) -> std::result::Result<SolvedSlabs, OutOfCoreError> {
@@ -636,9 +691,20 @@ pub(crate) fn solve_slabs(
         chunk: plan.chunk,
         confidence: plan.confidence,
     };
-    let scan = scan(&input, params.scale as f64, &mut |_| {
+    // Every member scans the input itself; they agree on what they read.
+    let scanned = scan(&input, params.scale as f64, &mut |_| {
         keep_going("scan", 0.0)
-    })?;
+    });
+    let scan = agreed(team, scanned)?;
+    let counts = gather(team, Ok(scan.count.to_le_bytes().to_vec()))?;
+    if counts.iter().any(|c| c[..] != counts[0][..]) {
+        return Err(crate::Error::InvalidParameter {
+            name: "input",
+            value: path.display().to_string(),
+            expected: "the same file for every member of the team (they read different points)",
+        }
+        .into());
+    }
     let params = params.for_cube(scan.map.size);
     let full_depth = params.effective_full_depth();
     // The base holds the complete depths (a complete depth spans the cube, far from any slab)
@@ -674,7 +740,9 @@ pub(crate) fn solve_slabs(
     };
     // The cut and pass A; cut again with a lower base when the samples do not reach two
     // depths above it (a sparse cloud at a depth its samples do not resolve).
-    let mut cut = cut(&input, &scan, &params, plan, base_depth, pool, keep_going)?;
+    let mut cut = cut(
+        &input, &scan, &params, plan, base_depth, team, pool, keep_going,
+    )?;
     if cut.finest < base_depth + 2 {
         let lowest = cut.finest.saturating_sub(2);
         if plan.base_depth.is_some() || lowest < full_depth {
@@ -686,8 +754,12 @@ pub(crate) fn solve_slabs(
             ));
         }
         base_depth = lowest;
+        // Every member is done with the first cut's files before rank 0 removes them.
+        meet(team, Ok(()))?;
         drop(cut);
-        cut = self::cut(&input, &scan, &params, plan, base_depth, pool, keep_going)?;
+        cut = self::cut(
+            &input, &scan, &params, plan, base_depth, team, pool, keep_going,
+        )?;
     }
     let Cut {
         layout,
@@ -716,143 +788,192 @@ pub(crate) fn solve_slabs(
     // Pass B: each slab's own ρ and V up to B and its own screening groups, summed.
     let mut sums = BaseParts::default();
     let mut groups: Vec<Vec<Vec<ProxyGroup>>> = vec![Vec::new(); b + 1];
-    for k in 0..slabs {
-        if !keep_going("base", (slabs + k) as f32 / (2 * slabs + 1) as f32) {
-            return Err(cancelled());
-        }
-        let slab = run.load(k, Some(finest))?;
-        let own = slab.own_at_depth();
-        let tree = run.slab_tree(&base_cores, run.cores(&slab, &own)?)?;
-        let (rho, field_v) = run.right_hand_sides(&tree, &slab, &own)?;
-        sums.add(&rho, &field_v, b);
-        let (positions, confidence): (Vec<_>, Vec<_>) = slab
-            .samples
-            .positions
-            .iter()
-            .zip(&slab.samples.confidence)
-            .zip(&slab.owned)
-            .filter(|(_, owned)| **owned)
-            .map(|((p, c), _)| (*p, *c))
-            .unzip();
-        let weights = sample_weights_from_totals(&confidence, total_area, total_confidence);
-        for (d, per_slab) in groups.iter_mut().enumerate() {
-            per_slab.push(sample_groups(
-                &positions,
-                &weights,
-                proxy_depth(d as u32, finest),
-            ));
-        }
-    }
-    let groups: Vec<Vec<ProxyGroup>> = groups
-        .iter()
-        .map(|per_slab| merge_groups(per_slab.iter().map(|g| g.as_slice())))
-        .collect();
-    let base_tree = run.slab_tree(&base_cores, Vec::new())?;
-    let base = run.solve(
-        &base_tree,
-        sums.rho,
-        sums.field_v,
-        Screening::Groups(&groups),
-        Depths::Base { last: b, finest },
-        &mut |f| keep_going("base", ((2 * slabs) as f32 + f) / (2 * slabs + 1) as f32),
+    rounds(
+        team,
+        slabs,
+        |k| {
+            if !keep_going("base", (slabs + k) as f32 / (2 * slabs + 1) as f32) {
+                return Err(cancelled());
+            }
+            let slab = run.load(k, Some(finest))?;
+            let own = slab.own_at_depth();
+            let tree = run.slab_tree(&base_cores, run.cores(&slab, &own)?)?;
+            let (rho, field_v) = run.right_hand_sides(&tree, &slab, &own)?;
+            let (positions, confidence): (Vec<_>, Vec<_>) = slab
+                .samples
+                .positions
+                .iter()
+                .zip(&slab.samples.confidence)
+                .zip(&slab.owned)
+                .filter(|(_, owned)| **owned)
+                .map(|((p, c), _)| (*p, *c))
+                .unzip();
+            let weights = sample_weights_from_totals(&confidence, total_area, total_confidence);
+            let mut p = Packer::default();
+            for d in 0..=b {
+                p.f64s(&rho[d]);
+                for axis in &field_v[d] {
+                    p.f64s(axis);
+                }
+                let cells = sample_groups(&positions, &weights, proxy_depth(d as u32, finest));
+                pack_groups(&mut p, &cells);
+            }
+            Ok(p.bytes)
+        },
+        |_, bytes| {
+            let mut u = Unpacker::new(bytes);
+            let (mut rho, mut field_v) = (Vec::with_capacity(b + 1), Vec::with_capacity(b + 1));
+            for per_slab in groups.iter_mut() {
+                rho.push(u.f64s()?);
+                field_v.push([u.f64s()?, u.f64s()?, u.f64s()?]);
+                per_slab.push(unpack_groups(&mut u)?);
+            }
+            sums.add(&rho, &field_v, b);
+            Ok(())
+        },
     )?;
-    drop((base_tree, groups));
+    // The base, solved by every member (it is small beside a slab).
+    let solved_base = (|| {
+        let groups: Vec<Vec<ProxyGroup>> = groups
+            .iter()
+            .map(|per_slab| merge_groups(per_slab.iter().map(|g| g.as_slice())))
+            .collect();
+        let base_tree = run.slab_tree(&base_cores, Vec::new())?;
+        Ok(run.solve(
+            &base_tree,
+            std::mem::take(&mut sums.rho),
+            std::mem::take(&mut sums.field_v),
+            Screening::Groups(&groups),
+            Depths::Base { last: b, finest },
+            &mut |f| keep_going("base", ((2 * slabs) as f32 + f) / (2 * slabs + 1) as f32),
+        )?)
+    })();
+    drop(groups);
+    let base = agreed(team, solved_base)?;
 
     // Pass C: each slab's depths above B over its points and padding.
-    for k in 0..slabs {
-        if !keep_going("slabs", k as f32 / slabs as f32) {
-            return Err(cancelled());
-        }
-        let slab = run.load(k, Some(finest))?;
-        let cores = run.cores(&slab, &slab.at_depth)?;
-        let tree = run.slab_tree(&base_cores, cores.clone())?;
-        let (rho, field_v) = run.right_hand_sides(&tree, &slab, &slab.at_depth)?;
-        let weights =
-            sample_weights_from_totals(&slab.samples.confidence, total_area, total_confidence);
-        let solved = run.solve(
-            &tree,
-            rho,
-            field_v,
-            Screening::Samples(&slab.samples.positions, &weights),
-            Depths::Above(Solved {
-                coefficients: base.coefficients.clone(),
-                field_v: base.field_v.clone(),
-            }),
-            &mut |f| keep_going("slabs", (k as f32 + f) / slabs as f32),
-        )?;
-        let [cores_file, coefficients_file] = solution_files(&scratch, k);
-        write_lists(&cores_file, &cores[b + 1..])?;
-        write_lists(&coefficients_file, &solved.coefficients)?;
-    }
+    rounds(
+        team,
+        slabs,
+        |k| {
+            if !keep_going("slabs", k as f32 / slabs as f32) {
+                return Err(cancelled());
+            }
+            let slab = run.load(k, Some(finest))?;
+            let cores = run.cores(&slab, &slab.at_depth)?;
+            let tree = run.slab_tree(&base_cores, cores.clone())?;
+            let (rho, field_v) = run.right_hand_sides(&tree, &slab, &slab.at_depth)?;
+            let weights =
+                sample_weights_from_totals(&slab.samples.confidence, total_area, total_confidence);
+            let solved = run.solve(
+                &tree,
+                rho,
+                field_v,
+                Screening::Samples(&slab.samples.positions, &weights),
+                Depths::Above(Solved {
+                    coefficients: base.coefficients.clone(),
+                    field_v: base.field_v.clone(),
+                }),
+                &mut |f| keep_going("slabs", (k as f32 + f) / slabs as f32),
+            )?;
+            let [cores_file, coefficients_file] = solution_files(&scratch, k);
+            write_lists(&cores_file, &cores[b + 1..])?;
+            write_lists(&coefficients_file, &solved.coefficients)?;
+            Ok(Vec::new())
+        },
+        |_, _| Ok(()),
+    )?;
 
     // Pass D: every node's coefficient its owner's (so neighbours evaluate one χ near their
-    // walls), and the isovalue's partial sums over each slab's own samples. One neighbour's
-    // solution in memory at a time beside the slab's.
+    // walls), and the isovalue's partial sums over each slab's own samples, added in slab
+    // order. One neighbour's solution in memory at a time beside the slab's.
     let (mut weighted_sum, mut weight_sum) = (0.0f64, 0.0f64);
-    for k in 0..slabs {
-        if !keep_going("seams", k as f32 / slabs as f32) {
-            return Err(cancelled());
-        }
-        let mut chi = load_solution_in(&scratch, k, &base_cores, &params, pool)?;
-        // The slabs whose own columns k's padding reaches.
-        let padded = layout.padded(k);
-        let readers =
-            layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1;
-        for j in readers.filter(|&j| j != k) {
-            let owner = load_solution_in(&scratch, j, &base_cores, &params, pool)?;
-            for d in b + 1..chi.tree.levels.len() {
-                let (Some(level), Some(theirs)) =
-                    (chi.tree.levels.get(d), owner.tree.levels.get(d))
-                else {
-                    continue;
-                };
-                for i in 0..level.len() {
-                    let coord = level.coord(i as u32);
-                    // (A node whose owner is beyond the padding is too far from the walls to
-                    // reach a point near them: it keeps the slab's value.)
-                    if owner_of(&layout, d as u32, coord[0]) == Some(j) {
-                        if let Some(o) = theirs.find(coord) {
-                            chi.coefficients[d][i] = owner.coefficients[d][o as usize];
+    rounds(
+        team,
+        slabs,
+        |k| {
+            if !keep_going("seams", k as f32 / slabs as f32) {
+                return Err(cancelled());
+            }
+            let mut chi = load_solution_in(&scratch, k, &base_cores, &params, pool)?;
+            // The slabs whose own columns k's padding reaches.
+            let padded = layout.padded(k);
+            let readers =
+                layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1;
+            for j in readers.filter(|&j| j != k) {
+                let owner = load_solution_in(&scratch, j, &base_cores, &params, pool)?;
+                for d in b + 1..chi.tree.levels.len() {
+                    let (Some(level), Some(theirs)) =
+                        (chi.tree.levels.get(d), owner.tree.levels.get(d))
+                    else {
+                        continue;
+                    };
+                    for i in 0..level.len() {
+                        let coord = level.coord(i as u32);
+                        // (A node whose owner is beyond the padding is too far from the walls
+                        // to reach a point near them: it keeps the slab's value.)
+                        if owner_of(&layout, d as u32, coord[0]) == Some(j) {
+                            if let Some(o) = theirs.find(coord) {
+                                chi.coefficients[d][i] = owner.coefficients[d][o as usize];
+                            }
                         }
                     }
                 }
             }
-        }
-        let slab = run.load(k, Some(finest))?;
-        let values: Vec<f64> = pool.install(|| {
-            use rayon::prelude::*;
-            slab.samples
-                .positions
-                .par_iter()
-                .zip(&slab.owned)
-                .map(|(p, owned)| if *owned { chi.value(*p) } else { 0.0 })
-                .collect()
-        });
-        for (s, value) in values.iter().enumerate() {
-            if slab.owned[s] {
-                let w = slab.area[s] * slab.samples.confidence[s];
-                weighted_sum += w * value;
-                weight_sum += w;
+            let slab = run.load(k, Some(finest))?;
+            let values: Vec<f64> = pool.install(|| {
+                use rayon::prelude::*;
+                slab.samples
+                    .positions
+                    .par_iter()
+                    .zip(&slab.owned)
+                    .map(|(p, owned)| if *owned { chi.value(*p) } else { 0.0 })
+                    .collect()
+            });
+            let (mut weighted, mut weight) = (0.0f64, 0.0f64);
+            for (s, value) in values.iter().enumerate() {
+                if slab.owned[s] {
+                    let w = slab.area[s] * slab.samples.confidence[s];
+                    weighted += w * value;
+                    weight += w;
+                }
             }
-        }
-        // Written beside the slab's own solution: the neighbours still read the original.
-        write_lists(
-            &scratch.file(&format!("slab-{k}.seamed")),
-            &chi.coefficients,
-        )?;
-    }
-    for k in 0..slabs {
-        let [_, coefficients_file] = solution_files(&scratch, k);
-        std::fs::rename(
-            scratch.file(&format!("slab-{k}.seamed")),
-            &coefficients_file,
-        )
-        .map_err(|source| OutOfCoreError::Scratch {
-            action: "rename a slab's solution",
-            path: coefficients_file,
-            source,
-        })?;
-    }
+            // Written beside the slab's own solution: the neighbours still read the original.
+            write_lists(
+                &scratch.file(&format!("slab-{k}.seamed")),
+                &chi.coefficients,
+            )?;
+            let mut p = Packer::default();
+            p.f64(weighted);
+            p.f64(weight);
+            Ok(p.bytes)
+        },
+        |_, bytes| {
+            let mut u = Unpacker::new(bytes);
+            weighted_sum += u.f64()?;
+            weight_sum += u.f64()?;
+            Ok(())
+        },
+    )?;
+    // Every slab's seamed solution in place of its own, once every neighbour has read it.
+    rounds(
+        team,
+        slabs,
+        |k| {
+            let [_, coefficients_file] = solution_files(&scratch, k);
+            std::fs::rename(
+                scratch.file(&format!("slab-{k}.seamed")),
+                &coefficients_file,
+            )
+            .map_err(|source| OutOfCoreError::Scratch {
+                action: "rename a slab's solution",
+                path: coefficients_file,
+                source,
+            })?;
+            Ok(Vec::new())
+        },
+        |_, _| Ok(()),
+    )?;
     let isovalue = if weight_sum > 0.0 {
         weighted_sum / weight_sum
     } else {
@@ -869,6 +990,36 @@ pub(crate) fn solve_slabs(
         finest,
         isovalue,
     })
+}
+
+/// One slab's screening groups of one depth into `p`.
+fn pack_groups(p: &mut Packer, groups: &[ProxyGroup]) {
+    p.u64(groups.len() as u64);
+    for (cell, sum_p, sum_w) in groups {
+        for c in cell {
+            p.u64(*c as u32 as u64);
+        }
+        for v in sum_p.to_array() {
+            p.f64(v);
+        }
+        p.f64(*sum_w);
+    }
+}
+
+/// What [`pack_groups`] packed.
+fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, OutOfCoreError> {
+    let n = u.u64()?;
+    (0..n)
+        .map(|_| {
+            let cell = [
+                u.u64()? as u32 as i32,
+                u.u64()? as u32 as i32,
+                u.u64()? as u32 as i32,
+            ];
+            let sum_p = glam::DVec3::new(u.f64()?, u.f64()?, u.f64()?);
+            Ok((cell, sum_p, u.f64()?))
+        })
+        .collect()
 }
 
 #[cfg(test)]

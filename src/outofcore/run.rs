@@ -3,8 +3,9 @@
 //! and the PLY (`assemble.rs`).
 
 use super::assemble::{self, Pieces};
-use super::passes::{load_solution, solve_slabs, Plan, SlabCount};
+use super::passes::{load_solution, solve_slabs, Plan, SlabCount, SolvedSlabs};
 use super::seams::{margin, slab_part, SlabPart};
+use super::team::{from_first, rounds, Team};
 use super::OutOfCoreError;
 use crate::grid::cell_of;
 use crate::parallel::Watch;
@@ -89,11 +90,14 @@ pub struct OutOfCoreReport {
     pub seconds: f64,
 }
 
+/// The run of one member of `team` (every member calls it with the same arguments; rank 0
+/// writes the mesh, and every member returns its report).
 pub(crate) fn run(
     input: &Path,
     output: &Path,
     params: &Params,
     options: &OutOfCore,
+    team: &dyn Team,
     progress: Progress<'_>,
 ) -> Result<OutOfCoreReport, OutOfCoreError> {
     let started = Instant::now();
@@ -138,7 +142,7 @@ pub(crate) fn run(
         temp_dir: options.temp_dir.clone(),
     };
     let mut go_on = |stage: Stage, fraction: f32| progress(stage, fraction);
-    let solved = solve_slabs(input, params, &plan, pool, &mut |pass, fraction| {
+    let solved = solve_slabs(input, params, &plan, team, pool, &mut |pass, fraction| {
         let stage = match pass {
             "scan" | "columns" | "bin" => Stage::Points,
             "base" => Stage::System,
@@ -157,41 +161,94 @@ pub(crate) fn run(
 
     // Each slab's part of the mesh, saved for the passes below.
     let to_finest = finest - layout.wall_depth;
-    for k in 0..slabs {
-        if !go_on(Stage::Extract, k as f32 / (slabs as f32 * 2.0)) {
-            return Err(cancelled());
-        }
-        let chi = load_solution(&solved, k, pool)?;
-        let samples = solved.slab_samples(k, pool)?;
-        let inv_h = (finest as f64).exp2();
-        let seeds: Vec<[i64; 3]> = samples
-            .samples
-            .positions
-            .iter()
-            .map(|&p| cell_of(p, inv_h).map(i64::from))
-            .collect();
-        drop(samples);
-        let owned_columns = layout.owned(k);
-        let owned =
-            (owned_columns.start as i64) << to_finest..(owned_columns.end as i64) << to_finest;
-        let reach = margin(&chi.tree, &owned, fitted);
-        let traced = owned.start - reach..owned.end + reach;
-        let part = pool.install(|| {
-            slab_part(
-                &chi,
-                solved.isovalue,
-                seeds,
-                owned,
-                traced,
-                !fitted,
-                fitted,
-                &watch,
-            )
-        })?;
-        assemble::save_part(&part, &solved.scratch, k)?;
-    }
+    rounds(
+        team,
+        slabs,
+        |k| {
+            if !go_on(Stage::Extract, k as f32 / (slabs as f32 * 2.0)) {
+                return Err(cancelled());
+            }
+            let chi = load_solution(&solved, k, pool)?;
+            let samples = solved.slab_samples(k, pool)?;
+            let inv_h = (finest as f64).exp2();
+            let seeds: Vec<[i64; 3]> = samples
+                .samples
+                .positions
+                .iter()
+                .map(|&p| cell_of(p, inv_h).map(i64::from))
+                .collect();
+            drop(samples);
+            let owned_columns = layout.owned(k);
+            let owned =
+                (owned_columns.start as i64) << to_finest..(owned_columns.end as i64) << to_finest;
+            let reach = margin(&chi.tree, &owned, fitted);
+            let traced = owned.start - reach..owned.end + reach;
+            let part = pool.install(|| {
+                slab_part(
+                    &chi,
+                    solved.isovalue,
+                    seeds,
+                    owned,
+                    traced,
+                    !fitted,
+                    fitted,
+                    &watch,
+                )
+            })?;
+            assemble::save_part(&part, &solved.scratch, k)?;
+            Ok(Vec::new())
+        },
+        |_, _| Ok(()),
+    )?;
 
-    // The pieces across walls, their support, and the PLY.
+    // The pieces across walls, their support, and the PLY, by rank 0.
+    let assembled = from_first(
+        team,
+        || assemble_mesh(&solved, output, pool, &mut go_on),
+        |written, p| {
+            p.u64(written.vertices);
+            p.u64(written.triangles);
+            p.u64(written.unsupported_components as u64);
+        },
+        |u| {
+            Ok(Written {
+                vertices: u.u64()?,
+                triangles: u.u64()?,
+                unsupported_components: u.u64()? as usize,
+            })
+        },
+    )?;
+    Ok(OutOfCoreReport {
+        points: solved.scan.count,
+        slabs,
+        depth: params.depth,
+        vertices: assembled.vertices,
+        triangles: assembled.triangles,
+        unsupported_components: assembled.unsupported_components,
+        isovalue: solved.isovalue,
+        attributes_dropped: solved.scan.has_attributes,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// What [`assemble_mesh`] wrote.
+struct Written {
+    vertices: u64,
+    triangles: u64,
+    unsupported_components: usize,
+}
+
+/// The slabs' parts joined into pieces across walls, the pieces no sample supports left out,
+/// and the rest written to `output`.
+fn assemble_mesh(
+    solved: &SolvedSlabs,
+    output: &Path,
+    pool: &rayon::ThreadPool,
+    go_on: &mut dyn FnMut(Stage, f32) -> bool,
+) -> Result<Written, OutOfCoreError> {
+    let cancelled = || OutOfCoreError::Reconstruction(crate::Error::Cancelled);
+    let params = &solved.params;
+    let slabs = solved.layout.len();
     let load =
         |k: usize| -> Result<SlabPart, OutOfCoreError> { assemble::load_part(&solved.scratch, k) };
     if !go_on(Stage::Extract, 0.6) {
@@ -202,7 +259,7 @@ pub(crate) fn run(
     let support = if min_samples == 0 {
         Vec::new()
     } else {
-        assemble::support(&pieces, slabs, finest, load, |k| {
+        assemble::support(&pieces, slabs, solved.finest, load, |k| {
             let samples = solved.slab_samples(k, pool)?;
             Ok(samples
                 .samples
@@ -239,15 +296,9 @@ pub(crate) fn run(
     if !go_on(Stage::Mesh, 1.0) {
         return Err(cancelled());
     }
-    Ok(OutOfCoreReport {
-        points: solved.scan.count,
-        slabs,
-        depth: params.depth,
+    Ok(Written {
         vertices,
         triangles,
         unsupported_components,
-        isovalue: solved.isovalue,
-        attributes_dropped: solved.scan.has_attributes,
-        seconds: started.elapsed().as_secs_f64(),
     })
 }

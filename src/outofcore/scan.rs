@@ -168,26 +168,41 @@ pub(crate) fn columns_and_density(
 }
 
 /// Pass 3: every point into the file of each slab that reads it (its owner's and, within the
-/// padding, its neighbours'); the files, one per slab (its own points and its padding, in
-/// input order).
+/// padding, its neighbours'), for the slabs `here` says this member bins (all of them in a team
+/// of one); the files, one per slab of all (its own points and its padding, in input order).
 pub(crate) fn bin(
     input: &Input<'_>,
     scan: &Scan,
     layout: &SlabLayout,
     scratch: &Scratch,
+    here: &dyn Fn(usize) -> bool,
     keep_going: &mut dyn FnMut(u64) -> bool,
 ) -> Result<Vec<PathBuf>, OutOfCoreError> {
-    let mut writers = (0..layout.len())
-        .map(|k| SlabWriter::create(scratch.file(&format!("slab-{k}.points"))))
+    let files: Vec<PathBuf> = (0..layout.len())
+        .map(|k| scratch.file(&format!("slab-{k}.points")))
+        .collect();
+    let mut writers = files
+        .iter()
+        .enumerate()
+        .map(|(k, file)| {
+            here(k)
+                .then(|| SlabWriter::create(file.clone()))
+                .transpose()
+        })
         .collect::<Result<Vec<_>, _>>()?;
     for_each_chunk(input, false, keep_going, |_, records| {
         for r in &records {
             let x = scan.map.to_unit_f64(r.position).x;
             for k in layout.slabs_reading(layout.column_of(x)) {
-                writers[k].push(*r)?;
+                if let Some(writer) = &mut writers[k] {
+                    writer.push(*r)?;
+                }
             }
         }
         Ok(())
     })?;
-    writers.into_iter().map(SlabWriter::finish).collect()
+    for writer in writers.into_iter().flatten() {
+        writer.finish()?;
+    }
+    Ok(files)
 }

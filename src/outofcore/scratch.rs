@@ -15,10 +15,12 @@ use std::io::{self, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// The temporary directory of one run, removed with its contents when dropped.
+/// The temporary directory of one run, removed with its contents when dropped by the member of
+/// the team that made it (the others [`Scratch::join`] it).
 #[derive(Debug)]
 pub(crate) struct Scratch {
     dir: PathBuf,
+    made_here: bool,
 }
 
 impl Scratch {
@@ -31,7 +33,12 @@ impl Scratch {
             let n = RUNS.fetch_add(1, Ordering::Relaxed);
             let dir = parent.join(format!("psr-out-of-core-{}-{n}", std::process::id()));
             match fs::create_dir(&dir) {
-                Ok(()) => return Ok(Scratch { dir }),
+                Ok(()) => {
+                    return Ok(Scratch {
+                        dir,
+                        made_here: true,
+                    })
+                }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
                 Err(source) => {
                     return Err(OutOfCoreError::Scratch {
@@ -44,7 +51,14 @@ impl Scratch {
         }
     }
 
-    #[cfg(test)]
+    /// The directory `dir` another member of the team made (and removes).
+    pub(crate) fn join(dir: PathBuf) -> Scratch {
+        Scratch {
+            dir,
+            made_here: false,
+        }
+    }
+
     pub(crate) fn path(&self) -> &Path {
         &self.dir
     }
@@ -59,7 +73,9 @@ impl Drop for Scratch {
     fn drop(&mut self) {
         // Nothing to report to: a directory that cannot be removed is left to the system's
         // cleaning of its temporary directory.
-        let _ = fs::remove_dir_all(&self.dir);
+        if self.made_here {
+            let _ = fs::remove_dir_all(&self.dir);
+        }
     }
 }
 

@@ -785,8 +785,15 @@ fn the_passes_over_files_solve_the_in_memory_chi_with_one_chi_across_walls() {
         confidence: false,
         temp_dir: Some(dir.path().to_path_buf()),
     };
-    let solved =
-        solve_slabs(&path, &params, &plan, &pool, &mut |_, _| true).expect("solved out of core");
+    let solved = solve_slabs(
+        &path,
+        &params,
+        &plan,
+        &super::team::Alone,
+        &pool,
+        &mut |_, _| true,
+    )
+    .expect("solved out of core");
     assert_eq!(solved.layout.len(), 4);
     let scratch_dir = solved.scratch.path().to_path_buf();
     assert!(scratch_dir.is_dir());

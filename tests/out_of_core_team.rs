@@ -1,0 +1,199 @@
+//! Reconstruction out of core by a team of members (issue 21): each member does its own slabs,
+//! as the ranks of `psr-mpi` do, and the mesh is the single process's, bit for bit. The team
+//! here is threads of one process meeting at a barrier (the MPI team is tested by
+//! `.ci/mpi.sh` with `mpirun`).
+
+use psr::{OutOfCore, OutOfCoreError, OutOfCoreReport, Params, Team};
+use psr_test_support::{data_or_skip, sample_sphere};
+use std::path::{Path, PathBuf};
+use std::sync::{Barrier, Mutex};
+
+/// Members that are threads of this process: [`Team::all_gather`] posts each member's bytes on
+/// a board and waits at a barrier until everyone's are there.
+struct Threads {
+    size: usize,
+    barrier: Barrier,
+    board: Mutex<Vec<Vec<u8>>>,
+}
+
+struct Member<'a> {
+    team: &'a Threads,
+    rank: usize,
+}
+
+impl Team for Member<'_> {
+    fn rank(&self) -> usize {
+        self.rank
+    }
+
+    fn size(&self) -> usize {
+        self.team.size
+    }
+
+    fn all_gather(&self, mine: Vec<u8>) -> Vec<Vec<u8>> {
+        self.team.board.lock().unwrap()[self.rank] = mine;
+        self.team.barrier.wait();
+        let all = self.team.board.lock().unwrap().clone();
+        // Nobody posts the next message before everyone has read this one.
+        self.team.barrier.wait();
+        all
+    }
+}
+
+/// Runs `members` members on `input`, each with `progress(rank, stage)` as its progress
+/// callback; every member's result, in rank order.
+fn run_team(
+    members: usize,
+    input: &Path,
+    output: &Path,
+    params: &Params,
+    options: &OutOfCore,
+    progress: impl Fn(usize, psr::Stage) -> bool + Sync,
+) -> Vec<Result<OutOfCoreReport, OutOfCoreError>> {
+    let team = Threads {
+        size: members,
+        barrier: Barrier::new(members),
+        board: Mutex::new(vec![Vec::new(); members]),
+    };
+    std::thread::scope(|s| {
+        let handles: Vec<_> = (0..members)
+            .map(|rank| {
+                let member = Member { team: &team, rank };
+                let progress = &progress;
+                s.spawn(move || {
+                    psr::reconstruct_out_of_core_in_team(
+                        input,
+                        output,
+                        params,
+                        options,
+                        &member,
+                        &mut |stage, _| progress(rank, stage),
+                    )
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    })
+}
+
+/// A fresh directory for one test, with a `tmp` directory for the runs' temporary directories.
+fn test_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("psr-team-test-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("tmp")).expect("a test directory");
+    dir
+}
+
+fn entries(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .expect("readable")
+        .map(|e| e.expect("an entry").path())
+        .collect()
+}
+
+/// The mesh of one process in `slabs` slabs against those of teams of 2..=4 members: the same
+/// bytes, the same report, no temporary file left.
+fn same_mesh_for_every_team(test: &str, input: &Path, params: &Params, slabs: usize) {
+    let dir = test_dir(test);
+    let options = OutOfCore::default()
+        .with_slabs(Some(slabs))
+        .with_temp_dir(Some(dir.join("tmp")));
+    let alone = dir.join("alone.ply");
+    let report = psr::reconstruct_out_of_core(input, &alone, params, &options).expect("alone");
+    assert_eq!(report.slabs, slabs);
+    let expected = std::fs::read(&alone).expect("written");
+    for members in 2..=4 {
+        let output = dir.join(format!("team-{members}.ply"));
+        let results = run_team(members, input, &output, params, &options, |_, _| true);
+        for (rank, result) in results.into_iter().enumerate() {
+            let theirs = result.unwrap_or_else(|e| panic!("{test}: member {rank}: {e}"));
+            assert_eq!(
+                (theirs.vertices, theirs.triangles, theirs.slabs),
+                (report.vertices, report.triangles, report.slabs),
+                "{test}: member {rank} of {members}"
+            );
+            assert_eq!(theirs.isovalue.to_bits(), report.isovalue.to_bits());
+        }
+        let written = std::fs::read(&output).expect("written by rank 0");
+        assert!(
+            written == expected,
+            "{test}: {members} members wrote another mesh than one process"
+        );
+        assert!(
+            entries(&dir.join("tmp")).is_empty(),
+            "{test}: temporary files left"
+        );
+    }
+    println!(
+        "{test}: {} vertices, {} triangles in {slabs} slabs, the same bytes from 1 to 4 members",
+        report.vertices, report.triangles
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves a team's mesh of a sphere is one process's, bit for bit, for 2, 3 and 4 members over
+/// five slabs (so some members do two slabs and the last round is not full).
+#[test]
+fn a_team_writes_the_mesh_of_one_process_bit_for_bit() {
+    let dir = test_dir("sphere-input");
+    let (positions, normals) = sample_sphere(30_000, 1.0, [0.0; 3], 11);
+    let input = dir.join("sphere.ply");
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = positions;
+    cloud.normals = normals;
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
+        .expect("written");
+    let params = Params::default().with_depth(8).with_threads(1);
+    same_mesh_for_every_team("sphere", &input, &params, 5);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves the same on the bunny's scans at depth 9 in four slabs.
+#[test]
+fn a_team_writes_the_bunny_of_one_process_bit_for_bit() {
+    let test = "a_team_writes_the_bunny_of_one_process_bit_for_bit";
+    let Some(input) = data_or_skip("bunny_scans.ply", test) else {
+        return;
+    };
+    let params = Params::default().with_depth(9).with_threads(1);
+    same_mesh_for_every_team("bunny", &input, &params, 4);
+}
+
+/// Proves a member that fails (here: cancelled in its solve) ends every member: itself with its
+/// own error, the others naming it; no mesh is written and no temporary file is left.
+#[test]
+fn a_failing_member_ends_every_member_with_its_name() {
+    let dir = test_dir("failure");
+    let (positions, normals) = sample_sphere(20_000, 1.0, [0.0; 3], 12);
+    let input = dir.join("sphere.ply");
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = positions;
+    cloud.normals = normals;
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
+        .expect("written");
+    let options = OutOfCore::default()
+        .with_slabs(Some(3))
+        .with_temp_dir(Some(dir.join("tmp")));
+    let params = Params::default().with_depth(8).with_threads(1);
+    let output = dir.join("mesh.ply");
+    for stop_at in [psr::Stage::Points, psr::Stage::Solve, psr::Stage::Extract] {
+        let results = run_team(3, &input, &output, &params, &options, |rank, stage| {
+            !(rank == 1 && stage == stop_at)
+        });
+        for (rank, result) in results.iter().enumerate() {
+            match (rank, result) {
+                (1, Err(OutOfCoreError::Reconstruction(psr::Error::Cancelled))) => {}
+                (0 | 2, Err(OutOfCoreError::Member { rank: 1, message })) => {
+                    assert!(message.contains("cancelled"), "{message}");
+                }
+                _ => panic!("{stop_at:?}: member {rank}: {result:?}"),
+            }
+        }
+        assert!(!output.exists(), "{stop_at:?}: no mesh");
+        assert!(
+            entries(&dir.join("tmp")).is_empty(),
+            "{stop_at:?}: files left"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
