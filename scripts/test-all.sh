@@ -33,7 +33,10 @@
 #      program (tests/c/stress.c) for 20 s under ASan/UBSan/LeakSanitizer and 20 s under
 #      ThreadSanitizer, the Rust FFI tests with the library under ASan, and the threading tests
 #      under ThreadSanitizer; it installs what it needs when missing (gcc, g++, a nightly Rust
-#      with rust-src).
+#      with rust-src);
+#  12. psr-mpi (.ci/mpi.sh): the out-of-core reconstruction with its slabs shared by 1 to 4 MPI
+#      ranks, its mesh one process's bit for bit, and a rank stopped or killed ending the job; it
+#      installs Open MPI and libclang-dev when missing.
 # Step 0 installs what steps 1-4 need when it is missing: rustfmt, clippy (rustup components) and
 # the minimum toolchain (rustup toolchain install --profile minimal).
 # Real-scan tests read ../shared/data (or $PSR_DATA_DIR); they skip with a visible message when
@@ -92,6 +95,9 @@ cargo test --release --manifest-path fuzz/Cargo.toml --target-dir target/fuzz 2>
 
 heading "11. sanitizers: ASan, UBSan, LSan and TSan (.ci/sanitizers.sh)"
 bash .ci/sanitizers.sh
+
+heading "12. psr-mpi under mpirun (.ci/mpi.sh)"
+bash .ci/mpi.sh 2>&1 | tee -a "$rust_log"
 
 heading "all steps passed"
 # One closing line over every Rust test run above (steps 7, 8 and 10).

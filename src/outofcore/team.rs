@@ -28,7 +28,7 @@ use crate::Error;
 /// through [`Team::all_gather`] and the slabs' files through the temporary directory, which
 /// must be the same directory for all of them (`OutOfCore::temp_dir` on a file system every
 /// member sees). Rank 0 makes and removes that directory and writes the mesh.
-pub trait Team: Sync {
+pub trait Team {
     /// This member's rank, in 0..[`Team::size`].
     fn rank(&self) -> usize;
 

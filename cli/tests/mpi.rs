@@ -1,0 +1,244 @@
+//! `psr-mpi` under `mpirun` (issue 21): the mesh of 1 to 4 ranks is `psr --out-of-core`'s with
+//! the same slabs, bit for bit; a rank that is stopped or killed ends the job, with its rank
+//! named on rank 0, never a hang; no temporary file is left. Built and run with the `mpi`
+//! feature only (`.ci/mpi.sh`), which needs Open MPI's `mpirun`.
+#![cfg(feature = "mpi")]
+
+use psr_test_support::{data_or_skip, sample_sphere};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const PSR: &str = env!("CARGO_BIN_EXE_psr");
+const PSR_MPI: &str = env!("CARGO_BIN_EXE_psr-mpi");
+
+/// A fresh directory of this test's own, with `tmp/` for the runs' temporary directories.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("psr-mpi-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("tmp")).unwrap();
+    dir
+}
+
+/// `mpirun -n ranks psr-mpi args`, not yet waited for; `mark` is put in every rank's
+/// environment so that a test can find its ranks.
+fn mpirun(ranks: usize, args: &[String], mark: &str) -> Child {
+    Command::new("mpirun")
+        .args(["--allow-run-as-root", "--oversubscribe", "-n"])
+        .arg(ranks.to_string())
+        .args(["-x", "PSR_MPI_TEST_MARK"])
+        .arg(PSR_MPI)
+        .args(args)
+        .env("PSR_MPI_TEST_MARK", mark)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("mpirun runs (Open MPI installed?)")
+}
+
+/// Waits for `child` at most `limit`; its output, or a panic naming a hang.
+fn wait_within(child: Child, limit: Duration, what: &str) -> Output {
+    let id = child.id();
+    let (done, waited) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = done.send(child.wait_with_output());
+    });
+    match waited.recv_timeout(limit) {
+        Ok(output) => output.expect("waited"),
+        Err(_) => {
+            // SAFETY: kill has no memory-safety preconditions.
+            unsafe { libc::kill(id as i32, libc::SIGKILL) };
+            panic!("{what}: mpirun still running after {limit:?} (a hang)");
+        }
+    }
+}
+
+fn run_args(input: &Path, output: &Path, dir: &Path, depth: u32, slabs: usize) -> Vec<String> {
+    [
+        "--in",
+        input.to_str().unwrap(),
+        "--out",
+        output.to_str().unwrap(),
+        "--depth",
+        &depth.to_string(),
+        "--threads",
+        "1",
+        "--slabs",
+        &slabs.to_string(),
+        "--temp-dir",
+        dir.join("tmp").to_str().unwrap(),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+fn leftovers(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir.join("tmp"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect()
+}
+
+/// The mesh of `psr --out-of-core` against `psr-mpi`'s with 1 to 4 ranks, same slabs.
+fn same_mesh_from_one_to_four_ranks(name: &str, input: &Path, depth: u32, slabs: usize) {
+    let dir = scratch(name);
+    let alone = dir.join("alone.ply");
+    let mut args = run_args(input, &alone, &dir, depth, slabs);
+    args.push("--out-of-core".into());
+    let status = Command::new(PSR).args(&args).status().expect("psr runs");
+    assert!(status.success(), "{name}: psr --out-of-core");
+    let expected = std::fs::read(&alone).unwrap();
+    for ranks in 1..=4 {
+        let output = dir.join(format!("ranks-{ranks}.ply"));
+        let started = Instant::now();
+        let done = wait_within(
+            mpirun(ranks, &run_args(input, &output, &dir, depth, slabs), name),
+            Duration::from_secs(600),
+            name,
+        );
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert!(done.status.success(), "{name}, {ranks} ranks: {stderr}");
+        // Rank 0 reports, once.
+        assert_eq!(stderr.matches(" slabs: ").count(), 1, "{name}: {stderr}");
+        assert!(
+            std::fs::read(&output).unwrap() == expected,
+            "{name}: {ranks} ranks wrote another mesh than psr --out-of-core"
+        );
+        assert!(leftovers(&dir).is_empty(), "{name}: {:?}", leftovers(&dir));
+        println!(
+            "{name}: {ranks} ranks, {slabs} slabs, depth {depth}: the same {} bytes in {:.1} s",
+            expected.len(),
+            started.elapsed().as_secs_f64()
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves the ranks' mesh of a synthetic sphere is one process's, bit for bit, for 1 to 4 ranks
+/// over five slabs (uneven: some ranks do two).
+#[test]
+fn a_sphere_from_one_to_four_ranks_is_one_process_mesh() {
+    let dir = scratch("sphere-input");
+    let (positions, normals) = sample_sphere(30_000, 1.0, [0.0; 3], 21);
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = positions;
+    cloud.normals = normals;
+    let input = dir.join("sphere.ply");
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    same_mesh_from_one_to_four_ranks("sphere", &input, 8, 5);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves the same on the bunny's scans at depth 9 in four slabs.
+#[test]
+fn the_bunny_from_one_to_four_ranks_is_one_process_mesh() {
+    let test = "the_bunny_from_one_to_four_ranks_is_one_process_mesh";
+    if let Some(input) = data_or_skip("bunny_scans.ply", test) {
+        same_mesh_from_one_to_four_ranks("bunny", &input, 9, 4);
+    }
+}
+
+/// Proves the same on the Happy Buddha's scans at depth 9 in four slabs.
+#[test]
+fn the_happy_buddha_from_one_to_four_ranks_is_one_process_mesh() {
+    let test = "the_happy_buddha_from_one_to_four_ranks_is_one_process_mesh";
+    if let Some(input) = data_or_skip("happy_buddha_scans.ply", test) {
+        same_mesh_from_one_to_four_ranks("buddha", &input, 9, 4);
+    }
+}
+
+/// The process ids of the ranks of the job marked `mark`, by rank, once they all run.
+fn ranks_of(mark: &str, ranks: usize) -> Vec<i32> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let mut found = vec![None; ranks];
+        for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+            let Ok(pid) = entry.file_name().to_string_lossy().parse::<i32>() else {
+                continue;
+            };
+            let Ok(environ) = std::fs::read(entry.path().join("environ")) else {
+                continue;
+            };
+            let vars: Vec<&[u8]> = environ.split(|&b| b == 0).collect();
+            let marked = vars
+                .iter()
+                .any(|v| *v == format!("PSR_MPI_TEST_MARK={mark}").as_bytes());
+            let is_rank = std::fs::read_link(entry.path().join("exe"))
+                .is_ok_and(|exe| exe.file_name().is_some_and(|n| n == "psr-mpi"));
+            if !(marked && is_rank) {
+                continue;
+            }
+            let rank = vars.iter().find_map(|v| {
+                std::str::from_utf8(v)
+                    .ok()?
+                    .strip_prefix("OMPI_COMM_WORLD_RANK=")?
+                    .parse::<usize>()
+                    .ok()
+            });
+            if let Some(rank) = rank.filter(|&r| r < ranks) {
+                found[rank] = Some(pid);
+            }
+        }
+        if found.iter().all(Option::is_some) {
+            return found.into_iter().flatten().collect();
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the ranks of {mark} did not start"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// A job of three ranks on the bunny at depth 9 whose rank 1 gets `signal` once it has worked
+/// for a while; mpirun's output and what is left in the temporary directories' parent (`None`
+/// when the bunny is absent).
+fn signal_rank_one(name: &str, signal: i32) -> Option<(Output, Vec<PathBuf>)> {
+    let test = format!("signal_rank_one {name}");
+    let input = data_or_skip("bunny_scans.ply", &test)?;
+    let dir = scratch(name);
+    let output = dir.join("mesh.ply");
+    let mark = format!("{name}-{}", std::process::id());
+    let child = mpirun(3, &run_args(&input, &output, &dir, 9, 3), &mark);
+    let pids = ranks_of(&mark, 3);
+    std::thread::sleep(Duration::from_secs(3));
+    // SAFETY: kill has no memory-safety preconditions.
+    unsafe { libc::kill(pids[1], signal) };
+    let done = wait_within(child, Duration::from_secs(120), name);
+    assert!(!output.exists(), "{name}: no mesh is written");
+    let left = leftovers(&dir);
+    let _ = std::fs::remove_dir_all(&dir);
+    Some((done, left))
+}
+
+/// Proves a rank stopped by SIGTERM ends every rank at their next meeting: rank 0 names it and
+/// its reason, the job fails, rank 0 removes the temporary directory.
+#[test]
+fn a_rank_stopped_ends_the_job_with_its_rank_named_on_rank_0() {
+    let Some((done, left)) = signal_rank_one("sigterm", libc::SIGTERM) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(!done.status.success(), "{stderr}");
+    assert!(
+        stderr
+            .contains("psr: error: reconstruction failed: rank 1 failed: reconstruction cancelled"),
+        "{stderr}"
+    );
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// Proves a rank killed outright (as the kernel's out-of-memory killer would) ends the job
+/// instead of leaving the other ranks waiting at their next meeting.
+#[test]
+fn a_rank_killed_ends_the_job() {
+    let Some((done, _)) = signal_rank_one("sigkill", libc::SIGKILL) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(!done.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("signal 9"),
+        "mpirun names the killed rank: {stderr}"
+    );
+}
