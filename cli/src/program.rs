@@ -1253,7 +1253,7 @@ fn carried(points: &PointSet) -> String {
 }
 
 /// The process's peak resident set so far (Linux: VmHWM in /proc/self/status), in KiB.
-fn peak_resident_kib() -> Option<u64> {
+pub fn peak_resident_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     line.split_whitespace().nth(1)?.parse().ok()

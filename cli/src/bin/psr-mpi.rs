@@ -10,11 +10,20 @@ use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
+use std::cell::Cell;
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
-/// The ranks of `MPI_COMM_WORLD` as a [`psr::Team`].
+/// The ranks of `MPI_COMM_WORLD` as a [`psr::Team`], counting what passes through them.
 struct World {
     comm: SimpleCommunicator,
+    /// Meetings (gathers) so far.
+    meetings: Cell<u64>,
+    /// Bytes this rank contributed, and bytes it received from the others.
+    sent: Cell<u64>,
+    received: Cell<u64>,
+    /// Time inside the gathers: waiting for the slowest rank, then the transfer.
+    meeting: Cell<Duration>,
 }
 
 impl World {
@@ -36,6 +45,7 @@ impl psr::Team for World {
     }
 
     fn all_gather(&self, mine: Vec<u8>) -> Vec<Vec<u8>> {
+        let started = Instant::now();
         let Ok(count) = Count::try_from(mine.len()) else {
             self.abort("a message of more than 2 GiB (MPI counts are 32-bit)")
         };
@@ -56,6 +66,11 @@ impl psr::Team for World {
             self.comm
                 .all_gather_varcount_into(&mine[..], &mut partition);
         }
+        self.meetings.set(self.meetings.get() + 1);
+        self.sent.set(self.sent.get() + mine.len() as u64);
+        self.received
+            .set(self.received.get() + total as u64 - mine.len() as u64);
+        self.meeting.set(self.meeting.get() + started.elapsed());
         let mut rest = &all[..];
         counts
             .iter()
@@ -68,6 +83,18 @@ impl psr::Team for World {
     }
 }
 
+/// The CPU time (user and system) this process has used, in seconds.
+fn cpu_seconds() -> f64 {
+    // SAFETY: getrusage writes the struct it is given; a zeroed rusage is a valid value.
+    let usage = unsafe {
+        let mut usage: libc::rusage = std::mem::zeroed();
+        libc::getrusage(libc::RUSAGE_SELF, &mut usage);
+        usage
+    };
+    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    seconds(usage.ru_utime) + seconds(usage.ru_stime)
+}
+
 fn main() -> ExitCode {
     let Some(universe) = mpi::initialize() else {
         eprintln!("psr-mpi: error: MPI could not be initialised (start it with mpirun or srun)");
@@ -75,7 +102,31 @@ fn main() -> ExitCode {
     };
     let team = World {
         comm: universe.world(),
+        meetings: Cell::new(0),
+        sent: Cell::new(0),
+        received: Cell::new(0),
+        meeting: Cell::new(Duration::ZERO),
     };
+    let started = Instant::now();
+    let status = psr_cli::main_in_team(&team);
+    // With --verbose, every rank says what it exchanged and how long it waited (for
+    // docs/distributed.md's measurements).
+    if std::env::args().any(|a| a == "--verbose" || a == "-v") {
+        eprintln!(
+            "psr-mpi: rank {}: {:.1} s ({:.1} s of CPU), of which {:.1} s in {} meetings; sent \
+             {:.1} MB, received {:.1} MB{}",
+            team.comm.rank(),
+            started.elapsed().as_secs_f64(),
+            cpu_seconds(),
+            team.meeting.get().as_secs_f64(),
+            team.meetings.get(),
+            team.sent.get() as f64 / 1e6,
+            team.received.get() as f64 / 1e6,
+            psr_cli::peak_resident_kib()
+                .map(|kib| format!("; peak {} MiB", kib / 1024))
+                .unwrap_or_default()
+        );
+    }
     // (The universe is dropped after the run: MPI_Finalize on every rank.)
-    psr_cli::main_in_team(&team)
+    status
 }
