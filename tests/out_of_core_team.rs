@@ -84,6 +84,18 @@ fn test_dir(test: &str) -> PathBuf {
     dir
 }
 
+/// `n` points of the unit sphere (seed `seed`) written as `sphere.ply` in `dir`.
+fn sphere_file(dir: &Path, n: usize, seed: u64) -> PathBuf {
+    let (positions, normals) = sample_sphere(n, 1.0, [0.0; 3], seed);
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = positions;
+    cloud.normals = normals;
+    let input = dir.join("sphere.ply");
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
+        .expect("written");
+    input
+}
+
 fn entries(dir: &Path) -> Vec<PathBuf> {
     std::fs::read_dir(dir)
         .expect("readable")
@@ -136,13 +148,7 @@ fn same_mesh_for_every_team(test: &str, input: &Path, params: &Params, slabs: us
 #[test]
 fn a_team_writes_the_mesh_of_one_process_bit_for_bit() {
     let dir = test_dir("sphere-input");
-    let (positions, normals) = sample_sphere(30_000, 1.0, [0.0; 3], 11);
-    let input = dir.join("sphere.ply");
-    let mut cloud = psr::ply::PlyPoints::default();
-    cloud.positions = positions;
-    cloud.normals = normals;
-    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
-        .expect("written");
+    let input = sphere_file(&dir, 30_000, 11);
     let params = Params::default().with_depth(8).with_threads(1);
     same_mesh_for_every_team("sphere", &input, &params, 5);
     let _ = std::fs::remove_dir_all(&dir);
@@ -164,13 +170,7 @@ fn a_team_writes_the_bunny_of_one_process_bit_for_bit() {
 #[test]
 fn a_failing_member_ends_every_member_with_its_name() {
     let dir = test_dir("failure");
-    let (positions, normals) = sample_sphere(20_000, 1.0, [0.0; 3], 12);
-    let input = dir.join("sphere.ply");
-    let mut cloud = psr::ply::PlyPoints::default();
-    cloud.positions = positions;
-    cloud.normals = normals;
-    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
-        .expect("written");
+    let input = sphere_file(&dir, 20_000, 12);
     let options = OutOfCore::default()
         .with_slabs(Some(3))
         .with_temp_dir(Some(dir.join("tmp")));
