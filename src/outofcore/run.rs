@@ -5,7 +5,7 @@
 use super::assemble::{self, Pieces};
 use super::passes::{load_solution, solve_slabs, Plan, SlabCount, SolvedSlabs};
 use super::seams::{margin, slab_part, SlabPart};
-use super::team::{from_first, rounds, Team};
+use super::team::{agreed, from_first, rounds, Team};
 use super::OutOfCoreError;
 use crate::grid::cell_of;
 use crate::parallel::Watch;
@@ -118,7 +118,11 @@ pub(crate) fn run(
         }
         .into());
     }
-    let workers = Workers::start(params.threads)?;
+    // (Agreed: a member without its threads must not leave the others waiting for it.)
+    let workers = agreed(
+        team,
+        Workers::start(params.threads).map_err(OutOfCoreError::from),
+    )?;
     let pool = workers.pool();
     let plan = Plan {
         base_depth: options.base_depth,

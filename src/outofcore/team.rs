@@ -69,42 +69,37 @@ pub(crate) fn gather(
     team: &dyn Team,
     mine: Result<Vec<u8>, OutOfCoreError>,
 ) -> Result<Vec<Vec<u8>>, OutOfCoreError> {
-    let (message, mine) = match mine {
-        Ok(bytes) => {
-            let mut message = vec![0u8];
-            message.extend_from_slice(&bytes);
-            (message, None)
-        }
+    match mine {
+        Ok(bytes) => exchange(team, Ok(bytes))
+            .map_err(|(rank, message)| OutOfCoreError::Member { rank, message }),
         Err(e) => {
-            let mut message = vec![1u8];
-            message.extend_from_slice(e.to_string().as_bytes());
-            (message, Some(e))
+            let _ = exchange(team, Err(e.to_string()));
+            Err(e)
         }
+    }
+}
+
+/// Every member's bytes in rank order, or the first failed member's rank and message.
+fn exchange(
+    team: &dyn Team,
+    mine: Result<Vec<u8>, String>,
+) -> Result<Vec<Vec<u8>>, (usize, String)> {
+    let message = match mine {
+        Ok(bytes) => [&[0u8][..], &bytes].concat(),
+        Err(text) => [&[1u8][..], text.as_bytes()].concat(),
     };
     let all = team.all_gather(message);
     if all.len() != team.size() {
-        return Err(Error::Internal(format!(
-            "a team of {} gathered {} results",
-            team.size(),
-            all.len()
-        ))
-        .into());
+        return Err((
+            team.rank(),
+            format!("a team of {} gathered {} results", team.size(), all.len()),
+        ));
     }
-    if let Some(e) = mine {
-        return Err(e);
-    }
-    let failed = all
-        .iter()
-        .enumerate()
-        .find(|(_, m)| m.first() != Some(&0))
-        .map(|(rank, m)| {
-            (
-                rank,
-                String::from_utf8_lossy(m.get(1..).unwrap_or(&[])).into_owned(),
-            )
-        });
-    match failed {
-        Some((rank, message)) => Err(OutOfCoreError::Member { rank, message }),
+    match all.iter().position(|m| m.first() != Some(&0)) {
+        Some(rank) => Err((
+            rank,
+            String::from_utf8_lossy(all[rank].get(1..).unwrap_or(&[])).into_owned(),
+        )),
         None => Ok(all.into_iter().map(|mut m| m.split_off(1)).collect()),
     }
 }
@@ -138,28 +133,17 @@ pub(crate) fn from_first<T>(
     unpack: impl FnOnce(&mut Unpacker<'_>) -> Result<T, OutOfCoreError>,
 ) -> Result<T, OutOfCoreError> {
     if team.rank() == 0 {
-        let value = make();
-        let bytes = value.as_ref().map(|v| {
-            let mut packer = Packer::default();
-            pack(v, &mut packer);
-            packer.bytes
-        });
-        match (gather(team, bytes.map_err(copy_of)), value) {
-            (Ok(_), Ok(value)) => Ok(value),
-            (Err(e), Ok(_)) => Err(e),
-            (_, Err(e)) => Err(e),
+        match make() {
+            Ok(value) => {
+                let mut packer = Packer::default();
+                pack(&value, &mut packer);
+                gather(team, Ok(packer.bytes)).map(|_| value)
+            }
+            Err(e) => agreed(team, Err(e)),
         }
     } else {
         let all = gather(team, Ok(Vec::new()))?;
         unpack(&mut Unpacker::new(&all[0]))
-    }
-}
-
-/// An error to send in place of `e` (which its maker keeps): its message.
-fn copy_of(e: &OutOfCoreError) -> OutOfCoreError {
-    OutOfCoreError::Member {
-        rank: 0,
-        message: e.to_string(),
     }
 }
 
@@ -443,6 +427,40 @@ pub(crate) mod tests {
                         "{e}"
                     );
                 }
+            }
+        }
+    }
+
+    /// Proves rank 0's failure to make what it shares reaches the others with its own message.
+    #[test]
+    fn a_failure_of_the_first_reaches_the_others_with_its_message() {
+        let team = Threads::new(3);
+        let results: Vec<Result<u64, OutOfCoreError>> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..3)
+                .map(|rank| {
+                    let member = team.member(rank);
+                    s.spawn(move || {
+                        super::from_first(
+                            &member,
+                            || Err(Error::Cancelled.into()),
+                            |v: &u64, p| p.u64(*v),
+                            |u| u.u64(),
+                        )
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(matches!(
+            results[0],
+            Err(OutOfCoreError::Reconstruction(Error::Cancelled))
+        ));
+        for result in &results[1..] {
+            match result {
+                Err(OutOfCoreError::Member { rank: 0, message }) => {
+                    assert_eq!(*message, Error::Cancelled.to_string());
+                }
+                other => panic!("{other:?}"),
             }
         }
     }
