@@ -158,8 +158,9 @@ pub fn reconstruct_out_of_core_with_progress(
 /// writes `output`. The mesh is the one [`reconstruct_out_of_core`] writes with the same
 /// parameters and slabs, bit for bit, whatever the team's size; the slabs are at least as many
 /// as the members. The members share the temporary directory ([`OutOfCore::temp_dir`] must
-/// name one every member sees), and each holds one slab at a time, so a member's peak memory
-/// is that of one slab. Every member returns the same report, or an error: its own, or
+/// name one every member sees), and each holds one slab at a time beside the whole cloud's
+/// density field and the base (`docs/distributed.md` measures what that leaves per member).
+/// Every member returns the same report, or an error: its own, or
 /// [`OutOfCoreError::Member`] naming the member that failed.
 pub fn reconstruct_out_of_core_in_team(
     input: &std::path::Path,
