@@ -12,7 +12,7 @@ use super::base::{coarse_cores, merge_groups, BaseParts};
 use super::scan::{bin, columns_and_density, scan, Input, Scan};
 use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
-use super::team::{agreed, from_first, gather, meet, rounds, Packer, Team, Unpacker};
+use super::team::{agreed, from_first, gather, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::density::{estimate, samples_by_depth, DensityField, DepthSample, SampleDensity};
 use crate::evaluate::Indicator;
@@ -755,7 +755,7 @@ pub(crate) fn solve_slabs(
         }
         base_depth = lowest;
         // Every member is done with the first cut's files before rank 0 removes them.
-        meet(team, Ok(()))?;
+        agreed(team, Ok(()))?;
         drop(cut);
         cut = self::cut(
             &input, &scan, &params, plan, base_depth, team, pool, keep_going,

@@ -104,15 +104,6 @@ fn exchange(
     }
 }
 
-/// Waits until every member has finished its step; an error if any member's failed (as
-/// [`gather`]).
-pub(crate) fn meet(
-    team: &dyn Team,
-    mine: Result<(), OutOfCoreError>,
-) -> Result<(), OutOfCoreError> {
-    gather(team, mine.map(|()| Vec::new())).map(|_| ())
-}
-
 /// This member's `result` of a step once every member has finished the step: an error if
 /// any member's failed (as [`gather`]).
 pub(crate) fn agreed<T>(
