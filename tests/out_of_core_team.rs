@@ -165,8 +165,9 @@ fn a_team_writes_the_bunny_of_one_process_bit_for_bit() {
     same_mesh_for_every_team("bunny", &input, &params, 4);
 }
 
-/// Proves a member that fails (here: cancelled in its solve) ends every member: itself with its
-/// own error, the others naming it; no mesh is written and no temporary file is left.
+/// Proves a member that fails (cancelled while reading the points, solving, extracting or
+/// writing its slab of the mesh) ends every member: itself with its own error, the others
+/// naming it; no mesh is left and no temporary file.
 #[test]
 fn a_failing_member_ends_every_member_with_its_name() {
     let dir = test_dir("failure");
@@ -176,7 +177,12 @@ fn a_failing_member_ends_every_member_with_its_name() {
         .with_temp_dir(Some(dir.join("tmp")));
     let params = Params::default().with_depth(8).with_threads(1);
     let output = dir.join("mesh.ply");
-    for stop_at in [psr::Stage::Points, psr::Stage::Solve, psr::Stage::Extract] {
+    for stop_at in [
+        psr::Stage::Points,
+        psr::Stage::Solve,
+        psr::Stage::Extract,
+        psr::Stage::Mesh,
+    ] {
         let results = run_team(3, &input, &output, &params, &options, |rank, stage| {
             !(rank == 1 && stage == stop_at)
         });

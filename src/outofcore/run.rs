@@ -2,15 +2,16 @@
 //! the slabs (`passes.rs`), each slab's part of the mesh (`seams.rs`), the pieces across walls
 //! and the PLY (`assemble.rs`).
 
-use super::assemble::{self, Pieces};
+use super::assemble::{self, MeshLayout, Pieces};
 use super::passes::{load_solution, solve_slabs, Plan, SlabCount, SolvedSlabs};
 use super::seams::{margin, slab_part, SlabPart};
-use super::team::{agreed, from_first, rounds, Team};
+use super::team::{agreed, rounds, Team};
 use super::OutOfCoreError;
 use crate::grid::cell_of;
 use crate::parallel::Watch;
 use crate::pipeline::{Progress, Stage};
 use crate::{Params, VertexPlacement, Workers};
+use glam::DVec3;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -90,8 +91,8 @@ pub struct OutOfCoreReport {
     pub seconds: f64,
 }
 
-/// The run of one member of `team` (every member calls it with the same arguments; rank 0
-/// writes the mesh, and every member returns its report).
+/// The run of one member of `team` (every member calls it with the same arguments, writes its
+/// slabs of the mesh into the output rank 0 made, and returns the same report).
 pub(crate) fn run(
     input: &Path,
     output: &Path,
@@ -205,23 +206,8 @@ pub(crate) fn run(
         |_, _| Ok(()),
     )?;
 
-    // The pieces across walls, their support, and the PLY, by rank 0.
-    let assembled = from_first(
-        team,
-        || assemble_mesh(&solved, output, pool, &mut go_on),
-        |written, p| {
-            p.u64(written.vertices);
-            p.u64(written.triangles);
-            p.u64(written.unsupported_components as u64);
-        },
-        |u| {
-            Ok(Written {
-                vertices: u.u64()?,
-                triangles: u.u64()?,
-                unsupported_components: u.u64()? as usize,
-            })
-        },
-    )?;
+    // The pieces across walls, their support, and the PLY, each member doing its slabs.
+    let assembled = assemble_mesh(&solved, output, team, pool, &mut go_on)?;
     Ok(OutOfCoreReport {
         points: solved.scan.count,
         slabs,
@@ -243,27 +229,27 @@ struct Written {
 }
 
 /// The slabs' parts joined into pieces across walls, the pieces no sample supports left out,
-/// and the rest written to `output`.
+/// and the rest written to `output`, each member doing its slabs of each step.
 fn assemble_mesh(
     solved: &SolvedSlabs,
     output: &Path,
+    team: &dyn Team,
     pool: &rayon::ThreadPool,
     go_on: &mut dyn FnMut(Stage, f32) -> bool,
 ) -> Result<Written, OutOfCoreError> {
-    let cancelled = || OutOfCoreError::Reconstruction(crate::Error::Cancelled);
     let params = &solved.params;
     let slabs = solved.layout.len();
-    let load =
+    let part =
         |k: usize| -> Result<SlabPart, OutOfCoreError> { assemble::load_part(&solved.scratch, k) };
-    if !go_on(Stage::Extract, 0.6) {
-        return Err(cancelled());
-    }
-    let pieces = Pieces::label(slabs, load)?;
+    let fraction = |k: usize, from: f32, to: f32| from + (to - from) * k as f32 / slabs as f32;
+    let pieces = Pieces::label(team, slabs, &part, &mut |k| {
+        go_on(Stage::Extract, fraction(k, 0.5, 0.6))
+    })?;
     let min_samples = params.min_component_samples as u64;
     let support = if min_samples == 0 {
         Vec::new()
     } else {
-        assemble::support(&pieces, slabs, solved.finest, load, |k| {
+        let own = |k: usize| -> Result<Vec<DVec3>, OutOfCoreError> {
             let samples = solved.slab_samples(k, pool)?;
             Ok(samples
                 .samples
@@ -273,33 +259,34 @@ fn assemble_mesh(
                 .filter(|(_, owned)| **owned)
                 .map(|(p, _)| *p)
                 .collect())
+        };
+        assemble::support(team, &pieces, slabs, solved.finest, &part, &own, &mut |k| {
+            go_on(Stage::Extract, fraction(k, 0.6, 1.0))
         })?
     };
     let keep = |piece: u32| {
         min_samples == 0 || piece == pieces.largest() || support[piece as usize] >= min_samples
     };
     let unsupported_components = pieces.count_where(|p| !keep(p));
-    if !go_on(Stage::Mesh, 0.0) {
-        return Err(cancelled());
-    }
     let origin = solved
         .scan
         .positions_f64
         .then(|| solved.scan.map.nearby_origin());
+    let layout = MeshLayout::plan(team, &pieces, slabs, &keep, origin.is_some(), &part)?;
     let (vertices, triangles) = assemble::write_ply(
+        team,
         output,
-        &solved.scratch,
-        slabs,
+        &layout,
         &pieces,
         &keep,
         &solved.scan.map,
         origin,
         &solved.field,
-        load,
+        &part,
+        &mut |k| go_on(Stage::Mesh, fraction(k, 0.0, 1.0)),
     )?;
-    if !go_on(Stage::Mesh, 1.0) {
-        return Err(cancelled());
-    }
+    // The mesh is written: a cancel now has nothing left to stop.
+    go_on(Stage::Mesh, 1.0);
     Ok(Written {
         vertices,
         triangles,
