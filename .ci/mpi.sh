@@ -20,7 +20,9 @@ step "tools: Open MPI and libclang"
 missing=()
 command -v mpirun >/dev/null || missing+=(openmpi-bin)
 command -v mpicc >/dev/null || missing+=(libopenmpi-dev)
-ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1 || missing+=(libclang-dev)
+# libclang alone (libclang1-*, which other packages pull in) is not enough: bindgen also needs
+# clang's own headers (stddef.h), which come with libclang-dev.
+ls /usr/lib/llvm-*/lib/clang/*/include/stddef.h >/dev/null 2>&1 || missing+=(libclang-dev)
 [ "${#missing[@]}" -eq 0 ] || apt_install "${missing[@]}"
 mpirun --version | head -1
 
