@@ -12,7 +12,7 @@ use super::base::{coarse_cores, merge_groups, BaseParts};
 use super::scan::{bin, columns_and_density, scan, Input, Scan};
 use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
-use super::team::{agreed, from_first, gather, rounds, Packer, Team, Unpacker};
+use super::team::{agreed, agreed_with, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::density::{estimate, samples_by_depth, DensityField, DepthSample, SampleDensity};
 use crate::evaluate::Indicator;
@@ -691,12 +691,11 @@ pub(crate) fn solve_slabs(
         chunk: plan.chunk,
         confidence: plan.confidence,
     };
-    // Every member scans the input itself; they agree on what they read.
+    // Every member scans the input itself; they meet with the counts they read.
     let scanned = scan(&input, params.scale as f64, &mut |_| {
         keep_going("scan", 0.0)
     });
-    let scan = agreed(team, scanned)?;
-    let counts = gather(team, Ok(scan.count.to_le_bytes().to_vec()))?;
+    let (scan, counts) = agreed_with(team, scanned, |scan| scan.count.to_le_bytes().to_vec())?;
     if counts.iter().any(|c| c[..] != counts[0][..]) {
         return Err(crate::Error::InvalidParameter {
             name: "input",

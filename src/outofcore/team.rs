@@ -111,8 +111,21 @@ pub(crate) fn agreed<T>(
     team: &dyn Team,
     result: Result<T, OutOfCoreError>,
 ) -> Result<T, OutOfCoreError> {
+    agreed_with(team, result, |_| Vec::new()).map(|(value, _)| value)
+}
+
+/// As [`agreed`], the meeting also carrying `tell(value)` from every member: this member's
+/// value and every member's bytes, in rank order.
+pub(crate) fn agreed_with<T>(
+    team: &dyn Team,
+    result: Result<T, OutOfCoreError>,
+    tell: impl FnOnce(&T) -> Vec<u8>,
+) -> Result<(T, Vec<Vec<u8>>), OutOfCoreError> {
     match result {
-        Ok(value) => gather(team, Ok(Vec::new())).map(|_| value),
+        Ok(value) => {
+            let told = gather(team, Ok(tell(&value)))?;
+            Ok((value, told))
+        }
         Err(e) => Err(gather(team, Err(e)).expect_err("a failed step fails")),
     }
 }
