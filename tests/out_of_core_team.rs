@@ -40,11 +40,12 @@ impl Team for Member<'_> {
     }
 }
 
-/// Runs `members` members on `input`, each with `progress(rank, stage)` as its progress
-/// callback; every member's result, in rank order.
+/// Runs `members` members, member r on `inputs[r % inputs.len()]` (the same file for all,
+/// unless a test says otherwise), each with `progress(rank, stage)` as its progress callback;
+/// every member's result, in rank order.
 fn run_team(
     members: usize,
-    input: &Path,
+    inputs: &[&Path],
     output: &Path,
     params: &Params,
     options: &OutOfCore,
@@ -60,6 +61,7 @@ fn run_team(
             .map(|rank| {
                 let member = Member { team: &team, rank };
                 let progress = &progress;
+                let input = inputs[rank % inputs.len()];
                 s.spawn(move || {
                     psr::reconstruct_out_of_core_in_team(
                         input,
@@ -86,11 +88,15 @@ fn test_dir(test: &str) -> PathBuf {
 
 /// `n` points of the unit sphere (seed `seed`) written as `sphere.ply` in `dir`.
 fn sphere_file(dir: &Path, n: usize, seed: u64) -> PathBuf {
+    sphere_file_named(dir, "sphere.ply", n, seed)
+}
+
+fn sphere_file_named(dir: &Path, name: &str, n: usize, seed: u64) -> PathBuf {
     let (positions, normals) = sample_sphere(n, 1.0, [0.0; 3], seed);
     let mut cloud = psr::ply::PlyPoints::default();
     cloud.positions = positions;
     cloud.normals = normals;
-    let input = dir.join("sphere.ply");
+    let input = dir.join(name);
     psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
         .expect("written");
     input
@@ -116,7 +122,7 @@ fn same_mesh_for_every_team(test: &str, input: &Path, params: &Params, slabs: us
     let expected = std::fs::read(&alone).expect("written");
     for members in 2..=4 {
         let output = dir.join(format!("team-{members}.ply"));
-        let results = run_team(members, input, &output, params, &options, |_, _| true);
+        let results = run_team(members, &[input], &output, params, &options, |_, _| true);
         for (rank, result) in results.into_iter().enumerate() {
             let theirs = result.unwrap_or_else(|e| panic!("{test}: member {rank}: {e}"));
             assert_eq!(
@@ -183,7 +189,7 @@ fn a_failing_member_ends_every_member_with_its_name() {
         psr::Stage::Extract,
         psr::Stage::Mesh,
     ] {
-        let results = run_team(3, &input, &output, &params, &options, |rank, stage| {
+        let results = run_team(3, &[&input], &output, &params, &options, |rank, stage| {
             !(rank == 1 && stage == stop_at)
         });
         for (rank, result) in results.iter().enumerate() {
@@ -201,5 +207,34 @@ fn a_failing_member_ends_every_member_with_its_name() {
             "{stop_at:?}: files left"
         );
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves members given different inputs (here: another count of points) are refused by every
+/// member alike, before any slab is cut: no mesh, no temporary file.
+#[test]
+fn members_reading_different_inputs_are_refused() {
+    let dir = test_dir("different-inputs");
+    let input = sphere_file(&dir, 20_000, 13);
+    let other = sphere_file_named(&dir, "other.ply", 20_001, 13);
+    let options = OutOfCore::default()
+        .with_slabs(Some(2))
+        .with_temp_dir(Some(dir.join("tmp")));
+    let params = Params::default().with_depth(7).with_threads(1);
+    let output = dir.join("mesh.ply");
+    let results = run_team(2, &[&input, &other], &output, &params, &options, |_, _| {
+        true
+    });
+    for (rank, result) in results.iter().enumerate() {
+        match result {
+            Err(OutOfCoreError::Reconstruction(psr::Error::InvalidParameter {
+                name: "input",
+                ..
+            })) => {}
+            other => panic!("member {rank}: {other:?}"),
+        }
+    }
+    assert!(!output.exists(), "no mesh");
+    assert!(entries(&dir.join("tmp")).is_empty(), "files left");
     let _ = std::fs::remove_dir_all(&dir);
 }
