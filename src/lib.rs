@@ -155,9 +155,9 @@ pub fn reconstruct_out_of_core_with_progress(
 /// MPI job: the program `psr-mpi`, built with the `mpi` feature of psr-cli), each with the
 /// same arguments: in every pass each member does its own slabs (slab k is rank k mod N's),
 /// the sums over slabs are gathered and added in slab order on every member, rank 0 makes
-/// `output` with its header and every member writes its slabs of the mesh into it. The mesh is the one [`reconstruct_out_of_core`] writes with the same
-/// parameters and slabs, bit for bit, whatever the team's size; the slabs are at least as many
-/// as the members. The members share the temporary directory ([`OutOfCore::temp_dir`] must
+/// `output` with its header and every member writes its slabs of the mesh into it. The mesh
+/// is the one [`reconstruct_out_of_core`] writes with the same parameters and slabs, bit for
+/// bit, whatever the team's size; the slabs are at least as many as the members. The members share the temporary directory ([`OutOfCore::temp_dir`] must
 /// name one every member sees), and each holds one slab at a time beside the whole cloud's
 /// density field and the base (`docs/distributed.md` measures what that leaves per member).
 /// Every member returns the same report, or an error: its own, or

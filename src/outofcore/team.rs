@@ -27,8 +27,8 @@ use crate::Error;
 /// does the slabs it owns in each pass, and they exchange what the passes sum over slabs
 /// through [`Team::all_gather`] and the slabs' files through the temporary directory, which
 /// must be the same directory for all of them (`OutOfCore::temp_dir` on a file system every
-/// member sees). Rank 0 makes and removes that directory and makes the output
-/// file, into which every member writes its slabs of the mesh.
+/// member sees). Rank 0 makes and removes that directory and makes the output file, into
+/// which every member writes its slabs of the mesh.
 pub trait Team {
     /// This member's rank, in 0..[`Team::size`].
     fn rank(&self) -> usize;
