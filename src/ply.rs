@@ -29,6 +29,7 @@
 use std::fmt;
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use crate::{Channel, Colors, Mesh};
@@ -830,12 +831,26 @@ impl<R: BufRead> Body<R> {
         &mut self,
         el: &Element,
         plan: &Plan,
+        sink: impl FnMut(usize, &[f64], &[f64]) -> Result<(), String>,
+    ) -> Result<(), PlyErrorKind> {
+        self.read_entries(el, plan, 0..el.count, sink)
+    }
+
+    /// As [`Body::read_element`], for a caller that wants only the entries of `wanted`: where
+    /// entries have a fixed size in a binary file, the bytes of those before `wanted` are passed
+    /// over undecoded and the reading stops after it (the body is then left inside the
+    /// element); otherwise every entry is read and `sink` gets them all.
+    fn read_entries(
+        &mut self,
+        el: &Element,
+        plan: &Plan,
+        wanted: Range<usize>,
         mut sink: impl FnMut(usize, &[f64], &[f64]) -> Result<(), String>,
     ) -> Result<(), PlyErrorKind> {
         match self.format {
             PlyFormat::Ascii => self.read_ascii(el, plan, &mut sink),
-            PlyFormat::BinaryLittleEndian => self.read_binary(el, plan, false, &mut sink),
-            PlyFormat::BinaryBigEndian => self.read_binary(el, plan, true, &mut sink),
+            PlyFormat::BinaryLittleEndian => self.read_binary(el, plan, false, wanted, &mut sink),
+            PlyFormat::BinaryBigEndian => self.read_binary(el, plan, true, wanted, &mut sink),
         }
     }
 
@@ -867,6 +882,7 @@ impl<R: BufRead> Body<R> {
         el: &Element,
         plan: &Plan,
         big: bool,
+        wanted: Range<usize>,
         sink: &mut Sink<'_>,
     ) -> Result<(), PlyErrorKind> {
         let mut values = vec![0.0f64; plan.width()];
@@ -899,11 +915,17 @@ impl<R: BufRead> Body<R> {
                 }
             }
             let per_chunk = (1usize << 16).div_ceil(stride).max(1);
+            let end = wanted.end.min(el.count);
+            let mut index = wanted.start.min(end);
+            let skipped = index as u64 * stride as u64;
+            let got = self.skip_bytes(skipped).map_err(read_error)?;
+            if got < skipped {
+                return Err(Self::truncated(el, (got / stride as u64) as usize));
+            }
             let mut buf = std::mem::take(&mut self.bin_buf);
             buf.resize(per_chunk * stride, 0);
-            let mut index = 0;
-            while index < el.count {
-                let n = per_chunk.min(el.count - index);
+            while index < end {
+                let n = per_chunk.min(end - index);
                 let chunk = &mut buf[..n * stride];
                 let got = read_fully(&mut self.r, chunk).map_err(read_error)?;
                 let complete = got / stride;
@@ -1197,14 +1219,30 @@ fn read_vertex_points<R: BufRead>(
 /// be read: nothing but one chunk is held. `each` returning an error stops the reading; that
 /// error comes back as the inner result, a problem with the file as the outer one (found after
 /// some chunks were handed over, whose use the caller then undoes).
+#[cfg(test)]
 pub(crate) fn read_point_cloud_chunks<E>(
     path: &Path,
     chunk: usize,
     mut each: impl FnMut(PlyPoints) -> Result<(), E>,
 ) -> Result<Result<(), E>, PlyError> {
+    read_point_cloud_part_chunks(path, chunk, (0, 1), |_, points| each(points))
+}
+
+/// As [`read_point_cloud_chunks`], for the points of one part of the file: with `part` = (r, n),
+/// the r-th of n runs of consecutive points of equal length (to one point), the first of them
+/// at index ⌊count·r/n⌋. `each` gets each chunk with the index in the file of its first point.
+/// In a binary file whose vertices have no list property, the bytes of the points before the
+/// part are passed over without being decoded and the points after it are not read; otherwise
+/// they are decoded and dropped.
+pub(crate) fn read_point_cloud_part_chunks<E>(
+    path: &Path,
+    chunk: usize,
+    part: (usize, usize),
+    mut each: impl FnMut(u64, PlyPoints) -> Result<(), E>,
+) -> Result<Result<(), E>, PlyError> {
     let (reader, len) = open(path)?;
     let mut failure = None;
-    let mut hand_over = |points: PlyPoints| match each(points) {
+    let mut hand_over = |first: u64, points: PlyPoints| match each(first, points) {
         Ok(()) => true,
         Err(e) => {
             failure = Some(e);
@@ -1216,15 +1254,23 @@ pub(crate) fn read_point_cloud_chunks<E>(
         len,
         Normals::Required,
         false,
-        Some((chunk.max(1), &mut hand_over)),
+        Some(Chunks {
+            size: chunk.max(1),
+            part: (part.0.min(part.1.max(1) - 1), part.1.max(1)),
+            each: &mut hand_over,
+        }),
     )
     .map_err(|e| PlyError::new(e).with_path(path))?;
     Ok(failure.map_or(Ok(()), Err))
 }
 
-/// Where a chunked read hands its points: the chunk size and a consumer that returns false to
-/// stop.
-type Chunks<'a> = (usize, &'a mut dyn FnMut(PlyPoints) -> bool);
+/// Where a chunked read hands its points: the chunk size, the part of the file to read (r of
+/// n), and a consumer of a chunk and the index of its first point that returns false to stop.
+struct Chunks<'a> {
+    size: usize,
+    part: (usize, usize),
+    each: &'a mut dyn FnMut(u64, PlyPoints) -> bool,
+}
 
 /// Takes the points read so far out of `out`, `colors` and `channels` as one chunk.
 fn take_chunk(
@@ -1415,7 +1461,8 @@ fn read_vertices_and_faces<R: BufRead>(
         }
         None => None,
     };
-    let cap = capacity(vertex.count, size_checked).min(chunks.as_ref().map_or(usize::MAX, |c| c.0));
+    let cap =
+        capacity(vertex.count, size_checked).min(chunks.as_ref().map_or(usize::MAX, |c| c.size));
     let components = match rgba {
         Some((_, Some(_))) => 4,
         Some((_, None)) => 3,
@@ -1444,7 +1491,21 @@ fn read_vertices_and_faces<R: BufRead>(
         Faces::read_or_skip(&mut faces, &mut body, i, el)?;
     }
     let mut stopped = false;
-    let read = body.read_element(vertex, &plan, |_, v, _| {
+    let wanted = match &chunks {
+        Some(Chunks { part: (r, n), .. }) => {
+            let at = |i: usize| (vertex.count as u128 * i as u128 / *n as u128) as usize;
+            at(*r)..at(r + 1)
+        }
+        None => 0..vertex.count,
+    };
+    let mut chunk_first = wanted.start as u64;
+    let read = body.read_entries(vertex, &plan, wanted.clone(), |index, v, _| {
+        if !wanted.contains(&index) {
+            return Ok(());
+        }
+        if out.positions.is_empty() {
+            chunk_first = index as u64;
+        }
         out.positions.push([v[0] as f32, v[1] as f32, v[2] as f32]);
         if let Some(exact) = &mut out.positions_f64 {
             exact.push([v[0], v[1], v[2]]);
@@ -1464,7 +1525,7 @@ fn read_vertices_and_faces<R: BufRead>(
         for (k, channel) in channels.iter_mut().enumerate() {
             channel.push(v[14 + k] as f32);
         }
-        if let Some((size, each)) = chunks.as_mut() {
+        if let Some(Chunks { size, each, .. }) = chunks.as_mut() {
             if out.positions.len() >= *size {
                 let chunk = take_chunk(
                     &mut out,
@@ -1473,7 +1534,7 @@ fn read_vertices_and_faces<R: BufRead>(
                     components,
                     &channel_names,
                 );
-                if !each(chunk) {
+                if !each(chunk_first, chunk) {
                     stopped = true;
                     return Err("the consumer of the points stopped the reading".into());
                 }
@@ -1485,7 +1546,7 @@ fn read_vertices_and_faces<R: BufRead>(
         return Ok((out, Vec::new()));
     }
     read?;
-    if let Some((_, each)) = chunks.as_mut() {
+    if let Some(Chunks { each, .. }) = chunks.as_mut() {
         if !out.positions.is_empty() {
             let chunk = take_chunk(
                 &mut out,
@@ -1494,7 +1555,7 @@ fn read_vertices_and_faces<R: BufRead>(
                 components,
                 &channel_names,
             );
-            each(chunk);
+            each(chunk_first, chunk);
         }
         return Ok((out, Vec::new()));
     }
@@ -2274,6 +2335,70 @@ mod tests {
             })
             .unwrap();
             assert_eq!((stopped, calls), (Err("full disk"), 2));
+            std::fs::remove_file(&path).unwrap();
+        }
+    }
+
+    /// Proves: the parts of a file (r of n) hand over every point once between them, each
+    /// part's chunks in file order with the index of their first point, the parts' lengths
+    /// within one of each other; ASCII, binary (the points before a part passed over
+    /// undecoded) and binary with a list property among the vertices' (read and dropped).
+    #[test]
+    fn parts_hand_over_every_point_once_with_its_index() {
+        let mut points = sample_points(true);
+        for i in 0..200 {
+            let t = i as f32 * 0.37;
+            points.positions.push([t.sin(), t.cos(), t * 0.01]);
+            points.normals.push([0.0, 0.0, 1.0]);
+        }
+        points.colors = None;
+        points.confidence = None;
+        points.sensors = None;
+        points.channels.clear();
+        let n = points.positions.len();
+        let binary = to_bytes(&points, PlyFormat::BinaryLittleEndian);
+        // The same points with a list property after the vertex's scalars (entries of varying
+        // size: no skipping by bytes).
+        let header = "ply\nformat binary_little_endian 1.0\nelement vertex N\n\
+                      property float x\nproperty float y\nproperty float z\n\
+                      property float nx\nproperty float ny\nproperty float nz\n\
+                      property list uchar int tags\nend_header\n"
+            .replace('N', &n.to_string());
+        let mut listed = header.into_bytes();
+        for (i, (p, q)) in points.positions.iter().zip(&points.normals).enumerate() {
+            for c in p.iter().chain(q) {
+                listed.extend_from_slice(&c.to_le_bytes());
+            }
+            listed.push((i % 3) as u8);
+            for t in 0..i % 3 {
+                listed.extend_from_slice(&(t as i32).to_le_bytes());
+            }
+        }
+        for (name, bytes) in [
+            ("ascii", to_bytes(&points, PlyFormat::Ascii)),
+            ("binary", binary),
+            ("listed", listed),
+        ] {
+            let path = temp_path(&format!("parts-{name}.ply"));
+            std::fs::write(&path, &bytes).unwrap();
+            for parts in [1, 2, 3, 7] {
+                let mut seen: Vec<[f32; 3]> = Vec::new();
+                let mut lengths = Vec::new();
+                for r in 0..parts {
+                    let before = seen.len();
+                    read_point_cloud_part_chunks(&path, 16, (r, parts), |first, chunk| {
+                        assert_eq!(first as usize, seen.len(), "{name}: {r} of {parts}");
+                        seen.extend_from_slice(&chunk.positions);
+                        Ok::<(), ()>(())
+                    })
+                    .unwrap()
+                    .unwrap();
+                    lengths.push(seen.len() - before);
+                }
+                assert_eq!(seen, points.positions, "{name}, {parts} parts");
+                let (lo, hi) = (lengths.iter().min(), lengths.iter().max());
+                assert!(hi.unwrap() - lo.unwrap() <= 1, "{name}: {lengths:?}");
+            }
             std::fs::remove_file(&path).unwrap();
         }
     }

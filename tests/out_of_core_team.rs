@@ -92,7 +92,19 @@ fn sphere_file(dir: &Path, n: usize, seed: u64) -> PathBuf {
 }
 
 fn sphere_file_named(dir: &Path, name: &str, n: usize, seed: u64) -> PathBuf {
-    let (positions, normals) = sample_sphere(n, 1.0, [0.0; 3], seed);
+    sphere_file_with(dir, name, n, seed, |_| {})
+}
+
+/// As [`sphere_file_named`], the positions changed by `change` before they are written.
+fn sphere_file_with(
+    dir: &Path,
+    name: &str,
+    n: usize,
+    seed: u64,
+    change: impl FnOnce(&mut Vec<[f32; 3]>),
+) -> PathBuf {
+    let (mut positions, normals) = sample_sphere(n, 1.0, [0.0; 3], seed);
+    change(&mut positions);
     let mut cloud = psr::ply::PlyPoints::default();
     cloud.positions = positions;
     cloud.normals = normals;
@@ -232,6 +244,40 @@ fn members_reading_different_inputs_are_refused() {
                 ..
             })) => {}
             other => panic!("member {rank}: {other:?}"),
+        }
+    }
+    assert!(!output.exists(), "no mesh");
+    assert!(entries(&dir.join("tmp")).is_empty(), "files left");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves each member checks its own part of the input: a NaN coordinate in the third of three
+/// parts is refused by member 2 with the point's index in the whole file, and the others name
+/// member 2 and that index; no mesh, no temporary file.
+#[test]
+fn a_bad_point_in_one_members_part_is_refused_with_its_index_in_the_file() {
+    let dir = test_dir("bad-point");
+    let input = sphere_file_with(&dir, "bad.ply", 20_000, 14, |positions| {
+        positions[17_000][2] = f32::NAN;
+    });
+    let options = OutOfCore::default()
+        .with_slabs(Some(3))
+        .with_temp_dir(Some(dir.join("tmp")));
+    let params = Params::default().with_depth(7).with_threads(1);
+    let output = dir.join("mesh.ply");
+    let results = run_team(3, &[&input], &output, &params, &options, |_, _| true);
+    for (rank, result) in results.iter().enumerate() {
+        match (rank, result) {
+            (
+                2,
+                Err(OutOfCoreError::Reconstruction(psr::Error::NonFinitePosition {
+                    index: 17_000,
+                })),
+            ) => {}
+            (0 | 1, Err(OutOfCoreError::Member { rank: 2, message })) => {
+                assert!(message.contains("17000"), "{message}");
+            }
+            _ => panic!("member {rank}: {result:?}"),
         }
     }
     assert!(!output.exists(), "no mesh");

@@ -9,7 +9,7 @@
 //! neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
-use super::scan::{bin, columns_and_density, scan, Input, Scan};
+use super::scan::{bin, columns_and_density, scan_of_parts, scan_part, Input, Scan, ScannedPart};
 use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::team::{agreed, agreed_with, from_first, rounds, Packer, Team, Unpacker};
@@ -691,19 +691,25 @@ pub(crate) fn solve_slabs(
         chunk: plan.chunk,
         confidence: plan.confidence,
     };
-    // Every member scans the input itself; they meet with the counts they read.
-    let scanned = scan(&input, params.scale as f64, &mut |_| {
+    // Each member scans its part of the input (r of n); they meet with what they found.
+    let scanned = scan_part(&input, (team.rank(), team.size()), &mut |_| {
         keep_going("scan", 0.0)
     });
-    let (scan, counts) = agreed_with(team, scanned, |scan| scan.count.to_le_bytes().to_vec())?;
-    if counts.iter().any(|c| c[..] != counts[0][..]) {
+    let (_, parts) = agreed_with(team, scanned, ScannedPart::packed)?;
+    let parts = parts
+        .iter()
+        .map(|bytes| ScannedPart::unpacked(bytes))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    if parts.iter().any(|p| p.file_bytes != parts[0].file_bytes) {
         return Err(crate::Error::InvalidParameter {
             name: "input",
             value: path.display().to_string(),
-            expected: "the same file for every member of the team (they read different points)",
+            expected: "the same file for every member of the team (they read files of different \
+                       lengths)",
         }
         .into());
     }
+    let scan = scan_of_parts(&parts, &input, params.scale as f64)?;
     let params = params.for_cube(scan.map.size);
     let full_depth = params.effective_full_depth();
     // The base holds the complete depths (a complete depth spans the cube, far from any slab)

@@ -5,9 +5,10 @@
 
 use super::scratch::{PointRecord, Scratch, SlabWriter};
 use super::slabs::SlabLayout;
+use super::team::{Packer, Unpacker};
 use super::OutOfCoreError;
 use crate::density::KernelCounts;
-use crate::ply::{read_point_cloud_chunks, PlyPoints};
+use crate::ply::{read_point_cloud_part_chunks, PlyPoints};
 use crate::points::{Bounds, PointSet, UnitCubeMap};
 use crate::Error;
 use glam::DVec3;
@@ -38,54 +39,63 @@ pub(crate) struct Scan {
     pub(crate) positions_f64: bool,
 }
 
-/// The input's points, chunk by chunk, as records (the values as read); with `check`, each
-/// chunk checked as [`PointSet`] checks a batch (errors name the point's index in the file: the
-/// scan does it, the passes after it read the points it checked); `keep_going` is asked before
-/// each chunk with the number of points read so far, and `each` gets the chunk.
+/// The points of `part` of the input (r of n: [`read_point_cloud_part_chunks`]), chunk by
+/// chunk, as records (the values as read); with `check`, each chunk checked as [`PointSet`]
+/// checks a batch (errors name the point's index in the file: the scan does it, the passes
+/// after it read the points it checked); `keep_going` is asked before each chunk with the
+/// number of points read so far, and `each` gets the chunk.
 fn for_each_chunk(
     input: &Input<'_>,
+    part: (usize, usize),
     check: bool,
     keep_going: &mut dyn FnMut(u64) -> bool,
     mut each: impl FnMut(&PlyPoints, Vec<PointRecord>) -> Result<(), OutOfCoreError>,
 ) -> Result<(), OutOfCoreError> {
-    let mut offset = 0u64;
-    read_point_cloud_chunks(input.path, input.chunk, |points: PlyPoints| {
-        if !keep_going(offset) {
-            return Err(OutOfCoreError::Reconstruction(Error::Cancelled));
-        }
-        let weights = match (input.confidence, &points.confidence) {
-            (false, _) => None,
-            (true, Some(c)) => Some(c.as_slice()),
-            (true, None) => {
-                return Err(OutOfCoreError::Reconstruction(Error::InvalidParameter {
-                    name: "confidence",
-                    value: "true".into(),
-                    expected: "points with a confidence (or value) property",
-                }))
+    let mut done = 0u64;
+    read_point_cloud_part_chunks(
+        input.path,
+        input.chunk,
+        part,
+        |offset, points: PlyPoints| {
+            if !keep_going(done) {
+                return Err(OutOfCoreError::Reconstruction(Error::Cancelled));
             }
-        };
-        if check {
-            let checked = match &points.positions_f64 {
-                Some(exact) => PointSet::new().extend_weighted_f64(exact, &points.normals, weights),
-                None => {
-                    PointSet::new().extend_weighted(&points.positions, &points.normals, weights)
+            let weights = match (input.confidence, &points.confidence) {
+                (false, _) => None,
+                (true, Some(c)) => Some(c.as_slice()),
+                (true, None) => {
+                    return Err(OutOfCoreError::Reconstruction(Error::InvalidParameter {
+                        name: "confidence",
+                        value: "true".into(),
+                        expected: "points with a confidence (or value) property",
+                    }))
                 }
             };
-            checked.map_err(|e| OutOfCoreError::Reconstruction(at_offset(e, offset)))?;
-        }
-        let records = (0..points.normals.len())
-            .map(|i| PointRecord {
-                position: match &points.positions_f64 {
-                    Some(exact) => exact[i],
-                    None => points.positions[i].map(f64::from),
-                },
-                normal: points.normals[i],
-                confidence: weights.map_or(1.0, |w| w[i]),
-            })
-            .collect();
-        offset += points.normals.len() as u64;
-        each(&points, records)
-    })
+            if check {
+                let checked = match &points.positions_f64 {
+                    Some(exact) => {
+                        PointSet::new().extend_weighted_f64(exact, &points.normals, weights)
+                    }
+                    None => {
+                        PointSet::new().extend_weighted(&points.positions, &points.normals, weights)
+                    }
+                };
+                checked.map_err(|e| OutOfCoreError::Reconstruction(at_offset(e, offset)))?;
+            }
+            let records = (0..points.normals.len())
+                .map(|i| PointRecord {
+                    position: match &points.positions_f64 {
+                        Some(exact) => exact[i],
+                        None => points.positions[i].map(f64::from),
+                    },
+                    normal: points.normals[i],
+                    confidence: weights.map_or(1.0, |w| w[i]),
+                })
+                .collect();
+            done += points.normals.len() as u64;
+            each(&points, records)
+        },
+    )
     .map_err(OutOfCoreError::Input)?
 }
 
@@ -109,24 +119,95 @@ fn at_offset(error: Error, offset: u64) -> Error {
     }
 }
 
-/// Pass 1: the count, the cube (`scale` as [`crate::Params::scale`]) and what the points carry.
-/// An input without points is [`Error::EmptyInput`].
-pub(crate) fn scan(
+/// What pass 1 finds in one part of the input: its points' count and box, and what they carry.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ScannedPart {
+    /// The input file's length in bytes (the same for every part of the same file).
+    pub(crate) file_bytes: u64,
+    pub(crate) count: u64,
+    bounds: Bounds,
+    has_attributes: bool,
+    positions_f64: bool,
+}
+
+impl ScannedPart {
+    /// As bytes, for a team's meeting.
+    pub(crate) fn packed(&self) -> Vec<u8> {
+        let mut p = Packer::default();
+        p.u64(self.file_bytes);
+        p.u64(self.count);
+        p.f64s(&self.bounds.lo.to_array());
+        p.f64s(&self.bounds.hi.to_array());
+        p.u64(u64::from(self.has_attributes) | u64::from(self.positions_f64) << 1);
+        p.bytes
+    }
+
+    pub(crate) fn unpacked(bytes: &[u8]) -> Result<ScannedPart, OutOfCoreError> {
+        let mut u = Unpacker::new(bytes);
+        let file_bytes = u.u64()?;
+        let count = u.u64()?;
+        let corner = |list: Vec<f64>| -> Result<DVec3, OutOfCoreError> {
+            <[f64; 3]>::try_from(list).map(DVec3::from).map_err(|_| {
+                OutOfCoreError::Reconstruction(Error::Internal(
+                    "a scanned part's box is cut short".into(),
+                ))
+            })
+        };
+        let lo = corner(u.f64s()?)?;
+        let hi = corner(u.f64s()?)?;
+        let flags = u.u64()?;
+        Ok(ScannedPart {
+            file_bytes,
+            count,
+            bounds: Bounds { lo, hi },
+            has_attributes: flags & 1 != 0,
+            positions_f64: flags & 2 != 0,
+        })
+    }
+}
+
+/// Pass 1 over `part` of the input (r of n: every point is in one part): the points checked,
+/// counted and boxed.
+pub(crate) fn scan_part(
     input: &Input<'_>,
-    scale: f64,
+    part: (usize, usize),
     keep_going: &mut dyn FnMut(u64) -> bool,
-) -> Result<Scan, OutOfCoreError> {
-    let mut bounds = Bounds::default();
-    let mut count = 0u64;
-    let mut has_attributes = false;
-    let mut positions_f64 = false;
-    for_each_chunk(input, true, keep_going, |points, records| {
-        bounds.extend(records.iter().map(|r| DVec3::from(r.position)));
-        count += records.len() as u64;
-        has_attributes |= points.colors.is_some() || !points.channels.is_empty();
-        positions_f64 |= points.positions_f64.is_some();
+) -> Result<ScannedPart, OutOfCoreError> {
+    let mut scanned = ScannedPart {
+        file_bytes: 0,
+        count: 0,
+        bounds: Bounds::default(),
+        has_attributes: false,
+        positions_f64: false,
+    };
+    for_each_chunk(input, part, true, keep_going, |points, records| {
+        scanned
+            .bounds
+            .extend(records.iter().map(|r| DVec3::from(r.position)));
+        scanned.count += records.len() as u64;
+        scanned.has_attributes |= points.colors.is_some() || !points.channels.is_empty();
+        scanned.positions_f64 |= points.positions_f64.is_some();
         Ok(())
     })?;
+    // (The file was read: its length is known.)
+    scanned.file_bytes = std::fs::metadata(input.path).map_or(0, |m| m.len());
+    Ok(scanned)
+}
+
+/// Pass 1's result from its `parts` (all of them, any order: counts add, boxes join): the
+/// count, the cube (`scale` as [`crate::Params::scale`]) and what the points carry. An input
+/// without points is [`Error::EmptyInput`].
+pub(crate) fn scan_of_parts(
+    parts: &[ScannedPart],
+    input: &Input<'_>,
+    scale: f64,
+) -> Result<Scan, OutOfCoreError> {
+    let mut bounds = Bounds::default();
+    for part in parts {
+        bounds.lo = bounds.lo.min(part.bounds.lo);
+        bounds.hi = bounds.hi.max(part.bounds.hi);
+    }
+    let count = parts.iter().map(|p| p.count).sum();
     if count == 0 {
         return Err(OutOfCoreError::Reconstruction(Error::EmptyInput));
     }
@@ -134,8 +215,8 @@ pub(crate) fn scan(
         count,
         map: UnitCubeMap::fit_bounds(&bounds, scale),
         weighted: input.confidence,
-        has_attributes,
-        positions_f64,
+        has_attributes: parts.iter().any(|p| p.has_attributes),
+        positions_f64: parts.iter().any(|p| p.positions_f64),
     })
 }
 
@@ -152,7 +233,7 @@ pub(crate) fn columns_and_density(
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
     let mut kernel_counts = KernelCounts::new(kernel_depth);
-    for_each_chunk(input, false, keep_going, |_, records| {
+    for_each_chunk(input, (0, 1), false, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
             .map(|r| map.to_unit_f64(r.position))
@@ -190,7 +271,7 @@ pub(crate) fn bin(
                 .transpose()
         })
         .collect::<Result<Vec<_>, _>>()?;
-    for_each_chunk(input, false, keep_going, |_, records| {
+    for_each_chunk(input, (0, 1), false, keep_going, |_, records| {
         for r in &records {
             let x = scan.map.to_unit_f64(r.position).x;
             for k in layout.slabs_reading(layout.column_of(x)) {
