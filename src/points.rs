@@ -470,6 +470,12 @@ impl Bounds {
             self.hi = self.hi.max(v);
         }
     }
+
+    /// Grows the box to hold `other` (nothing when `other` is empty).
+    pub(crate) fn join(&mut self, other: &Bounds) {
+        self.lo = self.lo.min(other.lo);
+        self.hi = self.hi.max(other.hi);
+    }
 }
 
 /// The similarity that maps input coordinates into the unit cube: `unit = (p − origin) / size`.

@@ -204,8 +204,7 @@ pub(crate) fn scan_of_parts(
 ) -> Result<Scan, OutOfCoreError> {
     let mut bounds = Bounds::default();
     for part in parts {
-        bounds.lo = bounds.lo.min(part.bounds.lo);
-        bounds.hi = bounds.hi.max(part.bounds.hi);
+        bounds.join(&part.bounds);
     }
     let count = parts.iter().map(|p| p.count).sum();
     if count == 0 {
