@@ -143,6 +143,32 @@ impl KernelCounts {
         }
     }
 
+    /// The nodes touched so far, as sorted distinct keys.
+    pub(crate) fn into_sorted_keys(self) -> Vec<u64> {
+        let mut keys: Vec<u64> = self.counts.into_keys().collect();
+        keys.sort_unstable();
+        keys
+    }
+
+    /// The nodes whose centre's x `keep` accepts, with their counts, sorted by key.
+    pub(crate) fn sorted_nodes_where(&self, keep: impl Fn(f64) -> bool) -> Vec<(u64, f64)> {
+        let h = (-(self.depth as f64)).exp2();
+        let mut nodes: Vec<(u64, f64)> = self
+            .counts
+            .iter()
+            .filter(|(&key, _)| keep((unmorton(key)[0] as f64 + 0.5) * h))
+            .map(|(&key, &count)| (key, count))
+            .collect();
+        nodes.sort_unstable_by_key(|n| n.0);
+        nodes
+    }
+
+    /// Counts of the same depth made elsewhere (each node's once: a node given twice keeps
+    /// the second count).
+    pub(crate) fn insert(&mut self, nodes: impl IntoIterator<Item = (u64, f64)>) {
+        self.counts.extend(nodes);
+    }
+
     /// The field: the counts, restricted to every coarser depth.
     pub(crate) fn into_field(self) -> DensityField {
         let depth = self.depth;

@@ -124,13 +124,23 @@ fn entries(dir: &Path) -> Vec<PathBuf> {
 /// The mesh of one process in `slabs` slabs against those of teams of 2..=4 members: the same
 /// bytes, the same report, no temporary file left.
 fn same_mesh_for_every_team(test: &str, input: &Path, params: &Params, slabs: usize) {
+    let options = OutOfCore::default().with_slabs(Some(slabs));
+    let report = same_mesh_for_every_team_with(test, input, params, options);
+    assert_eq!(report.slabs, slabs);
+}
+
+/// As [`same_mesh_for_every_team`], the slabs cut as `options` say; one process's report.
+fn same_mesh_for_every_team_with(
+    test: &str,
+    input: &Path,
+    params: &Params,
+    options: OutOfCore,
+) -> OutOfCoreReport {
     let dir = test_dir(test);
-    let options = OutOfCore::default()
-        .with_slabs(Some(slabs))
-        .with_temp_dir(Some(dir.join("tmp")));
+    let options = options.with_temp_dir(Some(dir.join("tmp")));
     let alone = dir.join("alone.ply");
     let report = psr::reconstruct_out_of_core(input, &alone, params, &options).expect("alone");
-    assert_eq!(report.slabs, slabs);
+    let slabs = report.slabs;
     let expected = std::fs::read(&alone).expect("written");
     for members in 2..=4 {
         let output = dir.join(format!("team-{members}.ply"));
@@ -159,6 +169,7 @@ fn same_mesh_for_every_team(test: &str, input: &Path, params: &Params, slabs: us
         report.vertices, report.triangles
     );
     let _ = std::fs::remove_dir_all(&dir);
+    report
 }
 
 /// Proves a team's mesh of a sphere is one process's, bit for bit, for 2, 3 and 4 members over
@@ -169,6 +180,30 @@ fn a_team_writes_the_mesh_of_one_process_bit_for_bit() {
     let input = sphere_file(&dir, 30_000, 11);
     let params = Params::default().with_depth(8).with_threads(1);
     same_mesh_for_every_team("sphere", &input, &params, 5);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A budget the 30,000-point sphere at depth 8 fits in about six slabs (50 MiB is the least any
+/// cut of it needs; 60 MiB cuts four).
+const BUDGET: u64 = 56 << 20;
+
+/// Proves the same when a memory budget cuts the slabs: every member measures the surface
+/// from its part of the input, and the parts' measures join into the one process's, so the
+/// members cut the same slabs (at least one per member) and write the same mesh.
+#[test]
+fn a_team_cut_by_a_memory_budget_writes_the_mesh_of_one_process() {
+    let dir = test_dir("budget-input");
+    let input = sphere_file(&dir, 30_000, 12);
+    let params = Params::default()
+        .with_depth(8)
+        .with_threads(1)
+        .with_max_memory(Some(BUDGET));
+    let report = same_mesh_for_every_team_with("budget", &input, &params, OutOfCore::default());
+    assert!(
+        report.slabs >= 4,
+        "the budget cut {} slabs: fewer than the largest team, which would cut more",
+        report.slabs
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

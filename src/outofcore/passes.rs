@@ -9,12 +9,17 @@
 //! neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
-use super::scan::{bin, columns_and_density, scan_of_parts, scan_part, Input, Scan, ScannedPart};
+use super::scan::{
+    bin_part, binned_file, columns_of_part, scan_of_parts, scan_part, ColumnsOfPart, Input, Scan,
+    ScannedPart,
+};
 use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::team::{agreed, agreed_with, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
-use crate::density::{estimate, samples_by_depth, DensityField, DepthSample, SampleDensity};
+use crate::density::{
+    estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, SampleDensity,
+};
 use crate::evaluate::Indicator;
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
@@ -25,6 +30,7 @@ use crate::system::{
     sample_weights_from_totals,
 };
 use crate::{Params, Result};
+use glam::DVec3;
 use std::path::{Path, PathBuf};
 
 /// How the run is cut: the base depth, the slabs asked for, their padding.
@@ -81,6 +87,14 @@ fn surface_by_column(field: &DensityField, wall_depth: u32) -> Vec<f64> {
         }
     }
     surface
+}
+
+/// The distinct values of sorted `lists`, sorted.
+fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
+    let mut all: Vec<u64> = lists.flatten().copied().collect();
+    all.sort_unstable();
+    all.dedup();
+    all
 }
 
 /// The fewest slabs for `budget` bytes (see [`SlabCount::Within`]), from the points' column
@@ -153,8 +167,8 @@ pub(crate) struct SolvedSlabs {
     /// The parameters as the in-memory path would use them for this cube.
     pub(crate) params: Params,
     pub(crate) layout: SlabLayout,
-    /// The samples' input files, one per slab.
-    pub(crate) point_files: Vec<PathBuf>,
+    /// The slabs' files (their prepared samples).
+    pub(crate) files: SlabFiles,
     /// The base's core sets (depths 0..=B), shared by every slab's tree.
     pub(crate) base_cores: Vec<Vec<u64>>,
     /// The density of all the samples (the slabs' samples' depths and areas come from it).
@@ -175,7 +189,7 @@ impl SolvedSlabs {
             params: &self.params,
             scan: &self.scan,
             layout: &self.layout,
-            files: &self.point_files,
+            files: &self.files,
             field: &self.field,
             pool,
             watch: Watch::new(),
@@ -292,7 +306,7 @@ struct Run<'a> {
     params: &'a Params,
     scan: &'a Scan,
     layout: &'a SlabLayout,
-    files: &'a [PathBuf],
+    files: &'a SlabFiles,
     field: &'a DensityField,
     pool: &'a rayon::ThreadPool,
     watch: Watch,
@@ -309,11 +323,11 @@ impl Run<'_> {
         finest: Option<u32>,
     ) -> std::result::Result<SlabSamples, OutOfCoreError> {
         let params = self.params;
-        let prepared_file = self.files[k].with_extension("prepared");
+        let prepared_file = &self.files.prepared[k];
         let (samples, mut density) = if prepared_file.exists() {
-            read_prepared(&prepared_file)?
+            read_prepared(prepared_file)?
         } else {
-            self.prepare(k, &prepared_file)?
+            self.prepare(k, prepared_file)?
         };
         let mut at_depth = samples_by_depth(
             &mut density,
@@ -347,7 +361,7 @@ impl Run<'_> {
         keep_in: &Path,
     ) -> std::result::Result<(Samples, SampleDensity), OutOfCoreError> {
         let params = self.params;
-        let records = read_slab(&self.files[k])?;
+        let records = read_slab(&self.files.points[k])?;
         let positions: Vec<[f64; 3]> = records.iter().map(|r| r.position).collect();
         let normals: Vec<[f32; 3]> = records.iter().map(|r| r.normal).collect();
         let weights: Vec<f32> = records.iter().map(|r| r.confidence).collect();
@@ -373,8 +387,9 @@ impl Run<'_> {
             )
         })?;
         write_prepared(keep_in, &samples, &density)?;
-        std::fs::remove_file(&self.files[k])
-            .map_err(scratch_error("remove a slab file", &self.files[k]))?;
+        for file in &self.files.points[k] {
+            std::fs::remove_file(file).map_err(scratch_error("remove a slab file", file))?;
+        }
         Ok((samples, density))
     }
 
@@ -517,7 +532,7 @@ fn owner_of(layout: &SlabLayout, d: u32, x: i32) -> Option<usize> {
 struct Cut {
     layout: SlabLayout,
     scratch: Scratch,
-    files: Vec<PathBuf>,
+    files: SlabFiles,
     field: DensityField,
     /// Each slab's own core sets up to the base depth.
     own_cores: Vec<Vec<Vec<u64>>>,
@@ -528,14 +543,62 @@ struct Cut {
     total_confidence: f64,
 }
 
+/// The columns of padding each slab reads beyond its walls: `asked`, or more when the density's
+/// kernel is so coarse that a node the slab owns gathers points from farther away (a node of
+/// the kernel depth reaches one node width from its centre, 2^(wall − kernel) columns when the
+/// kernel depth is the coarser).
+fn padding_for(asked: u32, wall_depth: u32, kernel_depth: u32) -> u32 {
+    let reach = 1u32 << wall_depth.saturating_sub(kernel_depth).min(31);
+    asked.max(reach)
+}
+
+/// Slab k's part of the density's kernel counts at `kernel_depth`: the nodes whose centre lies
+/// in its columns, with their counts summed over `unit` (its points and padding, in the unit
+/// cube, in input order) weighed by `confidence`. With a padding of [`padding_for`], these are
+/// the counts of the whole input bit for bit: every point splatting onto such a node is among
+/// the slab's, and it adds in the input's order.
+fn own_kernel_nodes(
+    unit: &[DVec3],
+    confidence: &[f64],
+    layout: &SlabLayout,
+    k: usize,
+    kernel_depth: u32,
+) -> Vec<(u64, f64)> {
+    let mut counts = KernelCounts::new(kernel_depth);
+    counts.add(unit, Some(confidence));
+    counts.sorted_nodes_where(|x| layout.slab_of_column(layout.column_of(x)) == k)
+}
+
+/// The slabs' files: each slab's binned points (one file per part of the input, in part order)
+/// and, once its samples are prepared, its prepared samples.
+pub(crate) struct SlabFiles {
+    points: Vec<Vec<PathBuf>>,
+    prepared: Vec<PathBuf>,
+}
+
+impl SlabFiles {
+    fn new(scratch: &Scratch, slabs: usize, parts: usize) -> Self {
+        SlabFiles {
+            points: (0..slabs)
+                .map(|k| (0..parts).map(|r| binned_file(scratch, k, r)).collect())
+                .collect(),
+            prepared: (0..slabs)
+                .map(|k| scratch.file(&format!("slab-{k}.prepared")))
+                .collect(),
+        }
+    }
+}
+
 /// Counts the columns of depth `base_depth` + 2, cuts them into slabs (as `plan` says), bins
-/// the points, and runs pass A: each slab's own core sets up to the base depth, the finest
-/// depth, the screening totals. Every member of `team` counts the columns itself (the same
-/// count from the same file) and bins and prepares its own slabs.
+/// the points, sums the density's kernel counts slab by slab, and runs pass A: each slab's own
+/// core sets up to the base depth, the finest depth, the screening totals. Every member counts
+/// and bins its part of the input (`part` of it, `part_count` points) and sums and prepares its
+/// own slabs.
 #[allow(clippy::too_many_arguments)]
 fn cut(
     input: &Input<'_>,
     scan: &Scan,
+    part_count: u64,
     params: &Params,
     plan: &Plan,
     base_depth: u32,
@@ -543,48 +606,75 @@ fn cut(
     pool: &rayon::ThreadPool,
     keep_going: &mut dyn FnMut(&str, f32) -> bool,
 ) -> std::result::Result<Cut, OutOfCoreError> {
-    let count = scan.count as f32;
+    let part = (team.rank(), team.size());
+    let part_fraction = |done: u64| done as f32 / part_count.max(1) as f32;
     let wall_depth = base_depth + 2;
-    let counted = (|| {
-        let (counts, kernel_counts) = columns_and_density(
-            input,
-            &scan.map,
-            wall_depth,
-            params.effective_kernel_depth(),
-            &mut |done| keep_going("columns", done as f32 / count),
-        )?;
-        let field = kernel_counts.into_field();
-        let shared = crate::memory::density_bytes(field.slots() as u64);
-        let slabs = match plan.slabs {
-            SlabCount::Exactly(n) => n,
-            SlabCount::Within(budget) => {
-                let surface = surface_by_column(&field, wall_depth);
-                let layout_of =
-                    |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
-                slabs_within(
-                    budget,
-                    &counts,
-                    &surface,
-                    field.depth,
-                    layout_of,
-                    base_depth,
-                    params,
-                    shared,
-                )
-                .map_err(|enough| crate::Error::OutOfMemory {
-                    what: "the largest slab a cut of the cloud can make, with its padding",
-                    needed: enough,
-                    limit: Some(budget),
-                    enough: Some(enough),
-                })?
-            }
-        };
-        // Every member has a slab to do (when the points fill enough columns).
-        let slabs = slabs.max(team.size());
-        let layout = SlabLayout::balanced(&counts, wall_depth, slabs, plan.padding);
-        Ok((field, layout))
-    })();
-    let (field, layout) = agreed(team, counted)?;
+    let kernel_depth = params.effective_kernel_depth();
+    let padding = padding_for(plan.padding, wall_depth, kernel_depth);
+    // The memory budget's cut measures the surface by the kernel's nodes.
+    let budget = match plan.slabs {
+        SlabCount::Within(budget) => Some(budget),
+        SlabCount::Exactly(_) => None,
+    };
+    let counted = columns_of_part(
+        input,
+        part,
+        &scan.map,
+        wall_depth,
+        budget.map(|_| kernel_depth),
+        &mut |done| keep_going("columns", part_fraction(done)),
+    );
+    let (_, parts) = agreed_with(team, counted, ColumnsOfPart::packed)?;
+    // Every member lays the slabs out itself, from the same parts.
+    let parts = parts
+        .iter()
+        .map(|bytes| ColumnsOfPart::unpacked(bytes))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let mut counts = vec![0u64; 1 << wall_depth];
+    for part in &parts {
+        for (sum, count) in counts.iter_mut().zip(&part.counts) {
+            *sum += count;
+        }
+    }
+    let slabs = match plan.slabs {
+        SlabCount::Exactly(n) => n,
+        SlabCount::Within(budget) => {
+            // The surface as the whole input's kernel nodes, in a field of their structure
+            // (its tables as large as the counts' will be).
+            let mut structure = KernelCounts::new(kernel_depth);
+            structure.insert(
+                merge_sorted(parts.iter().map(|p| p.kernel_nodes.as_slice()))
+                    .into_iter()
+                    .map(|key| (key, 0.0)),
+            );
+            let structure = structure.into_field();
+            let shared = crate::memory::density_bytes(structure.slots() as u64);
+            let surface = surface_by_column(&structure, wall_depth);
+            drop(structure);
+            let layout_of =
+                |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
+            slabs_within(
+                budget,
+                &counts,
+                &surface,
+                kernel_depth,
+                layout_of,
+                base_depth,
+                params,
+                shared,
+            )
+            .map_err(|enough| crate::Error::OutOfMemory {
+                what: "the largest slab a cut of the cloud can make, with its padding",
+                needed: enough,
+                limit: Some(budget),
+                enough: Some(enough),
+            })?
+        }
+    };
+    drop(parts);
+    // Every member has a slab to do (when the points fill enough columns).
+    let layout = SlabLayout::balanced(&counts, wall_depth, slabs.max(team.size()), padding);
+    let slabs = layout.len();
     let scratch = from_first(
         team,
         || Scratch::create(plan.temp_dir.as_deref()),
@@ -597,16 +687,45 @@ fn cut(
             Ok(Scratch::join(dir.into()))
         },
     )?;
-    let members = team.size();
-    let binned = bin(
-        input,
-        scan,
-        &layout,
-        &scratch,
-        &|k| k % members == team.rank(),
-        &mut |done| keep_going("bin", done as f32 / count),
-    );
-    let files = agreed(team, binned)?;
+    let binned = bin_part(input, part, scan, &layout, &scratch, &mut |done| {
+        keep_going("bin", part_fraction(done))
+    });
+    agreed(team, binned)?;
+    let files = SlabFiles::new(&scratch, slabs, team.size());
+
+    // The density's kernel counts, each slab summing those of the nodes it owns (whose centre
+    // is in its columns) over its points and padding in input order: each node's sum is then
+    // the single process's, whatever the parts and the members.
+    let mut kernel_counts = KernelCounts::new(kernel_depth);
+    rounds(
+        team,
+        slabs,
+        |k| {
+            if !keep_going("density", k as f32 / slabs as f32) {
+                return Err(OutOfCoreError::Reconstruction(crate::Error::Cancelled));
+            }
+            let records = read_slab(&files.points[k])?;
+            let unit: Vec<DVec3> = records
+                .iter()
+                .map(|r| scan.map.to_unit_f64(r.position))
+                .collect();
+            let confidence: Vec<f64> = records.iter().map(|r| r.confidence as f64).collect();
+            drop(records);
+            let nodes = own_kernel_nodes(&unit, &confidence, &layout, k, kernel_depth);
+            let mut p = Packer::default();
+            p.u64s(&nodes.iter().map(|n| n.0).collect::<Vec<_>>());
+            p.f64s(&nodes.iter().map(|n| n.1).collect::<Vec<_>>());
+            Ok(p.bytes)
+        },
+        |_, bytes| {
+            let mut u = Unpacker::new(bytes);
+            let keys = u.u64s()?;
+            let values = u.f64s()?;
+            kernel_counts.insert(keys.into_iter().zip(values));
+            Ok(())
+        },
+    )?;
+    let field = kernel_counts.into_field();
     let run = Run {
         params,
         scan,
@@ -745,8 +864,9 @@ pub(crate) fn solve_slabs(
     };
     // The cut and pass A; cut again with a lower base when the samples do not reach two
     // depths above it (a sparse cloud at a depth its samples do not resolve).
+    let part_count = parts[team.rank()].count;
     let mut cut = cut(
-        &input, &scan, &params, plan, base_depth, team, pool, keep_going,
+        &input, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
     )?;
     if cut.finest < base_depth + 2 {
         let lowest = cut.finest.saturating_sub(2);
@@ -763,7 +883,7 @@ pub(crate) fn solve_slabs(
         agreed(team, Ok(()))?;
         drop(cut);
         cut = self::cut(
-            &input, &scan, &params, plan, base_depth, team, pool, keep_going,
+            &input, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
         )?;
     }
     let Cut {
@@ -989,7 +1109,7 @@ pub(crate) fn solve_slabs(
         scan,
         params,
         layout,
-        point_files: files,
+        files,
         base_cores,
         field,
         finest,
@@ -1030,8 +1150,8 @@ fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, O
 #[cfg(test)]
 mod tests {
     use super::{
-        read_prepared, slabs_within, surface_by_column, write_prepared, DensityField,
-        SampleDensity, Samples, SlabLayout,
+        own_kernel_nodes, padding_for, read_prepared, slabs_within, surface_by_column,
+        write_prepared, DensityField, KernelCounts, SampleDensity, Samples, SlabLayout,
     };
     use crate::Params;
     use glam::DVec3;
@@ -1098,6 +1218,58 @@ mod tests {
                 DVec3::splat(0.5) + 0.3 * DVec3::new(r * t.cos(), r * t.sin(), z)
             })
             .collect()
+    }
+
+    /// Proves the slabs' own kernel nodes, each summed over the slab's points and padding, make
+    /// the whole cloud's density field bit for bit, when the padding is [`padding_for`]'s,
+    /// for kernels finer and coarser than the walls; and that the asked padding alone is not
+    /// enough for a kernel far coarser than the walls (so the rule is needed).
+    #[test]
+    fn the_slabs_own_kernel_nodes_make_the_whole_field_bit_for_bit() {
+        let points: Vec<DVec3> = sphere(20_000)
+            .into_iter()
+            .map(|p| p + DVec3::new(0.05 * (p.y * 40.0).sin(), 0.0, 0.0))
+            .collect();
+        let confidence: Vec<f64> = (0..points.len()).map(|i| 0.5 + (i % 7) as f64).collect();
+        let wall_depth = 6;
+        let field_of_slabs = |kernel_depth: u32, padding: u32| {
+            let columns = SlabLayout::balanced(&vec![0; 1 << wall_depth], wall_depth, 1, 0);
+            let mut counts = vec![0u64; 1 << wall_depth];
+            for p in &points {
+                counts[columns.column_of(p.x) as usize] += 1;
+            }
+            let layout = SlabLayout::balanced(&counts, wall_depth, 5, padding);
+            assert_eq!(layout.len(), 5);
+            let mut merged = KernelCounts::new(kernel_depth);
+            for k in 0..layout.len() {
+                let (unit, weights): (Vec<DVec3>, Vec<f64>) = points
+                    .iter()
+                    .zip(&confidence)
+                    .filter(|(p, _)| layout.slabs_reading(layout.column_of(p.x)).contains(&k))
+                    .map(|(p, c)| (*p, *c))
+                    .unzip();
+                merged.insert(own_kernel_nodes(&unit, &weights, &layout, k, kernel_depth));
+            }
+            merged.into_field()
+        };
+        let probes: Vec<DVec3> = points.iter().step_by(97).copied().collect();
+        let same = |a: &DensityField, b: &DensityField| {
+            (0..=a.depth).all(|d| {
+                probes
+                    .iter()
+                    .all(|&q| a.evaluate_at(d, q).to_bits() == b.evaluate_at(d, q).to_bits())
+            }) && a.kernel_node_x().count() == b.kernel_node_x().count()
+        };
+        for kernel_depth in [8, 6, 5, 2] {
+            let whole = DensityField::splat(&points, Some(&confidence), kernel_depth);
+            let padding = padding_for(2, wall_depth, kernel_depth);
+            assert!(
+                same(&field_of_slabs(kernel_depth, padding), &whole),
+                "kernel depth {kernel_depth}, padding {padding}"
+            );
+        }
+        let whole = DensityField::splat(&points, Some(&confidence), 2);
+        assert!(!same(&field_of_slabs(2, 2), &whole));
     }
 
     /// Proves the surface's measure counts every node of the kernel depth once, in the columns

@@ -149,7 +149,7 @@ pub(crate) fn run(
     let mut go_on = |stage: Stage, fraction: f32| progress(stage, fraction);
     let solved = solve_slabs(input, params, &plan, team, pool, &mut |pass, fraction| {
         let stage = match pass {
-            "scan" | "columns" | "bin" => Stage::Points,
+            "scan" | "columns" | "bin" | "density" => Stage::Points,
             "base" => Stage::System,
             "slabs" => Stage::Solve,
             _ => Stage::Isovalue,

@@ -1,7 +1,8 @@
-//! The passes over the input file, each reading it in chunks (never whole): the scan (the
-//! points' count and the unit cube, every point validated as the in-memory path validates
-//! it), the histogram of the points over the wall depth's columns, and the binning of every
-//! point into the files of the slabs that read it, with the density's kernel counts.
+//! The passes over the input file, each member of a team reading its part of it (the r-th of
+//! N runs of points), in chunks (never whole): the scan (the points' count and the unit cube,
+//! every point validated as the in-memory path validates it), the histogram of the points over
+//! the wall depth's columns, and the binning of every point into the files of the slabs that
+//! read it.
 
 use super::scratch::{PointRecord, Scratch, SlabWriter};
 use super::slabs::SlabLayout;
@@ -219,70 +220,102 @@ pub(crate) fn scan_of_parts(
     })
 }
 
-/// Pass 2: the number of points in each column of `wall_depth` (2^wall_depth of them), and
-/// the density's kernel counts of every point at `kernel_depth` (so that the field's size is
-/// known when the slabs are counted).
-pub(crate) fn columns_and_density(
+/// What pass 2 finds in one part of the input: how many of its points lie in each column of
+/// the wall depth and, when asked, which nodes of the kernel depth their splats touch.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ColumnsOfPart {
+    /// Points per column (2^wall_depth of them).
+    pub(crate) counts: Vec<u64>,
+    /// The kernel depth's nodes the part's points splat onto, as sorted distinct keys (empty
+    /// unless asked for).
+    pub(crate) kernel_nodes: Vec<u64>,
+}
+
+impl ColumnsOfPart {
+    /// As bytes, for a team's meeting.
+    pub(crate) fn packed(&self) -> Vec<u8> {
+        let mut p = Packer::default();
+        p.u64s(&self.counts);
+        p.u64s(&self.kernel_nodes);
+        p.bytes
+    }
+
+    pub(crate) fn unpacked(bytes: &[u8]) -> Result<ColumnsOfPart, OutOfCoreError> {
+        let mut u = Unpacker::new(bytes);
+        Ok(ColumnsOfPart {
+            counts: u.u64s()?,
+            kernel_nodes: u.u64s()?,
+        })
+    }
+}
+
+/// Pass 2 over `part` of the input (as [`scan_part`]): the number of its points in each column
+/// of `wall_depth`, and with `kernel_depth` the nodes of that depth their splats touch (the
+/// surface the memory budget's cut measures). Exact whatever the parts: the counts add and the
+/// nodes join into the whole input's.
+pub(crate) fn columns_of_part(
     input: &Input<'_>,
+    part: (usize, usize),
     map: &UnitCubeMap,
     wall_depth: u32,
-    kernel_depth: u32,
+    kernel_depth: Option<u32>,
     keep_going: &mut dyn FnMut(u64) -> bool,
-) -> Result<(Vec<u64>, KernelCounts), OutOfCoreError> {
+) -> Result<ColumnsOfPart, OutOfCoreError> {
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
-    let mut kernel_counts = KernelCounts::new(kernel_depth);
-    for_each_chunk(input, (0, 1), false, keep_going, |_, records| {
+    let mut kernel_counts = kernel_depth.map(KernelCounts::new);
+    for_each_chunk(input, part, false, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
             .map(|r| map.to_unit_f64(r.position))
             .collect();
-        let confidence: Vec<f64> = records.iter().map(|r| r.confidence as f64).collect();
-        kernel_counts.add(&unit, Some(&confidence));
+        if let Some(kernel_counts) = &mut kernel_counts {
+            kernel_counts.add(&unit, None);
+        }
         for p in &unit {
             counts[columns.column_of(p.x) as usize] += 1;
         }
         Ok(())
     })?;
-    Ok((counts, kernel_counts))
+    Ok(ColumnsOfPart {
+        counts,
+        kernel_nodes: kernel_counts.map_or_else(Vec::new, KernelCounts::into_sorted_keys),
+    })
 }
 
-/// Pass 3: every point into the file of each slab that reads it (its owner's and, within the
-/// padding, its neighbours'), for the slabs `here` says this member bins (all of them in a team
-/// of one); the files, one per slab of all (its own points and its padding, in input order).
-pub(crate) fn bin(
+/// The file of slab k's points binned from part r of the input.
+pub(crate) fn binned_file(scratch: &Scratch, k: usize, part: usize) -> PathBuf {
+    scratch.file(&format!("slab-{k}-from-{part}.points"))
+}
+
+/// Pass 3 over `part` of the input (r of n): each of its points into the file of every slab
+/// that reads it (its owner's and, within the padding, its neighbours'), one file per slab for
+/// this part ([`binned_file`]), in input order. A slab's points in input order are then its
+/// files of parts 0, 1, …, n − 1 read one after the other, whatever n is.
+pub(crate) fn bin_part(
     input: &Input<'_>,
+    part: (usize, usize),
     scan: &Scan,
     layout: &SlabLayout,
     scratch: &Scratch,
-    here: &dyn Fn(usize) -> bool,
     keep_going: &mut dyn FnMut(u64) -> bool,
-) -> Result<Vec<PathBuf>, OutOfCoreError> {
-    let files: Vec<PathBuf> = (0..layout.len())
-        .map(|k| scratch.file(&format!("slab-{k}.points")))
-        .collect();
-    let mut writers = files
-        .iter()
-        .enumerate()
-        .map(|(k, file)| {
-            here(k)
-                .then(|| SlabWriter::create(file.clone()))
-                .transpose()
-        })
+) -> Result<(), OutOfCoreError> {
+    // A member writes to every slab at once: their buffers together stay within 64 MiB.
+    let buffer = ((64usize << 20) / layout.len()).clamp(64 << 10, 1 << 20);
+    let mut writers = (0..layout.len())
+        .map(|k| SlabWriter::create(binned_file(scratch, k, part.0), buffer))
         .collect::<Result<Vec<_>, _>>()?;
-    for_each_chunk(input, (0, 1), false, keep_going, |_, records| {
+    for_each_chunk(input, part, false, keep_going, |_, records| {
         for r in &records {
             let x = scan.map.to_unit_f64(r.position).x;
             for k in layout.slabs_reading(layout.column_of(x)) {
-                if let Some(writer) = &mut writers[k] {
-                    writer.push(*r)?;
-                }
+                writers[k].push(*r)?;
             }
         }
         Ok(())
     })?;
-    for writer in writers.into_iter().flatten() {
+    for writer in writers {
         writer.finish()?;
     }
-    Ok(files)
+    Ok(())
 }

@@ -134,10 +134,11 @@ pub(crate) fn scratch_error(
 }
 
 impl SlabWriter {
-    pub(crate) fn create(path: PathBuf) -> Result<SlabWriter, OutOfCoreError> {
+    /// A new, empty file at `path`, written through a buffer of `buffer` bytes.
+    pub(crate) fn create(path: PathBuf, buffer: usize) -> Result<SlabWriter, OutOfCoreError> {
         let file = File::create(&path).map_err(scratch_error("create a slab file", &path))?;
         Ok(SlabWriter {
-            out: BufWriter::with_capacity(1 << 20, file),
+            out: BufWriter::with_capacity(buffer, file),
             path,
             records: 0,
         })
@@ -159,15 +160,24 @@ impl SlabWriter {
     }
 }
 
-/// Every record of a slab file, in the order written.
-pub(crate) fn read_slab(path: &Path) -> Result<Vec<PointRecord>, OutOfCoreError> {
+/// Every record of the slab files at `paths`, one file after the other, each in the order
+/// written.
+pub(crate) fn read_slab(paths: &[PathBuf]) -> Result<Vec<PointRecord>, OutOfCoreError> {
+    let mut records = Vec::new();
+    for path in paths {
+        read_slab_into(path, &mut records)?;
+    }
+    Ok(records)
+}
+
+fn read_slab_into(path: &Path, records: &mut Vec<PointRecord>) -> Result<(), OutOfCoreError> {
     let file = File::open(path).map_err(scratch_error("open a slab file", path))?;
     let len = file
         .metadata()
         .map_err(scratch_error("read a slab file", path))?
         .len();
     let count = (len / RECORD_BYTES as u64) as usize;
-    let mut records = Vec::with_capacity(count);
+    records.reserve(count);
     let mut input = BufReader::with_capacity(1 << 20, file);
     let mut bytes = [0u8; RECORD_BYTES];
     for _ in 0..count {
@@ -176,7 +186,7 @@ pub(crate) fn read_slab(path: &Path) -> Result<Vec<PointRecord>, OutOfCoreError>
             .map_err(scratch_error("read a slab file", path))?;
         records.push(PointRecord::from_bytes(&bytes));
     }
-    Ok(records)
+    Ok(())
 }
 
 /// Writes lists of 8-byte values (packed keys or coefficients), each with its length, to
@@ -256,7 +266,7 @@ impl From<Word> for f64 {
 mod tests {
     use super::*;
 
-    /// Proves the records come back as written, and the directory is gone after the guard is
+    /// Proves the records come back as written, the parts of a slab in their order, and the directory is gone after the guard is
     /// dropped, whatever it holds.
     #[test]
     fn slab_files_round_trip_and_the_directory_goes_with_its_guard() {
@@ -270,13 +280,18 @@ mod tests {
                 confidence: i as f32 * 0.5,
             })
             .collect();
-        let mut writer = SlabWriter::create(scratch.file("slab-0.points")).expect("writable");
-        for &r in &records {
-            writer.push(r).expect("written");
+        // Written as two parts (one of them empty), read back one after the other.
+        let mut paths = Vec::new();
+        for (part, range) in [0..600, 600..600, 600..1000].into_iter().enumerate() {
+            let file = scratch.file(&format!("slab-0-from-{part}.points"));
+            let mut writer = SlabWriter::create(file, 4096).expect("writable");
+            for &r in &records[range.clone()] {
+                writer.push(r).expect("written");
+            }
+            assert_eq!(writer.records, range.len() as u64);
+            paths.push(writer.finish().expect("flushed"));
         }
-        assert_eq!(writer.records, 1000);
-        let path = writer.finish().expect("flushed");
-        assert_eq!(read_slab(&path).expect("readable"), records);
+        assert_eq!(read_slab(&paths).expect("readable"), records);
         let lists = vec![vec![1.5f64, -0.0, f64::MIN_POSITIVE], vec![], vec![7.0]];
         write_lists(&scratch.file("lists"), &lists).expect("written");
         let back: Vec<Vec<f64>> = read_lists(&scratch.file("lists")).expect("read");
