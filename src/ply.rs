@@ -28,7 +28,7 @@
 
 use std::fmt;
 use std::fs::File;
-use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
+use std::io::{self, BufRead, BufReader, BufWriter, Read, Seek, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -798,6 +798,23 @@ struct Body<R> {
     line: usize,
     line_buf: Vec<u8>,
     bin_buf: Vec<u8>,
+    /// How to move `n` bytes ahead without reading them (a seek, in a file), giving how many
+    /// bytes were there; `None`: they are read and dropped.
+    skip_ahead: Option<SkipAhead<R>>,
+}
+
+/// Moves a reader `n` bytes ahead without reading them; gives how many bytes were there.
+type SkipAhead<R> = fn(&mut R, u64) -> io::Result<u64>;
+
+/// [`SkipAhead`] for a file: a seek, as far as the file goes.
+fn seek_ahead_in_file(r: &mut BufReader<File>, n: u64) -> io::Result<u64> {
+    let at = r.stream_position()?;
+    let len = r.get_ref().metadata()?.len();
+    let step = n.min(len.saturating_sub(at));
+    let step_signed = i64::try_from(step)
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "a skip past 2^63 bytes"))?;
+    r.seek_relative(step_signed)?;
+    Ok(step)
 }
 
 /// Reads the `n` bytes `buf` can take, or fewer at the end of the input; returns how many.
@@ -822,6 +839,7 @@ impl<R: BufRead> Body<R> {
             line: header.lines,
             line_buf: Vec::new(),
             bin_buf: Vec::new(),
+            skip_ahead: None,
         }
     }
 
@@ -874,7 +892,10 @@ impl<R: BufRead> Body<R> {
 
     /// Skips exactly `n` bytes, or reports how many were there.
     fn skip_bytes(&mut self, n: u64) -> io::Result<u64> {
-        io::copy(&mut self.r.by_ref().take(n), &mut io::sink())
+        match self.skip_ahead {
+            Some(skip_ahead) => skip_ahead(&mut self.r, n),
+            None => io::copy(&mut self.r.by_ref().take(n), &mut io::sink()),
+        }
     }
 
     fn read_binary(
@@ -1180,7 +1201,7 @@ pub fn read_points_from(reader: impl BufRead) -> Result<PlyPoints, PlyError> {
 /// The vertices and the faces of a PLY file (see [`read_points_and_triangles_from`]).
 pub fn read_points_and_triangles(path: &Path) -> Result<PointsAndTriangles, PlyError> {
     let (reader, len) = open(path)?;
-    read_vertices_and_faces(reader, len, Normals::IfPresent, true, None)
+    read_vertices_and_faces(reader, len, Normals::IfPresent, true, None, None)
         .map_err(|e| PlyError::new(e).with_path(path))
 }
 
@@ -1193,7 +1214,8 @@ pub fn read_points_and_triangles(path: &Path) -> Result<PointsAndTriangles, PlyE
 pub fn read_points_and_triangles_from(
     reader: impl BufRead,
 ) -> Result<PointsAndTriangles, PlyError> {
-    read_vertices_and_faces(reader, None, Normals::IfPresent, true, None).map_err(PlyError::new)
+    read_vertices_and_faces(reader, None, Normals::IfPresent, true, None, None)
+        .map_err(PlyError::new)
 }
 
 /// The vertices of a PLY file and its faces as triangles (indices into the vertices).
@@ -1211,7 +1233,7 @@ fn read_vertex_points<R: BufRead>(
     file_len: Option<u64>,
     normals: Normals,
 ) -> Result<PlyPoints, PlyErrorKind> {
-    read_vertices_and_faces(r, file_len, normals, false, None).map(|(points, _)| points)
+    read_vertices_and_faces(r, file_len, normals, false, None, None).map(|(points, _)| points)
 }
 
 /// Reads the oriented points of a PLY file (as [`read_point_cloud`] does) in chunks of at most
@@ -1231,8 +1253,8 @@ pub(crate) fn read_point_cloud_chunks<E>(
 /// As [`read_point_cloud_chunks`], for the points of one part of the file: with `part` = (r, n),
 /// the r-th of n runs of consecutive points of equal length (to one point), the first of them
 /// at index ⌊count·r/n⌋. `each` gets each chunk with the index in the file of its first point.
-/// In a binary file whose vertices have no list property, the bytes of the points before the
-/// part are passed over without being decoded and the points after it are not read; otherwise
+/// In a binary file whose vertices have no list property, the points before the part are
+/// sought past (neither read nor decoded) and the points after it are not read; otherwise
 /// they are decoded and dropped.
 pub(crate) fn read_point_cloud_part_chunks<E>(
     path: &Path,
@@ -1259,6 +1281,7 @@ pub(crate) fn read_point_cloud_part_chunks<E>(
             part: (part.0.min(part.1.max(1) - 1), part.1.max(1)),
             each: &mut hand_over,
         }),
+        Some(seek_ahead_in_file),
     )
     .map_err(|e| PlyError::new(e).with_path(path))?;
     Ok(failure.map_or(Ok(()), Err))
@@ -1342,6 +1365,7 @@ fn read_vertices_and_faces<R: BufRead>(
     normals: Normals,
     faces: bool,
     mut chunks: Option<Chunks<'_>>,
+    skip_ahead: Option<SkipAhead<R>>,
 ) -> Result<(PlyPoints, Vec<[u32; 3]>), PlyErrorKind> {
     let header = parse_header(&mut r)?;
     let Some(vi) = header.element("vertex") else {
@@ -1487,6 +1511,7 @@ fn read_vertices_and_faces<R: BufRead>(
         channels: Vec::new(),
     };
     let mut body = Body::new(r, &header);
+    body.skip_ahead = skip_ahead;
     for (i, el) in header.elements[..vi].iter().enumerate() {
         Faces::read_or_skip(&mut faces, &mut body, i, el)?;
     }
@@ -2357,6 +2382,7 @@ mod tests {
         points.channels.clear();
         let n = points.positions.len();
         let binary = to_bytes(&points, PlyFormat::BinaryLittleEndian);
+        let binary_copy = binary.clone();
         // The same points with a list property after the vertex's scalars (entries of varying
         // size: no skipping by bytes).
         let header = "ply\nformat binary_little_endian 1.0\nelement vertex N\n\
@@ -2401,6 +2427,15 @@ mod tests {
             }
             std::fs::remove_file(&path).unwrap();
         }
+        // A binary file cut short before a part: sought past, the missing points are still
+        // found missing, whichever part is read.
+        let path = temp_path("parts-cut-short.ply");
+        std::fs::write(&path, &binary_copy[..binary_copy.len() * 2 / 3]).unwrap();
+        for r in 0..3 {
+            let read = read_point_cloud_part_chunks(&path, 16, (r, 3), |_, _| Ok::<(), ()>(()));
+            assert!(read.is_err(), "part {r} of a file cut short");
+        }
+        std::fs::remove_file(&path).unwrap();
     }
 
     /// Proves: read_points reads a cloud with no normals (empty normals), and reads the

@@ -1,5 +1,6 @@
 //! The passes of a reconstruction out of core, in order (`docs/out-of-core.md`, "Phases"):
-//! the input scanned, its columns counted and its points binned to slab files (`scan.rs`);
+//! the input scanned, its columns counted and its points binned to slab files (`scan.rs`), the
+//! density's kernel counts summed slab by slab;
 //! then over the slabs, one in memory at a time: their samples prepared (kept for the passes
 //! after) and their own core sets up to the base depth (pass A), their own parts of the base's
 //! right-hand sides and screening groups (pass B), the base solved once, each slab's finer
@@ -60,8 +61,8 @@ pub(crate) enum SlabCount {
     /// This many (fewer when the points fill fewer columns).
     Exactly(usize),
     /// The fewest whose largest, with its padding, fits this many bytes by the memory
-    /// accounting (`memory.rs`) beside the density field of the whole cloud (its real size:
-    /// it is built before the slabs are counted).
+    /// accounting (`memory.rs`) beside the density field of the whole cloud (its tables'
+    /// real size: their nodes are found before the slabs are counted).
     Within(u64),
 }
 
