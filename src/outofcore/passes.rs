@@ -937,9 +937,9 @@ pub(crate) fn solve_slabs(
             let weights = sample_weights_from_totals(&confidence, total_area, total_confidence);
             let mut p = Packer::default();
             for d in 0..=b {
-                p.f64s(&rho[d]);
+                pack_sparse(&mut p, &rho[d]);
                 for axis in &field_v[d] {
-                    p.f64s(axis);
+                    pack_sparse(&mut p, axis);
                 }
                 let cells = sample_groups(&positions, &weights, proxy_depth(d as u32, finest));
                 pack_groups(&mut p, &cells);
@@ -950,8 +950,12 @@ pub(crate) fn solve_slabs(
             let mut u = Unpacker::new(bytes);
             let (mut rho, mut field_v) = (Vec::with_capacity(b + 1), Vec::with_capacity(b + 1));
             for per_slab in groups.iter_mut() {
-                rho.push(u.f64s()?);
-                field_v.push([u.f64s()?, u.f64s()?, u.f64s()?]);
+                rho.push(unpack_sparse(&mut u)?);
+                field_v.push([
+                    unpack_sparse(&mut u)?,
+                    unpack_sparse(&mut u)?,
+                    unpack_sparse(&mut u)?,
+                ]);
                 per_slab.push(unpack_groups(&mut u)?);
             }
             sums.add(&rho, &field_v, b);
@@ -1118,6 +1122,62 @@ pub(crate) fn solve_slabs(
     })
 }
 
+/// A slab's part of the base (ρ or a component of V over every node of depths ≤ B) into `p`,
+/// as the runs of its entries that are not +0.0: a slab touches the nodes near its own
+/// samples, so most of the base is zeros it need not send. [`unpack_sparse`] gives back the
+/// same bits (−0.0 included), so the sums over slabs are the dense ones bit for bit.
+fn pack_sparse(p: &mut Packer, values: &[f64]) {
+    let mut runs = Vec::new();
+    let mut kept = Vec::new();
+    let mut i = 0;
+    while i < values.len() {
+        if values[i].to_bits() == 0 {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < values.len() && values[i].to_bits() != 0 {
+            i += 1;
+        }
+        runs.extend([start as u64, (i - start) as u64]);
+        kept.extend_from_slice(&values[start..i]);
+    }
+    p.u64(values.len() as u64);
+    p.u64s(&runs);
+    p.f64s(&kept);
+}
+
+/// What [`pack_sparse`] packed, dense.
+fn unpack_sparse(u: &mut Unpacker<'_>) -> std::result::Result<Vec<f64>, OutOfCoreError> {
+    let len = u.u64()? as usize;
+    let runs = u.u64s()?;
+    let kept = u.f64s()?;
+    let bad = || {
+        OutOfCoreError::Reconstruction(crate::Error::Internal(
+            "a slab's part of the base does not fit its length".into(),
+        ))
+    };
+    let mut values = vec![0.0f64; len];
+    let mut taken = 0usize;
+    for run in runs.chunks(2) {
+        let [start, count] = run else {
+            return Err(bad());
+        };
+        let (start, count) = (*start as usize, *count as usize);
+        let target = values.get_mut(start..start.checked_add(count).ok_or_else(bad)?);
+        let source = kept.get(taken..taken + count);
+        match (target, source) {
+            (Some(target), Some(source)) => target.copy_from_slice(source),
+            _ => return Err(bad()),
+        }
+        taken += count;
+    }
+    if taken != kept.len() {
+        return Err(bad());
+    }
+    Ok(values)
+}
+
 /// One slab's screening groups of one depth into `p`.
 fn pack_groups(p: &mut Packer, groups: &[ProxyGroup]) {
     p.u64(groups.len() as u64);
@@ -1151,8 +1211,9 @@ fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, O
 #[cfg(test)]
 mod tests {
     use super::{
-        own_kernel_nodes, padding_for, read_prepared, slabs_within, surface_by_column,
-        write_prepared, DensityField, KernelCounts, SampleDensity, Samples, SlabLayout,
+        own_kernel_nodes, pack_sparse, padding_for, read_prepared, slabs_within, surface_by_column,
+        unpack_sparse, write_prepared, DensityField, KernelCounts, SampleDensity, Samples,
+        SlabLayout,
     };
     use crate::Params;
     use glam::DVec3;
@@ -1219,6 +1280,41 @@ mod tests {
                 DVec3::splat(0.5) + 0.3 * DVec3::new(r * t.cos(), r * t.sin(), z)
             })
             .collect()
+    }
+
+    /// Proves a slab's part of the base comes back bit for bit (zeros of either sign, runs at
+    /// either end), and that bytes that do not fit are an error, not values.
+    #[test]
+    fn a_sparse_part_of_the_base_reads_back_bit_for_bit() {
+        use super::super::team::{Packer, Unpacker};
+        let cases: Vec<Vec<f64>> = vec![
+            Vec::new(),
+            vec![0.0; 5],
+            vec![1.0, 0.0, -0.0, 0.0, 2.5, 3.5, 0.0, f64::MIN_POSITIVE],
+            vec![-0.0, 7.0, 0.0, 0.0],
+            (0..1000)
+                .map(|i| if i % 37 < 5 { (i as f64).sin() } else { 0.0 })
+                .collect(),
+        ];
+        for values in &cases {
+            let mut p = Packer::default();
+            pack_sparse(&mut p, values);
+            let back = unpack_sparse(&mut Unpacker::new(&p.bytes)).expect("read back");
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&back), bits(values));
+        }
+        // A run past the length.
+        let mut p = Packer::default();
+        p.u64(2);
+        p.u64s(&[1, 2]);
+        p.f64s(&[1.0, 2.0]);
+        assert!(unpack_sparse(&mut Unpacker::new(&p.bytes)).is_err());
+        // Values left over.
+        let mut p = Packer::default();
+        p.u64(4);
+        p.u64s(&[1, 1]);
+        p.f64s(&[1.0, 2.0]);
+        assert!(unpack_sparse(&mut Unpacker::new(&p.bytes)).is_err());
     }
 
     /// Proves the slabs' own kernel nodes, each summed over the slab's points and padding, make
