@@ -300,7 +300,8 @@ pub(crate) fn bin_part(
     scratch: &Scratch,
     keep_going: &mut dyn FnMut(u64) -> bool,
 ) -> Result<(), OutOfCoreError> {
-    // A member writes to every slab at once: their buffers together stay within 64 MiB.
+    // A member writes to every slab at once: 1 MiB of buffer each up to 64 slabs, then 64 MiB
+    // shared (64 KiB each, the least, past 1,024).
     let buffer = ((64usize << 20) / layout.len()).clamp(64 << 10, 1 << 20);
     let mut writers = (0..layout.len())
         .map(|k| SlabWriter::create(binned_file(scratch, k, part.0), buffer))
