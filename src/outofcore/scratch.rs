@@ -266,8 +266,8 @@ impl From<Word> for f64 {
 mod tests {
     use super::*;
 
-    /// Proves the records come back as written, the parts of a slab in their order, and the directory is gone after the guard is
-    /// dropped, whatever it holds.
+    /// Proves the records come back as written, the parts of a slab in their order, and the
+    /// directory is gone after the guard is dropped, whatever it holds.
     #[test]
     fn slab_files_round_trip_and_the_directory_goes_with_its_guard() {
         let scratch = Scratch::create(None).expect("a temporary directory");
@@ -280,7 +280,7 @@ mod tests {
                 confidence: i as f32 * 0.5,
             })
             .collect();
-        // Written as two parts (one of them empty), read back one after the other.
+        // Written as three parts (one of them empty), read back one after the other.
         let mut paths = Vec::new();
         for (part, range) in [0..600, 600..600, 600..1000].into_iter().enumerate() {
             let file = scratch.file(&format!("slab-0-from-{part}.points"));
