@@ -207,6 +207,32 @@ fn a_team_cut_by_a_memory_budget_writes_the_mesh_of_one_process() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Proves the same with the points weighed by their confidence: each member carries its part's
+/// weights into the slabs' files, and the density's counts summed slab by slab are one
+/// process's.
+#[test]
+fn a_team_weighing_the_points_writes_the_mesh_of_one_process() {
+    let dir = test_dir("weighted-input");
+    let (positions, normals) = sample_sphere(30_000, 1.0, [0.0; 3], 13);
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.confidence = Some(
+        (0..positions.len())
+            .map(|i| 0.5 + (i % 11) as f32 * 0.1)
+            .collect(),
+    );
+    cloud.positions = positions;
+    cloud.normals = normals;
+    let input = dir.join("weighted.ply");
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian)
+        .expect("written");
+    let params = Params::default().with_depth(8).with_threads(1);
+    let options = OutOfCore::default()
+        .with_slabs(Some(5))
+        .with_confidence(true);
+    same_mesh_for_every_team_with("weighted", &input, &params, options);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Proves the same on the bunny's scans at depth 9 in four slabs.
 #[test]
 fn a_team_writes_the_bunny_of_one_process_bit_for_bit() {
