@@ -616,15 +616,16 @@ enum Failure {
 pub fn main() -> ExitCode {
     keep_large_blocks_out_of_the_heap();
     let args = Args::parse();
-    exit_status(run(&args, &psr::Alone), true)
+    exit_status(run(&args, &psr::Alone, &mut |_| {}), true)
 }
 
 /// The program `psr-mpi` run by one member of `team` (an MPI rank): `psr`'s arguments, always
 /// out of core (`--out-of-core` is implied), with one slab per member unless `--slabs` or
 /// `--max-memory` says otherwise (each member's budget). Only rank 0 shows progress and
 /// reports, errors included (another member's named by its rank); every member returns the
-/// same exit status.
-pub fn main_in_team(team: &dyn psr::Team) -> ExitCode {
+/// same exit status. `on_stage` hears each stage of the run as it begins on this member (for
+/// `psr-mpi --verbose`'s account of each stage).
+pub fn main_in_team(team: &dyn psr::Team, on_stage: &mut dyn FnMut(Stage)) -> ExitCode {
     keep_large_blocks_out_of_the_heap();
     let mut argv: Vec<OsString> = std::env::args_os().collect();
     if !argv.iter().any(|a| a == "--out-of-core") {
@@ -646,7 +647,7 @@ pub fn main_in_team(team: &dyn psr::Team) -> ExitCode {
     if args.slabs.is_none() && args.max_memory.is_none() {
         args.slabs = Some(team.size());
     }
-    exit_status(run(&args, team), speaks)
+    exit_status(run(&args, team, on_stage), speaks)
 }
 
 /// The exit status of a run's result, its error printed when `speaks`.
@@ -749,7 +750,7 @@ fn oriented_normals(
     }
 }
 
-fn run(args: &Args, team: &dyn psr::Team) -> Result<(), Failure> {
+fn run(args: &Args, team: &dyn psr::Team, on_stage: &mut dyn FnMut(Stage)) -> Result<(), Failure> {
     let params = args.params();
     params.validate().map_err(|e| match &e {
         psr::Error::InvalidParameter { name, .. } => {
@@ -780,7 +781,7 @@ fn run(args: &Args, team: &dyn psr::Team) -> Result<(), Failure> {
     }
 
     if args.out_of_core {
-        return run_out_of_core(args, params, team);
+        return run_out_of_core(args, params, team, on_stage);
     }
     let show_progress = !args.quiet && std::io::stderr().is_terminal();
     let mut progress = ProgressLine::default();
@@ -959,7 +960,12 @@ fn run(args: &Args, team: &dyn psr::Team) -> Result<(), Failure> {
 }
 
 /// `--out-of-core`: from the input file to the output file through `psr::reconstruct_out_of_core`.
-fn run_out_of_core(args: &Args, params: Params, team: &dyn psr::Team) -> Result<(), Failure> {
+fn run_out_of_core(
+    args: &Args,
+    params: Params,
+    team: &dyn psr::Team,
+    on_stage: &mut dyn FnMut(Stage),
+) -> Result<(), Failure> {
     let mut refused: Vec<&str> = Vec::new();
     for (given, option) in [
         (args.grid.is_some(), "--grid"),
@@ -1006,6 +1012,7 @@ fn run_out_of_core(args: &Args, params: Params, team: &dyn psr::Team) -> Result<
     // Ctrl-C (or a SIGTERM) asks the run to stop at its next progress report, so that its
     // temporary directory (gigabytes for a large cloud) is removed before the program exits.
     stop_on_interrupt();
+    let mut current: Option<Stage> = None;
     let result = psr::reconstruct_out_of_core_in_team(
         &args.input,
         &args.output,
@@ -1013,6 +1020,10 @@ fn run_out_of_core(args: &Args, params: Params, team: &dyn psr::Team) -> Result<
         &options,
         team,
         &mut |stage, fraction| {
+            if current != Some(stage) {
+                current = Some(stage);
+                on_stage(stage);
+            }
             if show_progress {
                 progress.update(stage, fraction);
             }

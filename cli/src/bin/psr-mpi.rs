@@ -83,6 +83,54 @@ impl psr::Team for World {
     }
 }
 
+/// A rank's counters at one moment: seconds since the start, CPU seconds, seconds in meetings,
+/// bytes sent and received.
+#[derive(Clone, Copy, Default)]
+struct Mark {
+    seconds: f64,
+    cpu: f64,
+    meeting: f64,
+    sent: u64,
+    received: u64,
+}
+
+/// What each stage took on this rank, from the marks where the stages began and the end: per
+/// stage (a stage met twice, as the points when the cloud is cut again, counted once with both
+/// spans), its time, CPU time, time in meetings and bytes received.
+fn by_stage(marks: &[(psr::Stage, Mark)], end: &Mark) -> String {
+    let mut totals: Vec<(psr::Stage, Mark)> = Vec::new();
+    for (i, (stage, from)) in marks.iter().enumerate() {
+        let to = marks.get(i + 1).map_or(end, |(_, m)| m);
+        let index = match totals.iter().position(|(s, _)| s == stage) {
+            Some(index) => index,
+            None => {
+                totals.push((*stage, Mark::default()));
+                totals.len() - 1
+            }
+        };
+        let total = &mut totals[index].1;
+        total.seconds += to.seconds - from.seconds;
+        total.cpu += to.cpu - from.cpu;
+        total.meeting += to.meeting - from.meeting;
+        total.sent += to.sent - from.sent;
+        total.received += to.received - from.received;
+    }
+    totals
+        .iter()
+        .map(|(stage, t)| {
+            format!(
+                "{} {:.1} s ({:.1} s CPU, {:.1} s meeting, {:.1} MB in)",
+                stage.name(),
+                t.seconds,
+                t.cpu,
+                t.meeting,
+                t.received as f64 / 1e6
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// The CPU time (user and system) this process has used, in seconds.
 fn cpu_seconds() -> f64 {
     // SAFETY: getrusage writes the struct it is given; a zeroed rusage is a valid value.
@@ -108,7 +156,17 @@ fn main() -> ExitCode {
         meeting: Cell::new(Duration::ZERO),
     };
     let started = Instant::now();
-    let status = psr_cli::main_in_team(&team);
+    // Where each stage began on this rank: its time, CPU time and bytes so far.
+    let mut marks: Vec<(psr::Stage, Mark)> = Vec::new();
+    let mark = |team: &World| Mark {
+        seconds: started.elapsed().as_secs_f64(),
+        cpu: cpu_seconds(),
+        meeting: team.meeting.get().as_secs_f64(),
+        sent: team.sent.get(),
+        received: team.received.get(),
+    };
+    let status = psr_cli::main_in_team(&team, &mut |stage| marks.push((stage, mark(&team))));
+    let end = mark(&team);
     // With --verbose, every rank says what it exchanged and how long it waited (for
     // docs/distributed.md's measurements).
     if std::env::args().any(|a| a == "--verbose" || a == "-v") {
@@ -125,6 +183,11 @@ fn main() -> ExitCode {
             psr_cli::peak_resident_kib()
                 .map(|kib| format!("; peak {} MiB", kib / 1024))
                 .unwrap_or_default()
+        );
+        eprintln!(
+            "psr-mpi: rank {} by stage: {}",
+            team.comm.rank(),
+            by_stage(&marks, &end)
         );
     }
     // (The universe is dropped after the run: MPI_Finalize on every rank.)
