@@ -2,8 +2,9 @@
 //! (issue 21), e.g. `mpirun -n 4 psr-mpi --in scan.ply --out mesh.ply --depth 12 --temp-dir
 //! /shared/tmp`. The options are `psr`'s (`--out-of-core` implied, one slab per rank unless
 //! `--slabs` or `--max-memory` says otherwise); every rank runs the same passes on its own
-//! slabs, the ranks meet through `MPI_Allgather(v)`, and rank 0 writes the mesh, which is the
-//! one `psr --out-of-core` writes with the same slabs, bit for bit. The temporary directory
+//! slabs, the ranks meet through `MPI_Allgather(v)`, and every rank writes its slabs of the mesh
+//! into the one PLY rank 0 made, which is the one `psr --out-of-core` writes with the same
+//! slabs, bit for bit. The temporary directory
 //! must be one that every rank sees (one machine's disk, or a cluster's shared file system).
 
 use mpi::datatype::PartitionMut;
@@ -96,7 +97,7 @@ struct Mark {
 
 /// What each stage took on this rank, from the marks where the stages began and the end: per
 /// stage (a stage met twice, as the points when the cloud is cut again, counted once with both
-/// spans), its time, CPU time, time in meetings and bytes received.
+/// spans), its time, CPU time, time in meetings and bytes received and sent.
 fn by_stage(marks: &[(psr::Stage, Mark)], end: &Mark) -> String {
     let mut totals: Vec<(psr::Stage, Mark)> = Vec::new();
     for (i, (stage, from)) in marks.iter().enumerate() {
@@ -119,12 +120,13 @@ fn by_stage(marks: &[(psr::Stage, Mark)], end: &Mark) -> String {
         .iter()
         .map(|(stage, t)| {
             format!(
-                "{} {:.1} s ({:.1} s CPU, {:.1} s meeting, {:.1} MB in)",
+                "{} {:.1} s ({:.1} s CPU, {:.1} s meeting, {:.1} MB in, {:.1} MB out)",
                 stage.name(),
                 t.seconds,
                 t.cpu,
                 t.meeting,
-                t.received as f64 / 1e6
+                t.received as f64 / 1e6,
+                t.sent as f64 / 1e6
             )
         })
         .collect::<Vec<_>>()
