@@ -1948,6 +1948,28 @@ psr_status psr_implicit_gradient(const psr_implicit *f, const float *points, siz
 psr_status psr_implicit_sample_grid(const psr_implicit *f, size_t resolution, float *out, size_t capacity_floats);
 
 /**
+ * Samples χ on a resolution³ grid over the box from min to max (3 doubles each, input
+ * coordinates; a side may have zero length, and the box may reach outside the bounding cube),
+ * at the centres of its cells: the value of cell (i, j, k) (x, y, z indices) is χ at
+ * min + (i + 0.5, j + 0.5, k + 0.5) × (max − min) / resolution and goes to
+ * out[(i * resolution + j) * resolution + k], the order of psr_implicit_sample_grid (which is
+ * this function over the bounding cube). For a region of interest finer than the cube's grid,
+ * or a grid aligned with the object rather than with the cube. capacity_floats is the number
+ * of floats out can hold: at least resolution³.
+ *
+ * f, min, max and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_PARAMETER (a corner with a NaN or infinite coordinate, min above max on
+ * an axis, resolution 0 or above 4096, or resolution³ floats too many for the address space),
+ * PSR_STATUS_BUFFER_TOO_SMALL (nothing is written), PSR_STATUS_THREADS_UNAVAILABLE or
+ * PSR_STATUS_INTERNAL_ERROR. out is written only on success.
+ *
+ * # Safety
+ * `f` is NULL or a live psr_implicit; `min` and `max` are NULL or valid for reads of 3
+ * doubles; `out` is NULL or valid for writes of capacity_floats floats.
+ */
+psr_status psr_implicit_sample_box(const psr_implicit *f, const double *min, const double *max, size_t resolution, float *out, size_t capacity_floats);
+
+/**
  * Sets the most memory a solve on r may use, in bytes; 0 (the default) means no limit. psr
  * counts the big arrays of a reconstruction (the points, the octree, the system, the solver,
  * the extraction and the mesh; see psr_reconstructor_estimate_memory) and checks the count

@@ -3519,6 +3519,86 @@ fn implicit_evaluation_grid_and_errors_through_the_c_api() {
             psr_implicit_sample_grid(f, 2, small.as_mut_ptr(), small.len()),
             psr_status::Ok
         );
+        // A box: over the cube, the grid's values bit for bit; over another box, evaluation at
+        // its cells' centres.
+        let cube_max = origin.map(|o| o + size);
+        let mut boxed = vec![0.0f32; n * n * n];
+        assert_eq!(
+            psr_implicit_sample_box(
+                f,
+                origin.as_ptr(),
+                cube_max.as_ptr(),
+                n,
+                boxed.as_mut_ptr(),
+                boxed.len()
+            ),
+            psr_status::Ok
+        );
+        assert!(boxed
+            .iter()
+            .zip(&grid)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        let (lo, hi) = ([-0.3f64, -0.9, 0.0], [0.5f64, 0.1, 0.0]);
+        let mut flat = vec![0.0f32; 27];
+        assert_eq!(
+            psr_implicit_sample_box(f, lo.as_ptr(), hi.as_ptr(), 3, flat.as_mut_ptr(), 27),
+            psr_status::Ok
+        );
+        let mut centres = Vec::new();
+        for i in 0..3 {
+            for j in 0..3 {
+                for k in 0..3 {
+                    for (a, index) in [i, j, k].into_iter().enumerate() {
+                        let at = lo[a] + (index as f64 + 0.5) * (hi[a] - lo[a]) / 3.0;
+                        centres.push(at as f32);
+                    }
+                }
+            }
+        }
+        let mut want = vec![0.0f32; 27];
+        assert_eq!(
+            psr_implicit_evaluate(f, centres.as_ptr(), 27, want.as_mut_ptr()),
+            psr_status::Ok
+        );
+        for (at, (g, v)) in flat.iter().zip(&want).enumerate() {
+            assert!((g - v).abs() < 1e-4 * gamma.abs().max(1.0), "{at}: {g} {v}");
+        }
+        // Bad boxes and arguments: refused, nothing written.
+        let nan = [0.0, f64::NAN, 0.0];
+        let infinite = [0.0, 0.0, f64::INFINITY];
+        for (min, max, status) in [
+            (ptr::null(), hi.as_ptr(), psr_status::NullArgument),
+            (lo.as_ptr(), ptr::null(), psr_status::NullArgument),
+            (hi.as_ptr(), lo.as_ptr(), psr_status::InvalidParameter),
+            (nan.as_ptr(), hi.as_ptr(), psr_status::InvalidParameter),
+            (lo.as_ptr(), infinite.as_ptr(), psr_status::InvalidParameter),
+        ] {
+            assert_eq!(
+                psr_implicit_sample_box(f, min, max, 2, small.as_mut_ptr(), small.len()),
+                status
+            );
+        }
+        small = [5.0; 8];
+        assert_eq!(
+            psr_implicit_sample_box(f, lo.as_ptr(), hi.as_ptr(), 3, small.as_mut_ptr(), 8),
+            psr_status::BufferTooSmall
+        );
+        assert_eq!(
+            psr_implicit_sample_box(f, lo.as_ptr(), hi.as_ptr(), 2, ptr::null_mut(), 8),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_implicit_sample_box(
+                ptr::null(),
+                lo.as_ptr(),
+                hi.as_ptr(),
+                2,
+                small.as_mut_ptr(),
+                8
+            ),
+            psr_status::NullArgument
+        );
+        assert_eq!(small, [5.0; 8]);
         // The handle outlives the reconstructor and the mesh.
         psr_mesh_free(m);
         psr_reconstructor_free(r);

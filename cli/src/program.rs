@@ -12,7 +12,8 @@
 //!     [--no-density] [--no-attributes] [--vertex-normals] [--min-component-samples 8]
 //!     [--trim | --trim-depth D | --trim-density W | --trim-quantile Q]
 //!     [--min-piece-area F] [--min-piece-triangles N] [--colors] [--ascii] [--quiet] [--verbose]
-//!     [--grid FILE.npy|FILE.raw [--grid-resolution N]] [--max-memory SIZE] [--estimate-memory]
+//!     [--grid FILE.npy|FILE.raw [--grid-resolution N] [--grid-box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX]]
+//!     [--max-memory SIZE] [--estimate-memory]
 //! ```
 //!
 //! The input's colours and every other vertex property (but the ones psr interprets) are
@@ -314,6 +315,19 @@ struct Args {
     #[arg(long, value_name = "N", requires = "grid")]
     grid_resolution: Option<usize>,
 
+    /// Sample --grid over this box instead of the bounding cube: its two corners
+    /// XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in input coordinates (min at most max on every axis; a side
+    /// may have zero length, for a slice), N samples per axis at the centres of its cells.
+    /// PoissonRecon: none.
+    #[arg(
+        long,
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+        value_parser = grid_box,
+        requires = "grid",
+        allow_hyphen_values = true
+    )]
+    grid_box: Option<([f64; 3], [f64; 3])>,
+
     /// The most memory the reconstruction may use: a number of bytes with an optional unit,
     /// K, M, G, T or KiB, MiB, GiB, TiB (powers of 1024), kB, MB, GB, TB (powers of 1000), B;
     /// e.g. 8G, 512M, 1.5GiB, 2000000000. psr counts its big arrays and checks them against the
@@ -383,6 +397,30 @@ fn point3(text: &str) -> Result<[f64; 3], String> {
     match parts[..] {
         [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
         _ => Err(format!("expected three finite numbers X,Y,Z, got '{text}'")),
+    }
+}
+
+/// The value of `--grid-box`: six finite numbers, the box's lower corner then its upper one,
+/// the lower at most the upper on every axis.
+fn grid_box(text: &str) -> Result<([f64; 3], [f64; 3]), String> {
+    let parts: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
+        .collect::<Result<_, _>>()?;
+    match parts[..] {
+        [x0, y0, z0, x1, y1, z1] if parts.iter().all(|v| v.is_finite()) => {
+            if x0 <= x1 && y0 <= y1 && z0 <= z1 {
+                Ok(([x0, y0, z0], [x1, y1, z1]))
+            } else {
+                Err(format!(
+                    "the lower corner ({x0}, {y0}, {z0}) is above the upper one ({x1}, {y1}, \
+                     {z1}) on an axis"
+                ))
+            }
+        }
+        _ => Err(format!(
+            "expected six finite numbers XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX, got '{text}'"
+        )),
     }
 }
 
@@ -1138,8 +1176,10 @@ fn write_grid(
         .grid_resolution
         .unwrap_or(1usize << depth.min(DEFAULT_GRID_RESOLUTION_CAP.ilog2()));
     let start = Instant::now();
+    let (origin, size) = implicit.cube();
+    let (min, max) = args.grid_box.unwrap_or((origin, origin.map(|o| o + size)));
     let values = implicit
-        .sample_grid(n)
+        .sample_box(min, max, n)
         .map_err(|e| Failure::Run(format!("--grid: {e} (option --grid-resolution)")))?;
     let format = grid_format(path).map_err(Failure::Usage)?;
     let mut bytes = match format {
@@ -1153,16 +1193,32 @@ fn write_grid(
     std::fs::write(path, &bytes)
         .map_err(|e| Failure::Run(format!("{}: cannot write the grid: {e}", path.display())))?;
     if !args.quiet {
-        let (origin, size) = implicit.cube();
+        let region = match args.grid_box {
+            Some(_) => format!(
+                "the box from ({}, {}, {}) to ({}, {}, {}) (cell {} x {} x {})",
+                min[0],
+                min[1],
+                min[2],
+                max[0],
+                max[1],
+                max[2],
+                (max[0] - min[0]) / n as f64,
+                (max[1] - min[1]) / n as f64,
+                (max[2] - min[2]) / n as f64
+            ),
+            None => format!(
+                "the cube at ({}, {}, {}) of size {size} (cell {})",
+                origin[0],
+                origin[1],
+                origin[2],
+                size / n as f64
+            ),
+        };
         eprintln!(
             "psr: grid {n}x{n}x{n} of chi [x][y][z] (z fastest) written to {} in {:.2}s: cell \
-             centres over the cube at ({}, {}, {}) of size {size} (cell {}), isovalue {}",
+             centres over {region}, isovalue {}",
             path.display(),
             start.elapsed().as_secs_f64(),
-            origin[0],
-            origin[1],
-            origin[2],
-            size / n as f64,
             implicit.isovalue()
         );
     }

@@ -284,6 +284,7 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--verbose", "--verbose"),
         ("--grid", "--grid"),
         ("--grid-resolution", "none"),
+        ("--grid-box", "none"),
         ("--max-memory", "none"),
         ("--out-of-core", "none"),
         ("--slabs", "none"),
@@ -1045,6 +1046,95 @@ fn grid_writes_chi_as_npy_and_raw() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
         assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves: --grid-box samples χ over the given box instead of the cube, the library's
+/// `ImplicitFunction::sample_box` bit for bit (a flat box too: a slice); a box with five
+/// numbers, a non-finite one or its corners the wrong way round, and --grid-box without --grid,
+/// are usage errors.
+#[test]
+fn grid_box_samples_chi_over_a_box() {
+    let dir = scratch("grid-box");
+    let kitten = kitten();
+    let mesh = dir.join("mesh.ply");
+    let cloud = psr::ply::read_point_cloud(&kitten).unwrap();
+    let points = psr::PointSet::from_slices(&cloud.positions, &cloud.normals).unwrap();
+    let (_, chi) =
+        psr::reconstruct_with_implicit(&points, &psr::Params::default().with_depth(4)).unwrap();
+    let (origin, size) = chi.cube();
+    let lo = origin.map(|o| o + 0.25 * size);
+    let hi = origin.map(|o| o + 0.6 * size);
+    for (label, min, max) in [("box", lo, hi), ("slice", lo, [hi[0], hi[1], lo[2]])] {
+        let raw = dir.join(format!("{label}.raw"));
+        let corners = format!(
+            "{},{},{},{},{},{}",
+            min[0], min[1], min[2], max[0], max[1], max[2]
+        );
+        let out = psr_on(
+            &kitten,
+            &mesh,
+            &[
+                "--depth",
+                "4",
+                "--grid",
+                raw.to_str().unwrap(),
+                "--grid-resolution",
+                "6",
+                "--grid-box",
+                &corners,
+            ],
+        );
+        assert!(out.status.success(), "{label}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("over the box from"),
+            "{}",
+            stderr(&out)
+        );
+        let values: Vec<f32> = std::fs::read(&raw)
+            .unwrap()
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        let expected = chi.sample_box(min, max, 6).unwrap();
+        assert_eq!(values.len(), 216, "{label}");
+        assert!(
+            values
+                .iter()
+                .zip(&expected)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{label}"
+        );
+    }
+    let npy = dir.join("chi.npy");
+    for (args, needle) in [
+        (
+            vec!["--grid", npy.to_str().unwrap(), "--grid-box", "0,0,0,1,1"],
+            "six finite numbers",
+        ),
+        (
+            vec![
+                "--grid",
+                npy.to_str().unwrap(),
+                "--grid-box",
+                "0,0,0,1,nan,1",
+            ],
+            "six finite numbers",
+        ),
+        (
+            vec!["--grid", npy.to_str().unwrap(), "--grid-box", "0,0,1,1,1,0"],
+            "above the upper one",
+        ),
+        (vec!["--grid-box", "0,0,0,1,1,1"], "--grid"),
+    ] {
+        let mut all = vec!["--depth", "4"];
+        all.extend(args.iter().copied());
+        let out = psr_on(&kitten, &dir.join("bad.ply"), &all);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+    }
+    assert!(!npy.exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Writes the kitten's points as binary PLY with `double` x y z, each shifted by `shift`.

@@ -821,5 +821,24 @@ unsafe fn read_implicit(f: *const psr_implicit, points: &[[i8; 3]], resolution: 
             psr_implicit_sample_grid(f, resolution, grid.as_mut_ptr(), capacity),
             "implicit_sample_grid",
         );
+        // A box between the first two query points, either way round (min above max is
+        // refused).
+        let corner = |k: usize| {
+            points
+                .get(k)
+                .map_or([0.0; 3], |p| p.map(|c| f64::from(c) / 16.0))
+        };
+        let (lo, hi) = (corner(0), corner(1));
+        check(
+            psr_implicit_sample_box(
+                f,
+                lo.as_ptr(),
+                hi.as_ptr(),
+                resolution,
+                grid.as_mut_ptr(),
+                capacity,
+            ),
+            "implicit_sample_box",
+        );
     }
 }

@@ -193,6 +193,13 @@ def test_implicit_and_trim_arguments() -> None:
     for r in (0, 5000):
         with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER):
             m.implicit.sample_grid(r)
+        with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER):
+            m.implicit.sample_box([0, 0, 0], [1, 1, 1], r)
+    for lo, hi in (([1, 0, 0], [0, 1, 1]), ([np.nan, 0, 0], [1, 1, 1]), ([0, 0, 0], [1, np.inf, 1])):
+        with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER, "finite coordinates"):
+            m.implicit.sample_box(lo, hi, 2)
+    with pytest.raises(ValueError, match="3 coordinates"):
+        m.implicit.sample_box([0, 0], [1, 1, 1], 2)
     with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER):
         m.trim(threshold="quantile", threshold_value=2.0)
     with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER):

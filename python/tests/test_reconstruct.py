@@ -201,6 +201,15 @@ def test_implicit_function(ball: tuple[np.ndarray, np.ndarray]) -> None:
     assert size == pytest.approx(2 * 1.1, rel=0.01) and origin[0] == pytest.approx(-1.1, rel=0.02)
     grid = f.sample_grid(8)
     assert grid.shape == (8, 8, 8) and grid[4, 4, 4] < f.isovalue < grid[0, 0, 0]
+    # A box: over the cube, the grid bit for bit; over another box, chi at its cell centres.
+    corner = np.asarray(origin, np.float64)
+    assert np.array_equal(f.sample_box(corner, corner + size, 8), grid)
+    box = f.sample_box([-0.5, -0.5, 0.0], [0.5, 0.5, 0.0], 4)
+    assert box.shape == (4, 4, 4)
+    centres = [[-0.5 + (i + 0.5) / 4, -0.5 + (j + 0.5) / 4, 0.0] for i in range(4) for j in range(4)]
+    values = f.evaluate(centres).reshape(4, 4)
+    assert np.allclose(box[:, :, 0], values, atol=1e-5)
+    assert np.array_equal(box[:, :, 0], box[:, :, 3])  # a flat box: every k is the same point
     assert psr.reconstruct(*ball, depth=4).implicit is None
 
 

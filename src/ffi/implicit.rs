@@ -1,7 +1,8 @@
 //! The `psr_implicit` handle: the solved indicator function χ kept after a solve
 //! (psr_reconstructor_solve_implicit), evaluated at points (psr_implicit_evaluate), with its
-//! gradient (psr_implicit_gradient), sampled on a grid (psr_implicit_sample_grid); its isovalue
-//! and bounding cube; psr_implicit_free. The Rust API's [`crate::ImplicitFunction`].
+//! gradient (psr_implicit_gradient), sampled on a grid over its bounding cube
+//! (psr_implicit_sample_grid) or over any box (psr_implicit_sample_box); its isovalue and
+//! bounding cube; psr_implicit_free. The Rust API's [`crate::ImplicitFunction`].
 //!
 //! Like a mesh function, a psr_implicit function has no reconstructor to keep a failure's
 //! message on, so C sees the status alone; the messages are still built (naming the C function
@@ -293,24 +294,99 @@ pub unsafe extern "C" fn psr_implicit_sample_grid(
         let implicit = unsafe { implicit_of(F, f) }?;
         let (origin, size) = implicit.cube();
         let max = origin.map(|o| o + size);
-        let count = grid_size(origin, max, resolution).map_err(|e| Failure::from_error(F, e))?;
-        require_out(F, "out", out)?;
-        if capacity_floats < count {
-            return Err(Failure::new(
-                psr_status::BufferTooSmall,
-                format!(
-                    "{F}: capacity_floats is {capacity_floats}, less than the {count} values of \
-                     a {resolution}³ grid; nothing was written"
-                ),
-            ));
-        }
-        // SAFETY: `out` is not NULL, so valid for writes of capacity_floats >= count floats
-        // (this function's contract), and C does not touch them during the call.
-        let out = unsafe { std::slice::from_raw_parts_mut(out, count) };
-        implicit
-            .fill_box(origin, max, resolution, out)
-            .map_err(|e| Failure::from_error(F, e))
+        // SAFETY: `out` is NULL or valid for writes of capacity_floats floats (this function's
+        // contract).
+        unsafe { sample_into(F, implicit, (origin, max), resolution, out, capacity_floats) }
     })
+}
+
+/// Samples χ on a resolution³ grid over the box from min to max (3 doubles each, input
+/// coordinates; a side may have zero length, and the box may reach outside the bounding cube),
+/// at the centres of its cells: the value of cell (i, j, k) (x, y, z indices) is χ at
+/// min + (i + 0.5, j + 0.5, k + 0.5) × (max − min) / resolution and goes to
+/// out[(i * resolution + j) * resolution + k], the order of psr_implicit_sample_grid (which is
+/// this function over the bounding cube). For a region of interest finer than the cube's grid,
+/// or a grid aligned with the object rather than with the cube. capacity_floats is the number
+/// of floats out can hold: at least resolution³.
+///
+/// f, min, max and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_INVALID_PARAMETER (a corner with a NaN or infinite coordinate, min above max on
+/// an axis, resolution 0 or above 4096, or resolution³ floats too many for the address space),
+/// PSR_STATUS_BUFFER_TOO_SMALL (nothing is written), PSR_STATUS_THREADS_UNAVAILABLE or
+/// PSR_STATUS_INTERNAL_ERROR. out is written only on success.
+///
+/// # Safety
+/// `f` is NULL or a live psr_implicit; `min` and `max` are NULL or valid for reads of 3
+/// doubles; `out` is NULL or valid for writes of capacity_floats floats.
+#[no_mangle]
+pub unsafe extern "C" fn psr_implicit_sample_box(
+    f: *const psr_implicit,
+    min: *const f64,
+    max: *const f64,
+    resolution: usize,
+    out: *mut f32,
+    capacity_floats: usize,
+) -> psr_status {
+    const F: &str = "psr_implicit_sample_box";
+    guard_no_handle(F, || {
+        // SAFETY: `f` is NULL or a live psr_implicit (this function's contract).
+        let implicit = unsafe { implicit_of(F, f) }?;
+        let mut corners = [[0.0f64; 3]; 2];
+        for (corner, (name, p)) in corners.iter_mut().zip([("min", min), ("max", max)]) {
+            if p.is_null() {
+                return Err(Failure::null(F, name));
+            }
+            // SAFETY: `p` is not NULL, so valid for reads of 3 doubles (this function's
+            // contract).
+            *corner = unsafe { [*p, *p.add(1), *p.add(2)] };
+        }
+        // SAFETY: `out` is NULL or valid for writes of capacity_floats floats (this function's
+        // contract).
+        unsafe {
+            sample_into(
+                F,
+                implicit,
+                (corners[0], corners[1]),
+                resolution,
+                out,
+                capacity_floats,
+            )
+        }
+    })
+}
+
+/// χ on a resolution³ grid over `corners` (min, max) into `out`, for the two sampling
+/// functions: the box and resolution are checked, then `out` and its capacity, before anything
+/// is written.
+///
+/// # Safety
+/// `out` is NULL or valid for writes of `capacity_floats` floats that C does not touch during
+/// the call.
+unsafe fn sample_into(
+    function: &'static str,
+    implicit: &ImplicitFunction,
+    (min, max): ([f64; 3], [f64; 3]),
+    resolution: usize,
+    out: *mut f32,
+    capacity_floats: usize,
+) -> Result<(), Failure> {
+    let count = grid_size(min, max, resolution).map_err(|e| Failure::from_error(function, e))?;
+    require_out(function, "out", out)?;
+    if capacity_floats < count {
+        return Err(Failure::new(
+            psr_status::BufferTooSmall,
+            format!(
+                "{function}: capacity_floats is {capacity_floats}, less than the {count} values \
+                 of a {resolution}³ grid; nothing was written"
+            ),
+        ));
+    }
+    // SAFETY: `out` is not NULL, so valid for writes of capacity_floats >= count floats (this
+    // function's contract), and C does not touch them during the call.
+    let out = unsafe { std::slice::from_raw_parts_mut(out, count) };
+    implicit
+        .fill_box(min, max, resolution, out)
+        .map_err(|e| Failure::from_error(function, e))
 }
 
 /// Copies `src` to `dst`.

@@ -51,7 +51,7 @@
 //!   begins with its own size), _unsupported_components.
 //! - `implicit.rs`: the `psr_implicit` handle, the solved χ kept by
 //!   psr_reconstructor_solve_implicit: psr_implicit_evaluate, _gradient, _sample_grid,
-//!   _isovalue, _cube and _free.
+//!   _sample_box, _isovalue, _cube and _free.
 //! - `memory.rs`: the memory limit (psr_reconstructor_set_max_memory, _get_max_memory) and
 //!   the estimates before a solve (psr_reconstructor_estimate_memory, psr_estimate_memory).
 
@@ -118,8 +118,8 @@ pub use self::attributes::{
 };
 pub use self::implicit::{
     psr_implicit, psr_implicit_cube, psr_implicit_evaluate, psr_implicit_free,
-    psr_implicit_gradient, psr_implicit_isovalue, psr_implicit_sample_grid,
-    psr_reconstructor_solve_implicit,
+    psr_implicit_gradient, psr_implicit_isovalue, psr_implicit_sample_box,
+    psr_implicit_sample_grid, psr_reconstructor_solve_implicit,
 };
 pub use self::memory::{
     psr_estimate_memory, psr_reconstructor_estimate_memory, psr_reconstructor_get_max_memory,

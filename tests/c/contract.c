@@ -1308,9 +1308,9 @@ static void test_point_arrays(void) {
 }
 
 /* The implicit function: kept by psr_reconstructor_solve_implicit, evaluated from C, sampled
- * on a grid that agrees with evaluation at the cells' centres (z fastest), NULL arguments,
- * count 0, NaN queries, bad resolutions and short buffers; the handle outlives the
- * reconstructor and the mesh. */
+ * on a grid that agrees with evaluation at the cells' centres (z fastest) and over a box,
+ * NULL arguments, count 0, NaN queries, bad boxes, bad resolutions and short buffers; the
+ * handle outlives the reconstructor and the mesh. */
 static void test_implicit(void) {
     psr_reconstructor *r = new_with_sphere(2000, 5);
     psr_mesh *m = NULL;
@@ -1392,6 +1392,54 @@ static void test_implicit(void) {
     for (i = 0; i < 8; i++) untouched &= small[i] == 5.0f;
     CHECK(untouched);
     CHECK_STATUS(psr_implicit_sample_grid(f, 2, small, 8), PSR_STATUS_OK);
+
+    /* A box: over the bounding cube it is the grid, bit for bit; over a smaller box its cell
+     * centres are the box's; a flat box (one side of zero length) is allowed. */
+    {
+        double lo[3], hi[3], flat_hi[3], bad_lo[3];
+        float box[4 * 4 * 4], one = 0.0f;
+        int same = 1;
+        for (i = 0; i < 3; i++) {
+            lo[i] = origin[i];
+            hi[i] = origin[i] + size;
+        }
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, hi, n, box, n * n * n), PSR_STATUS_OK);
+        for (i = 0; i < n * n * n; i++) same &= memcmp(&box[i], &grid[i], sizeof(float)) == 0;
+        CHECK(same);
+        lo[0] = 0.0;
+        lo[1] = 0.0;
+        lo[2] = 0.0;
+        hi[0] = 0.5;
+        hi[1] = 0.5;
+        hi[2] = 0.5;
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, hi, 1, &one, 1), PSR_STATUS_OK);
+        CHECK_STATUS(psr_implicit_evaluate(f, centre, 1, &value), PSR_STATUS_OK);
+        CHECK(fabsf(one - value) < 1e-4f);
+        for (i = 0; i < 3; i++) flat_hi[i] = i == 2 ? lo[i] : hi[i];
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, flat_hi, 2, small, 8), PSR_STATUS_OK);
+        for (i = 0; i < 8; i++) small[i] = 5.0f;
+        untouched = 1;
+        CHECK_STATUS(psr_implicit_sample_box(NULL, lo, hi, 2, small, 8),
+                     PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_implicit_sample_box(f, NULL, hi, 2, small, 8), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, NULL, 2, small, 8), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, hi, 2, NULL, 8), PSR_STATUS_NULL_ARGUMENT);
+        CHECK_STATUS(psr_implicit_sample_box(f, hi, lo, 2, small, 8),
+                     PSR_STATUS_INVALID_PARAMETER);
+        for (i = 0; i < 3; i++) bad_lo[i] = lo[i];
+        bad_lo[1] = (double)NAN;
+        CHECK_STATUS(psr_implicit_sample_box(f, bad_lo, hi, 2, small, 8),
+                     PSR_STATUS_INVALID_PARAMETER);
+        bad_lo[1] = -(double)INFINITY;
+        CHECK_STATUS(psr_implicit_sample_box(f, bad_lo, hi, 2, small, 8),
+                     PSR_STATUS_INVALID_PARAMETER);
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, hi, 0, small, 8),
+                     PSR_STATUS_INVALID_PARAMETER);
+        CHECK_STATUS(psr_implicit_sample_box(f, lo, hi, 3, small, 8),
+                     PSR_STATUS_BUFFER_TOO_SMALL);
+        for (i = 0; i < 8; i++) untouched &= small[i] == 5.0f;
+        CHECK(untouched);
+    }
     psr_implicit_free(f);
 }
 

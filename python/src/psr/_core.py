@@ -1424,6 +1424,37 @@ class Implicit:
         _check(LIB.psr_implicit_sample_grid(self._live(), r, out.ctypes.data, out.size))
         return out
 
+    def sample_box(self, min: Any, max: Any, resolution: int) -> np.ndarray:
+        """chi at the centres of a resolution^3 grid over the box from ``min`` to ``max`` (3
+        coordinates each, in the points' coordinates; a side may have zero length and the box
+        may reach outside :attr:`cube`), float32 of shape (resolution,) * 3 indexed [i, j, k]
+        along x, y, z: cell (i, j, k) is at min + ((i, j, k) + 0.5) * (max - min) / resolution.
+        ``sample_grid(n)`` is ``sample_box`` over the cube."""
+        corners = []
+        for name, corner in (("min", min), ("max", max)):
+            c = np.ascontiguousarray(corner, dtype=np.float64)
+            if c.shape != (3,):
+                raise ValueError(f"{name} must hold 3 coordinates, not shape {c.shape}")
+            corners.append(c)
+        r = _integer("resolution", resolution, 0, 2**63 - 1)
+        if not 1 <= r <= 4096:
+            raise InvalidParameterError(
+                Status.INVALID_PARAMETER, f"resolution = {r} is outside [1, 4096]"
+            )
+        lo, hi = corners
+        out = np.empty((r, r, r), np.float32)
+        status = LIB.psr_implicit_sample_box(
+            self._live(), lo.ctypes.data, hi.ctypes.data, r, out.ctypes.data, out.size
+        )
+        message = ""
+        if status == Status.INVALID_PARAMETER:
+            message = (
+                f"box from {lo.tolist()} to {hi.tolist()}: both corners need finite coordinates, "
+                "min at most max on every axis"
+            )
+        _check(status, message=message)
+        return out
+
 
 def _bad_point(p: np.ndarray, status: int) -> str:
     """The message for a failed evaluation (psr keeps none for an implicit function)."""

@@ -237,6 +237,7 @@ _PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "psr_implicit_evaluate": (_S, [_F, _P, c_size_t, _P]),
     "psr_implicit_gradient": (_S, [_F, _P, c_size_t, _P]),
     "psr_implicit_sample_grid": (_S, [_F, c_size_t, _P, c_size_t]),
+    "psr_implicit_sample_box": (_S, [_F, _P, _P, c_size_t, _P, c_size_t]),
 }
 
 
