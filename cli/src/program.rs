@@ -192,7 +192,7 @@ struct Args {
 
     /// The scanner's position X,Y,Z for --orientation viewpoint (input coordinates); giving it
     /// alone selects that orientation (not with --orientation sensors). PoissonRecon: none.
-    #[arg(long, value_name = "X,Y,Z", value_parser = point3)]
+    #[arg(long, value_name = "X,Y,Z", value_parser = point3, allow_hyphen_values = true)]
     viewpoint: Option<[f64; 3]>,
 
     /// Weigh each point by the input's `confidence` (or `value`) property. PoissonRecon:

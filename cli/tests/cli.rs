@@ -432,19 +432,23 @@ fn normal_options_that_cannot_be_honoured_are_usage_errors() {
 }
 
 /// Proves: --viewpoint orients every estimated normal towards the given point (here far above
-/// the kitten, so the top faces up) and the reconstruction succeeds.
+/// the kitten, so the top faces up) and the reconstruction succeeds; a viewpoint whose first
+/// coordinate is negative is a value, not an option.
 #[test]
 fn a_viewpoint_orients_the_normals() {
     let dir = scratch("viewpoint");
     let bare = kitten_without_normals(&dir);
-    let out_path = dir.join("mesh.ply");
-    let out = psr_on(
-        &bare,
-        &out_path,
-        &["--depth", "5", "--viewpoint", "0,0,1000", "--quiet"],
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    assert!(out_path.exists());
+    for viewpoint in ["0,0,1000", "-0.5,0,1000"] {
+        let out_path = dir.join("mesh.ply");
+        let out = psr_on(
+            &bare,
+            &out_path,
+            &["--depth", "5", "--viewpoint", viewpoint, "--quiet"],
+        );
+        assert!(out.status.success(), "{viewpoint}: {}", stderr(&out));
+        assert!(out_path.exists());
+        std::fs::remove_file(&out_path).unwrap();
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 
