@@ -195,7 +195,11 @@ def test_implicit_and_trim_arguments() -> None:
             m.implicit.sample_grid(r)
         with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER):
             m.implicit.sample_box([0, 0, 0], [1, 1, 1], r)
-    for lo, hi in (([1, 0, 0], [0, 1, 1]), ([np.nan, 0, 0], [1, 1, 1]), ([0, 0, 0], [1, np.inf, 1])):
+    for lo, hi in (
+        ([1, 0, 0], [0, 1, 1]),
+        ([np.nan, 0, 0], [1, 1, 1]),
+        ([0, 0, 0], [1, np.inf, 1]),
+    ):
         with raises(psr.InvalidParameterError, Status.INVALID_PARAMETER, "finite coordinates"):
             m.implicit.sample_box(lo, hi, 2)
     with pytest.raises(ValueError, match="3 coordinates"):

@@ -206,7 +206,9 @@ def test_implicit_function(ball: tuple[np.ndarray, np.ndarray]) -> None:
     assert np.array_equal(f.sample_box(corner, corner + size, 8), grid)
     box = f.sample_box([-0.5, -0.5, 0.0], [0.5, 0.5, 0.0], 4)
     assert box.shape == (4, 4, 4)
-    centres = [[-0.5 + (i + 0.5) / 4, -0.5 + (j + 0.5) / 4, 0.0] for i in range(4) for j in range(4)]
+    centres = [
+        [-0.5 + (i + 0.5) / 4, -0.5 + (j + 0.5) / 4, 0.0] for i in range(4) for j in range(4)
+    ]
     values = f.evaluate(centres).reshape(4, 4)
     assert np.allclose(box[:, :, 0], values, atol=1e-5)
     assert np.array_equal(box[:, :, 0], box[:, :, 3])  # a flat box: every k is the same point
