@@ -85,7 +85,8 @@ impl psr::Team for World {
 }
 
 /// A rank's counters at one moment: seconds since the start, CPU seconds, seconds in meetings,
-/// bytes sent and received.
+/// bytes sent and received, and the peak resident memory so far (KiB; 0 where the system does
+/// not say).
 #[derive(Clone, Copy, Default)]
 struct Mark {
     seconds: f64,
@@ -93,11 +94,14 @@ struct Mark {
     meeting: f64,
     sent: u64,
     received: u64,
+    peak_kib: u64,
 }
 
 /// What each stage took on this rank, from the marks where the stages began and the end: per
 /// stage (a stage met twice, as the points when the cloud is cut again, counted once with both
-/// spans), its time, CPU time, time in meetings and bytes received and sent.
+/// spans), its time, CPU time, time in meetings and bytes received and sent, and the rank's
+/// peak resident memory when the stage ended (the peak only grows, so the stage after which it
+/// jumps is the one that raised it).
 fn by_stage(marks: &[(psr::Stage, Mark)], end: &Mark) -> String {
     let mut totals: Vec<(psr::Stage, Mark)> = Vec::new();
     for (i, (stage, from)) in marks.iter().enumerate() {
@@ -115,18 +119,21 @@ fn by_stage(marks: &[(psr::Stage, Mark)], end: &Mark) -> String {
         total.meeting += to.meeting - from.meeting;
         total.sent += to.sent - from.sent;
         total.received += to.received - from.received;
+        total.peak_kib = total.peak_kib.max(to.peak_kib);
     }
     totals
         .iter()
         .map(|(stage, t)| {
             format!(
-                "{} {:.1} s ({:.1} s CPU, {:.1} s meeting, {:.1} MB in, {:.1} MB out)",
+                "{} {:.1} s ({:.1} s CPU, {:.1} s meeting, {:.1} MB in, {:.1} MB out, peak {} \
+                 MiB)",
                 stage.name(),
                 t.seconds,
                 t.cpu,
                 t.meeting,
                 t.received as f64 / 1e6,
-                t.sent as f64 / 1e6
+                t.sent as f64 / 1e6,
+                t.peak_kib / 1024
             )
         })
         .collect::<Vec<_>>()
@@ -166,6 +173,7 @@ fn main() -> ExitCode {
         meeting: team.meeting.get().as_secs_f64(),
         sent: team.sent.get(),
         received: team.received.get(),
+        peak_kib: psr_cli::peak_resident_kib().unwrap_or(0),
     };
     let status = psr_cli::main_in_team(&team, &mut |stage| marks.push((stage, mark(&team))));
     let end = mark(&team);
