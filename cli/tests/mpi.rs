@@ -91,13 +91,29 @@ fn same_mesh_from_one_to_four_ranks(name: &str, input: &Path, depth: u32, slabs:
     for ranks in 1..=4 {
         let output = dir.join(format!("ranks-{ranks}.ply"));
         let started = Instant::now();
-        let done = wait_within(
-            mpirun(ranks, &run_args(input, &output, &dir, depth, slabs), name),
-            Duration::from_secs(600),
-            name,
-        );
+        // At two ranks, --verbose too: every rank then reports its stages (and the mesh is
+        // the same).
+        let mut args = run_args(input, &output, &dir, depth, slabs);
+        let verbose = ranks == 2;
+        if verbose {
+            args.push("--verbose".into());
+        }
+        let done = wait_within(mpirun(ranks, &args, name), Duration::from_secs(600), name);
         let stderr = String::from_utf8_lossy(&done.stderr);
         assert!(done.status.success(), "{name}, {ranks} ranks: {stderr}");
+        if verbose {
+            for rank in 0..ranks {
+                let head = format!("psr-mpi: rank {rank} by stage: ");
+                let line = stderr
+                    .lines()
+                    .find(|l| l.starts_with(&head))
+                    .unwrap_or_else(|| panic!("{name}: no stage line of rank {rank}: {stderr}"));
+                for stage in ["points", "system", "solve", "isovalue", "extract", "mesh"] {
+                    assert!(line.contains(&format!("{stage} ")), "{name}: {line}");
+                }
+                assert_eq!(line.matches(" MiB)").count(), 6, "{name}: {line}");
+            }
+        }
         // Rank 0 reports, once.
         assert_eq!(stderr.matches(" slabs: ").count(), 1, "{name}: {stderr}");
         assert!(
