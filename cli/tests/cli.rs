@@ -965,6 +965,16 @@ fn obj_output_holds_the_ply_mesh() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Asserts that `psr --depth 4 args` on `input` is a usage error (exit 2) whose message contains
+/// `needle`.
+fn assert_usage_error(input: &Path, dir: &Path, args: &[&str], needle: &str) {
+    let mut all = vec!["--depth", "4"];
+    all.extend(args.iter().copied());
+    let out = psr_on(input, &dir.join("bad.ply"), &all);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+    assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+}
+
 /// Proves: --grid writes χ on a grid as a NumPy .npy (version 1.0 header, little-endian float32,
 /// shape (N, N, N), data aligned to 64 bytes) whose values are the library's
 /// `ImplicitFunction::sample_grid` bit for bit, and as .raw the same values without a header;
@@ -1044,11 +1054,7 @@ fn grid_writes_chi_as_npy_and_raw() {
         ),
         (vec!["--grid-resolution", "8"], "--grid"),
     ] {
-        let mut all = vec!["--depth", "4"];
-        all.extend(args.iter().copied());
-        let out = psr_on(&kitten, &dir.join("bad.ply"), &all);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
-        assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+        assert_usage_error(&kitten, &dir, &args, needle);
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -1131,11 +1137,7 @@ fn grid_box_samples_chi_over_a_box() {
         ),
         (vec!["--grid-box", "0,0,0,1,1,1"], "--grid"),
     ] {
-        let mut all = vec!["--depth", "4"];
-        all.extend(args.iter().copied());
-        let out = psr_on(&kitten, &dir.join("bad.ply"), &all);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
-        assert!(stderr(&out).contains(needle), "{args:?}: {}", stderr(&out));
+        assert_usage_error(&kitten, &dir, &args, needle);
     }
     assert!(!npy.exists());
     let _ = std::fs::remove_dir_all(&dir);
