@@ -1261,6 +1261,50 @@ mod tests {
         *state >> 33
     }
 
+    /// Proves: a loop's fans whose smallest triangles differ only by rounding are a tie kept by
+    /// the first apex, however the vertices are moved by 10⁻¹² (so the same cloud moved in `f64`
+    /// gives the same triangles; before [`FAN_TIE`] the choice followed the rounding), while a
+    /// fan that is really better (by 30 % here) is still chosen.
+    #[test]
+    fn near_equal_fans_are_a_tie_kept_by_the_first_apex() {
+        let fan = |vertices: &[DVec3]| {
+            let (mut triangles, mut centres) = (Vec::new(), Vec::new());
+            triangulate(
+                &[0, 1, 2, 3],
+                &[0; 4],
+                vertices,
+                &mut triangles,
+                &mut centres,
+            );
+            assert!(centres.is_empty());
+            triangles
+        };
+        let h = 1.0 / 128.0;
+        let corner = DVec3::new(0.25, 0.5, 0.75);
+        let square = [
+            corner,
+            corner + DVec3::new(h, 0.0, 0.0),
+            corner + DVec3::new(h, h, 0.0),
+            corner + DVec3::new(0.0, h, 0.0),
+        ];
+        let want = vec![[0, 1, 2], [0, 2, 3]];
+        assert_eq!(fan(&square), want);
+        let mut state = 11;
+        for _ in 0..2000 {
+            let mut jitter = || (lcg(&mut state) as f64 / (1u64 << 31) as f64 - 0.5) * 2e-12;
+            let moved: Vec<DVec3> = square
+                .iter()
+                .map(|&p| p + DVec3::new(jitter(), jitter(), jitter()))
+                .collect();
+            assert_eq!(fan(&moved), want, "{moved:?}");
+        }
+        // Vertex 1 moved out along its diagonal: the diagonal 1–3 makes the larger smallest
+        // triangle, and its fan is chosen.
+        let mut kite = square;
+        kite[1] += DVec3::new(0.3 * h, -0.3 * h, 0.0);
+        assert_eq!(fan(&kite), vec![[1, 2, 3], [1, 3, 0]]);
+    }
+
     /// Checks that a leaf's loops pass through every crossed minimal edge exactly once, that
     /// every loop has at least two crossings, and that each crossing lies on one or two faces
     /// of the leaf.
