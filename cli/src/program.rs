@@ -390,23 +390,24 @@ struct Args {
 
 /// A point given as `X,Y,Z` (three finite numbers).
 fn point3(text: &str) -> Result<[f64; 3], String> {
-    let parts: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
-        .collect::<Result<_, _>>()?;
+    let parts = numbers(text)?;
     match parts[..] {
         [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
         _ => Err(format!("expected three finite numbers X,Y,Z, got '{text}'")),
     }
 }
 
+/// The comma-separated numbers of an option's value (`--viewpoint`, `--grid-box`).
+fn numbers(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
+        .collect()
+}
+
 /// The value of `--grid-box`: six finite numbers, the box's lower corner then its upper one,
 /// the lower at most the upper on every axis.
 fn grid_box(text: &str) -> Result<([f64; 3], [f64; 3]), String> {
-    let parts: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
-        .collect::<Result<_, _>>()?;
+    let parts = numbers(text)?;
     match parts[..] {
         [x0, y0, z0, x1, y1, z1] if parts.iter().all(|v| v.is_finite()) => {
             if x0 <= x1 && y0 <= y1 && z0 <= z1 {
