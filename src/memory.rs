@@ -12,8 +12,9 @@
 //! - per octree node (every node of every depth's halo, `Level::len`): its key, flags, core
 //!   index, parent link and brick index, kept to the end; and per node, for all depths at once,
 //!   the solved coefficients (`f64`), which the extraction reads;
-//! - the stage peaks on top: the splat's V (three `f64` per node) of the depths not yet solved
-//!   with the finest right-hand side, the finest depth's solver vectors (the prolonged coarse
+//! - the stage peaks on top: the splat's V (three `f64` per node) of the depth being splatted
+//!   and of the one carried below it, with the finest right-hand side, the finest depth's
+//!   solver vectors (the prolonged coarse
 //!   solution, p, r, A·p, the preconditioner, the operator's per-node data and the screening
 //!   proxies), and the extraction's tables and the mesh, which grow with the finest depth's
 //!   nodes.
@@ -48,7 +49,9 @@ const PER_POINT: u64 = 160;
 const PER_ATTRIBUTE_VALUE: u64 = 8;
 /// Bytes per octree node (every depth's halo) kept from the octree to the end: key, flags,
 /// core index, parent, brick index (about 17 B measured after the octree stage), the solved
-/// coefficient (`f64`), and the coarser depths' V while the finest is solved.
+/// coefficient (`f64`), and each depth's ρ and coarse divergence until its depth is solved
+/// (fitted when the coarser depths' V also waited for their solve: the peaks are lower
+/// since, so the figure stays above them).
 const PER_NODE_KEPT: u64 = 28;
 /// Bytes per node of the largest depth's halo at the heaviest stage after the octree: the
 /// splat's V and ρ, or the solver's vectors and operator, or the extraction's tables and the

@@ -17,7 +17,7 @@ use crate::parallel::{self, Watch};
 use crate::points::{PointSet, Samples, UnitCubeMap};
 use crate::solve::{self, Depths, System};
 use crate::splat::splat_level;
-use crate::system::{self, divergence, fill_mirrors};
+use crate::system::{self, divergence, divergence_of, fill_mirrors, FieldCarry};
 use crate::{Error, Params, Result, VertexPlacement};
 use std::time::Instant;
 
@@ -276,39 +276,55 @@ pub(crate) fn run(
     // Interleaved for memory: the finest V is needed for nothing but ρ at that depth (no finer
     // depth prolongs it), so the system's first step runs here, before the coarser depths' V
     // exist; V's three vectors and ρ (four halo-sized vectors of the finest depth) are the
-    // peak of these stages. Its time is counted in the system stage.
+    // peak of these stages. Then the coarser depths, root first, each V spent at once on its
+    // own divergence and on the coarse divergences of the depths above (`FieldCarry`), so that
+    // no more than two depths' V are ever alive and none waits for the solve. The divergences
+    // and the carry are the system's work: their time is counted in the system stage.
     // Cancel points between the depths (the finest splat and its divergence are about half
     // of the work).
-    let (rho_finest, field_v, finest_system) = clock.watch(Stage::Splat, pool, |watch| {
-        let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)?;
-        watch.step(1, 4, 0.0, 1.0)?;
-        let finest_system = Instant::now();
-        let mut rho_finest = divergence(&tree.levels[finest], v_finest)?;
-        fill_mirrors(&tree.levels[finest], &mut rho_finest);
-        let finest_system = finest_system.elapsed().as_secs_f64();
-        watch.step(2, 4, 0.0, 1.0)?;
-        let mut field_v: Vec<[Vec<f64>; 3]> = Vec::with_capacity(finest);
-        for (level, at) in tree.levels.iter().zip(&at_depth).take(finest) {
-            field_v.push(splat_level(level, &samples, at, params)?);
-            watch.step(field_v.len(), finest, 0.5, 1.0)?;
-        }
-        Ok((rho_finest, field_v, finest_system))
-    })?;
     // The attributes' splat (stage 9) reads each sample's depths and normal again; without
-    // attributes they go now.
+    // attributes each depth's list goes once splatted, and the normals after the last.
     let carries_attributes = !samples.attributes.is_empty();
-    let at_depth = if carries_attributes {
-        at_depth
-    } else {
-        drop(at_depth);
+    let mut at_depth = at_depth;
+    let (rho_finest, own_divergence, coarse_div, system_seconds) =
+        clock.watch(Stage::Splat, pool, |watch| {
+            let spent = |at: &mut Vec<density::DepthSample>| {
+                if !carries_attributes {
+                    *at = Vec::new();
+                }
+            };
+            let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)?;
+            spent(&mut at_depth[finest]);
+            watch.step(1, 4, 0.0, 1.0)?;
+            let system_started = Instant::now();
+            let mut rho_finest = divergence(&tree.levels[finest], v_finest)?;
+            fill_mirrors(&tree.levels[finest], &mut rho_finest);
+            let mut system_seconds = system_started.elapsed().as_secs_f64();
+            watch.step(2, 4, 0.0, 1.0)?;
+            let mut own_divergence: Vec<Vec<f64>> = Vec::with_capacity(finest);
+            let mut carry = FieldCarry::new(&tree, finest as u32, finest);
+            let coarser = tree.levels.iter().zip(&mut at_depth).take(finest);
+            for (d, (level, at)) in coarser.enumerate() {
+                let v = splat_level(level, &samples, at, params)?;
+                spent(at);
+                let system_started = Instant::now();
+                own_divergence.push(divergence_of(level, &v)?);
+                carry.push(d, v, pool)?;
+                system_seconds += system_started.elapsed().as_secs_f64();
+                watch.step(d + 1, finest, 0.5, 1.0)?;
+            }
+            let (coarse_div, _) = carry.finish();
+            Ok((rho_finest, own_divergence, coarse_div, system_seconds))
+        })?;
+    if !carries_attributes {
+        at_depth = Vec::new();
         samples.normals = Vec::new();
-        Vec::new()
-    };
-    clock.done_moving(Stage::Splat, finest_system)?;
+    }
+    clock.done_moving(Stage::Splat, system_seconds)?;
 
     // 5. System: the right-hand side of every depth and the samples' screening weights.
     let (rho, screening_weights) = clock.watch(Stage::System, pool, |watch| {
-        let rho = system::right_hand_sides(&tree, rho_finest, &field_v, pool, |fraction| {
+        let rho = system::right_hand_sides(&tree, rho_finest, own_divergence, |fraction| {
             watch.set(fraction);
             watch.check()
         })?;
@@ -317,11 +333,11 @@ pub(crate) fn run(
     })?;
     clock.done(Stage::System)?;
 
-    // 6. Solve, coarse to fine (each depth's ρ and V are dropped once read).
+    // 6. Solve, coarse to fine (each depth's ρ and coarse divergence are dropped once read).
     let system = System {
         tree: &tree,
         rho,
-        field_v,
+        coarse_div,
         positions: &samples.positions,
         screening_weights: &screening_weights,
         proxy_groups: None,
@@ -334,8 +350,7 @@ pub(crate) fn run(
             !watch.is_cancelled()
         };
         let mut solves = Vec::new();
-        let coefficients =
-            solve::cascade(system, params, pool, &mut on_solve, &mut solves)?.coefficients;
+        let coefficients = solve::cascade(system, params, pool, &mut on_solve, &mut solves)?;
         Ok((coefficients, solves))
     })?;
     clock.stats.solves.extend(solves);

@@ -13,10 +13,7 @@ use crate::error::{Error, Result};
 use crate::memory::zeroed;
 use crate::octree::{Level, Octree};
 use crate::parallel::{scatter_by_chunk, CHUNK};
-use crate::system::{
-    divergence_of_prolonged, fill_mirrors, fill_mirrors_field, prolong, proxy_depth,
-    update_on_core, DepthOperator, ProlongedField, Proxies,
-};
+use crate::system::{fill_mirrors, prolong, proxy_depth, update_on_core, DepthOperator, Proxies};
 
 /// A cell of a proxy depth with its samples' Σ w·p and Σ w ([`crate::system::sample_groups`]).
 pub(crate) type ProxyGroup = ([i32; 3], DVec3, f64);
@@ -32,8 +29,9 @@ pub(crate) struct System<'a> {
     /// ρ_d on K_d for every depth ([`crate::system::right_hand_sides`]); each is dropped once
     /// its depth is solved.
     pub(crate) rho: Vec<Vec<f64>>,
-    /// V_d on K_d for every depth but the finest (whose V was spent on its ρ).
-    pub(crate) field_v: Vec<[Vec<f64>; 3]>,
+    /// The coarser depths' V at each depth's core ([`crate::system::FieldCarry`]; empty where
+    /// none is carried); each is dropped once its depth is solved.
+    pub(crate) coarse_div: Vec<Vec<f64>>,
     /// The samples in the unit cube (Morton order) and their screening weights.
     pub(crate) positions: &'a [DVec3],
     pub(crate) screening_weights: &'a [f64],
@@ -53,17 +51,16 @@ pub(crate) enum Depths {
     /// Every depth of the tree, from the root.
     All,
     /// Depths 0..=`last` of a tree whose levels stop there, as part of a reconstruction whose
-    /// finest depth is `finest` (which sets the screening samples' grouping and the depth the
-    /// finest V was spent at). The field V of depth `last`, with every coarser depth's
-    /// prolonged into it, is handed back for the finer depths (see [`Solved`]).
+    /// finest depth is `finest` (which sets the screening samples' grouping).
     Base { last: usize, finest: u32 },
-    /// The depths above a base solved before (its coefficients, depths 0..=B, and its
-    /// accumulated V at depth B), on a tree whose levels 0..=B are the base's.
-    Above(Solved),
+    /// The depths above a base solved before (its coefficients, depths 0..=B), on a tree whose
+    /// levels 0..=B are the base's.
+    Above(Vec<Vec<f64>>),
 }
 
 /// What a base hands to the depths above it: the coefficients of depths 0..=B and V at depth B
-/// with every coarser depth's prolonged into it.
+/// with every coarser depth's prolonged into it (where [`crate::system::FieldCarry::from_base`]
+/// starts).
 #[derive(Debug)]
 pub(crate) struct Solved {
     pub(crate) coefficients: Vec<Vec<f64>>,
@@ -72,25 +69,20 @@ pub(crate) struct Solved {
 
 /// Solves the system depth by depth from the root (or from the depth above a base, see
 /// [`Depths`]) and returns z_d on K_d for every depth: the coarser solution prolonged to depth
-/// d plus the correction solved there (with a base's V when the solve stops at one). Each depth's
-/// figures are appended to `solves`; `progress(fraction of the whole solve)` is called once
-/// per iteration and between the steps that set up each depth, and may cancel.
-///
-/// Memory: V of each depth (and of all coarser ones, accumulated) is read for the last time
-/// while its depth is solved, prolonged to the next depth where it is that depth's coarse
-/// right-hand side and added to that depth's V, brick by brick; so at most two depths' V are
-/// alive, never a prolonged copy.
+/// d plus the correction solved there. Each depth's figures are appended to `solves`;
+/// `progress(fraction of the whole solve)` is called once per iteration and between the steps
+/// that set up each depth, and may cancel.
 pub(crate) fn cascade(
     system: System<'_>,
     params: &Params,
     pool: &rayon::ThreadPool,
     progress: &mut dyn FnMut(f32) -> bool,
     solves: &mut Vec<DepthSolve>,
-) -> Result<Solved> {
+) -> Result<Vec<Vec<f64>>> {
     let System {
         tree,
         mut rho,
-        mut field_v,
+        mut coarse_div,
         positions,
         screening_weights,
         proxy_groups,
@@ -101,24 +93,13 @@ pub(crate) fn cascade(
     let (max_depth, first, last) = match &which {
         Depths::All => (tree.max_depth(), 0, tree.max_depth() as usize),
         Depths::Base { last, finest } => (*finest, 0, *last),
-        Depths::Above(solved) => (
-            tree.max_depth(),
-            solved.coefficients.len(),
-            tree.max_depth() as usize,
-        ),
+        Depths::Above(base) => (tree.max_depth(), base.len(), tree.max_depth() as usize),
     };
-    // V has an entry per depth but the finest (spent on its ρ).
-    field_v.resize_with(tree.levels.len().max(last + 1), Default::default);
     let mut coefficients: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
-    // The coarse right-hand side of the next depth, ⟨∇B_o, coarser V prolonged⟩ on its core.
-    let mut next_coarse_div: Option<Vec<f64>> = None;
-    if let Depths::Above(solved) = which {
-        // The base's last depth, carried to the first depth solved here as that depth's own
-        // iteration would have.
-        coefficients = solved.coefficients;
-        field_v[first - 1] = solved.field_v;
-        next_coarse_div = Some(carry_field(tree, first - 1, &mut field_v, max_depth, pool)?);
+    if let Depths::Above(base) = which {
+        coefficients = base;
     }
+    coarse_div.resize_with(tree.levels.len().max(last + 1), Vec::new);
     let depths = max_depth + 1;
     for d in first..=last {
         let depth_started = Instant::now();
@@ -148,7 +129,6 @@ pub(crate) fn cascade(
         let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
         go_on()?;
         // This depth's rho is used here for the last time.
-        let is_finest = d == max_depth as usize;
         let rho_here = std::mem::take(&mut rho[d]);
         // The coarser solution, represented at this depth (stored: it is part of this depth's
         // coefficients).
@@ -162,14 +142,11 @@ pub(crate) fn cascade(
             }
         })?;
         go_on()?;
-        let coarse_div = match next_coarse_div.take() {
-            Some(div) => div,
-            None => zeroed(level.core.len(), "a coarse right-hand side")?,
+        // The coarser depths' V at this depth (none at the root).
+        let coarse_div = match std::mem::take(&mut coarse_div[d]) {
+            div if div.len() == level.core.len() => div,
+            _ => zeroed(level.core.len(), "a coarse right-hand side")?,
         };
-        if !is_finest && d < last {
-            next_coarse_div = Some(carry_field(tree, d, &mut field_v, max_depth, pool)?);
-            go_on()?;
-        }
         // b − A·y on the core, computed in A·y's vector.
         let rhs = pool.install(|| -> Result<Vec<f64>> {
             let mut rhs = zeroed(level.core.len(), "the solver's vectors")?;
@@ -218,44 +195,7 @@ pub(crate) fn cascade(
             seconds: depth_started.elapsed().as_secs_f64(),
         });
     }
-    // A base hands its last depth's V (every coarser depth's in it) to the depths above.
-    let field_v = if last < max_depth as usize {
-        std::mem::take(&mut field_v[last])
-    } else {
-        Default::default()
-    };
-    Ok(Solved {
-        coefficients,
-        field_v,
-    })
-}
-
-/// V of depth `d` and all coarser ones (accumulated there by the depth above) read for the last
-/// time: prolonged to the next depth (F̃ halves in width: ×1/8), where its divergence is that
-/// depth's coarse right-hand side (returned), and added to that depth's V unless that is the
-/// finest (brick by brick, never as three more halo vectors).
-fn carry_field(
-    tree: &Octree,
-    d: usize,
-    field_v: &mut [[Vec<f64>; 3]],
-    finest: u32,
-    pool: &rayon::ThreadPool,
-) -> Result<Vec<f64>> {
-    let level = &tree.levels[d];
-    let mut field = std::mem::take(&mut field_v[d]);
-    fill_mirrors_field(level, &mut field);
-    let finer = &tree.levels[d + 1];
-    let prolonged = ProlongedField {
-        coarse: level,
-        fine: finer,
-        field: [&field[0], &field[1], &field[2]],
-        scale: 0.125,
-    };
-    let div = pool.install(|| divergence_of_prolonged(&prolonged))?;
-    if d + 1 < finest as usize {
-        pool.install(|| prolonged.add_to(&mut field_v[d + 1]));
-    }
-    Ok(div)
+    Ok(coefficients)
 }
 
 /// How one depth's solve ended.

@@ -27,8 +27,8 @@ use crate::parallel::Watch;
 use crate::points::{PointSet, Samples};
 use crate::solve::{cascade, Depths, ProxyGroup, Solved, System};
 use crate::system::{
-    depth_weight, divergence, fill_mirrors, proxy_depth, right_hand_sides, sample_groups,
-    sample_weights_from_totals,
+    depth_weight, divergence, divergence_of, fill_mirrors, proxy_depth, right_hand_sides,
+    sample_groups, sample_weights_from_totals, FieldCarry,
 };
 use crate::{Params, Result};
 use glam::DVec3;
@@ -418,14 +418,16 @@ impl Run<'_> {
             .install(|| Octree::from_cores(all, params.boundary, params.node_degree(), &self.watch))
     }
 
-    /// ρ of every depth and V of every depth but the finest, of the samples `at_depth` on
-    /// `tree`, as the pipeline's splat and system stages compute them.
+    /// ρ of every depth of the samples `at_depth` on `tree`, as the pipeline's splat and system
+    /// stages compute it, each depth's V but the finest's handed to `take_v` (depth, V) once
+    /// its own divergence is taken, root first.
     fn right_hand_sides(
         &self,
         tree: &Octree,
         slab: &SlabSamples,
         at_depth: &[Vec<DepthSample>],
-    ) -> Result<RightHandSides> {
+        mut take_v: impl FnMut(usize, [Vec<f64>; 3]) -> Result<()> + Send,
+    ) -> Result<Vec<Vec<f64>>> {
         let finest = tree.max_depth() as usize;
         self.pool.install(|| {
             let splat = |d: usize| {
@@ -433,9 +435,13 @@ impl Run<'_> {
             };
             let mut rho_finest = divergence(&tree.levels[finest], splat(finest)?)?;
             fill_mirrors(&tree.levels[finest], &mut rho_finest);
-            let field_v = (0..finest).map(splat).collect::<Result<Vec<_>>>()?;
-            let rho = right_hand_sides(tree, rho_finest, &field_v, self.pool, |_| Ok(()))?;
-            Ok((rho, field_v))
+            let mut own = Vec::with_capacity(finest);
+            for d in 0..finest {
+                let v = splat(d)?;
+                own.push(divergence_of(&tree.levels[d], &v)?);
+                take_v(d, v)?;
+            }
+            right_hand_sides(tree, rho_finest, own, |_| Ok(()))
         })
     }
 
@@ -443,11 +449,11 @@ impl Run<'_> {
         &self,
         tree: &Octree,
         rho: Vec<Vec<f64>>,
-        field_v: Vec<[Vec<f64>; 3]>,
+        coarse_div: Vec<Vec<f64>>,
         screening: Screening<'_>,
         depths: Depths,
         progress: &mut dyn FnMut(f32) -> bool,
-    ) -> Result<Solved> {
+    ) -> Result<Vec<Vec<f64>>> {
         let (positions, screening_weights, proxy_groups) = match screening {
             Screening::Samples(positions, weights) => (positions, weights, None),
             Screening::Groups(groups) => (&[][..], &[][..], Some(groups)),
@@ -456,7 +462,7 @@ impl Run<'_> {
             System {
                 tree,
                 rho,
-                field_v,
+                coarse_div,
                 positions,
                 screening_weights,
                 proxy_groups,
@@ -470,9 +476,6 @@ impl Run<'_> {
         )
     }
 }
-
-/// ρ of every depth and V of every depth but the finest.
-type RightHandSides = (Vec<Vec<f64>>, Vec<[Vec<f64>; 3]>);
 
 /// What a solve screens with: samples, or groups already summed.
 enum Screening<'a> {
@@ -924,7 +927,13 @@ pub(crate) fn solve_slabs(
             let slab = run.load(k, Some(finest))?;
             let own = slab.own_at_depth();
             let tree = run.slab_tree(&base_cores, run.cores(&slab, &own)?)?;
-            let (rho, field_v) = run.right_hand_sides(&tree, &slab, &own)?;
+            let mut base_v = Vec::with_capacity(b + 1);
+            let rho = run.right_hand_sides(&tree, &slab, &own, |d, v| {
+                if d <= b {
+                    base_v.push(v);
+                }
+                Ok(())
+            })?;
             let (positions, confidence): (Vec<_>, Vec<_>) = slab
                 .samples
                 .positions
@@ -938,7 +947,7 @@ pub(crate) fn solve_slabs(
             let mut p = Packer::default();
             for d in 0..=b {
                 pack_sparse(&mut p, &rho[d]);
-                for axis in &field_v[d] {
+                for axis in &base_v[d] {
                     pack_sparse(&mut p, axis);
                 }
                 let cells = sample_groups(&positions, &weights, proxy_depth(d as u32, finest));
@@ -969,14 +978,23 @@ pub(crate) fn solve_slabs(
             .map(|per_slab| merge_groups(per_slab.iter().map(|g| g.as_slice())))
             .collect();
         let base_tree = run.slab_tree(&base_cores, Vec::new())?;
-        Ok(run.solve(
+        let mut carry = FieldCarry::new(&base_tree, finest, b);
+        for (d, v) in std::mem::take(&mut sums.field_v).into_iter().enumerate() {
+            carry.push(d, v, pool)?;
+        }
+        let (coarse_div, handed_over) = carry.finish();
+        let coefficients = run.solve(
             &base_tree,
             std::mem::take(&mut sums.rho),
-            std::mem::take(&mut sums.field_v),
+            coarse_div,
             Screening::Groups(&groups),
             Depths::Base { last: b, finest },
             &mut |f| keep_going("base", ((2 * slabs) as f32 + f) / (2 * slabs + 1) as f32),
-        )?)
+        )?;
+        Ok(Solved {
+            coefficients,
+            field_v: handed_over.expect("the base's last depth is below the finest"),
+        })
     })();
     drop(groups);
     let base = agreed(team, solved_base)?;
@@ -992,23 +1010,30 @@ pub(crate) fn solve_slabs(
             let slab = run.load(k, Some(finest))?;
             let cores = run.cores(&slab, &slab.at_depth)?;
             let tree = run.slab_tree(&base_cores, cores.clone())?;
-            let (rho, field_v) = run.right_hand_sides(&tree, &slab, &slab.at_depth)?;
+            // The base's V carried on through the slab's depths above it (the slab's own V
+            // of the base's depths is in the base already).
+            let mut carry = FieldCarry::from_base(&tree, b, base.field_v.clone(), pool)?;
+            let rho = run.right_hand_sides(&tree, &slab, &slab.at_depth, |d, v| {
+                if d > b {
+                    carry.push(d, v, pool)
+                } else {
+                    Ok(())
+                }
+            })?;
+            let (coarse_div, _) = carry.finish();
             let weights =
                 sample_weights_from_totals(&slab.samples.confidence, total_area, total_confidence);
-            let solved = run.solve(
+            let coefficients = run.solve(
                 &tree,
                 rho,
-                field_v,
+                coarse_div,
                 Screening::Samples(&slab.samples.positions, &weights),
-                Depths::Above(Solved {
-                    coefficients: base.coefficients.clone(),
-                    field_v: base.field_v.clone(),
-                }),
+                Depths::Above(base.coefficients.clone()),
                 &mut |f| keep_going("slabs", (k as f32 + f) / slabs as f32),
             )?;
             let [cores_file, coefficients_file] = solution_files(&scratch, k);
             write_lists(&cores_file, &cores[b + 1..])?;
-            write_lists(&coefficients_file, &solved.coefficients)?;
+            write_lists(&coefficients_file, &coefficients)?;
             Ok(Vec::new())
         },
         |_, _| Ok(()),

@@ -7,6 +7,7 @@ use crate::density::{estimate, samples_by_depth, DensityField};
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
 use crate::solve::Solved;
+use crate::system::FieldCarry;
 use crate::Boundary;
 use glam::DVec3;
 
@@ -228,14 +229,43 @@ impl Cloud {
             crate::system::divergence(&tree.levels[finest], splat(finest)).expect("fits");
         crate::system::fill_mirrors(&tree.levels[finest], &mut rho_finest);
         let field_v: Vec<[Vec<f64>; 3]> = (0..finest).map(splat).collect();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .expect("a pool");
-        let rho = crate::system::right_hand_sides(tree, rho_finest, &field_v, &pool, |_| Ok(()))
+        let own = field_v
+            .iter()
+            .enumerate()
+            .map(|(d, v)| crate::system::divergence_of(&tree.levels[d], v).expect("fits"))
+            .collect();
+        let rho = crate::system::right_hand_sides(tree, rho_finest, own, |_| Ok(()))
             .expect("not cancelled");
         (rho, field_v)
     }
+}
+
+/// The coarse divergences a [`FieldCarry`] leaves on `tree` from V of `field_v` (index d), as
+/// the pipeline's and the passes' carries make them: from the root up to `last` (the finest,
+/// or a base's last depth), or on from a base's hand-off (its depth and field); and the field
+/// it hands over at `last`.
+fn carried(
+    tree: &Octree,
+    field_v: &[[Vec<f64>; 3]],
+    finest: u32,
+    last: usize,
+    base: Option<(usize, [Vec<f64>; 3])>,
+) -> (Vec<Vec<f64>>, Option<[Vec<f64>; 3]>) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool");
+    let (mut carry, from) = match base {
+        None => (FieldCarry::new(tree, finest, last), 0),
+        Some((depth, field)) => (
+            FieldCarry::from_base(tree, depth, field, &pool).expect("fits"),
+            depth + 1,
+        ),
+    };
+    for (d, v) in field_v.iter().enumerate().take(last + 1).skip(from) {
+        carry.push(d, v.clone(), &pool).expect("fits");
+    }
+    carry.finish()
 }
 
 /// The in-memory pipeline's system for the bumpy sphere, up to the solve: the tree, ρ and V of
@@ -256,6 +286,7 @@ pub(super) fn bumpy_sphere_chi(
     use crate::solve::{cascade, Depths, System};
     let cloud = bumpy_sphere(params);
     let parts = sphere_system(params);
+    let finest = parts.tree.max_depth();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
@@ -264,7 +295,7 @@ pub(super) fn bumpy_sphere_chi(
         System {
             tree: &parts.tree,
             rho: parts.rho,
-            field_v: parts.field_v,
+            coarse_div: carried(&parts.tree, &parts.field_v, finest, finest as usize, None).0,
             positions: &parts.positions,
             screening_weights: &parts.screening_weights,
             proxy_groups: None,
@@ -276,8 +307,7 @@ pub(super) fn bumpy_sphere_chi(
         &mut |_| true,
         &mut Vec::new(),
     )
-    .expect("solved")
-    .coefficients;
+    .expect("solved");
     let chi = crate::evaluate::Indicator {
         tree: parts.tree,
         coefficients,
@@ -334,12 +364,12 @@ fn a_cascade_cut_at_the_base_depth_gives_the_whole_cascades_coefficients() {
             .num_threads(2)
             .build()
             .expect("a pool");
-        let solve = |parts: &SystemParts, depths: Depths| {
+        let solve = |parts: &SystemParts, coarse_div: Vec<Vec<f64>>, depths: Depths| {
             cascade(
                 System {
                     tree: &parts.tree,
                     rho: parts.rho.clone(),
-                    field_v: parts.field_v.clone(),
+                    coarse_div,
                     positions: &parts.positions,
                     screening_weights: &parts.screening_weights,
                     proxy_groups: None,
@@ -355,21 +385,40 @@ fn a_cascade_cut_at_the_base_depth_gives_the_whole_cascades_coefficients() {
         };
         let whole_parts = sphere_system(&params);
         let finest = whole_parts.tree.max_depth();
-        let whole = solve(&whole_parts, Depths::All).coefficients;
+        let all = |parts: &SystemParts| {
+            carried(&parts.tree, &parts.field_v, finest, finest as usize, None)
+        };
+        let whole = solve(&whole_parts, all(&whole_parts).0, Depths::All);
         for base_depth in [3usize, 5] {
             let mut base_parts = sphere_system(&params);
             base_parts.tree.levels.truncate(base_depth + 1);
             base_parts.rho.truncate(base_depth + 1);
             base_parts.field_v.truncate(base_depth + 1);
+            let (base_div, handed_over) = carried(
+                &base_parts.tree,
+                &base_parts.field_v,
+                finest,
+                base_depth,
+                None,
+            );
             let base = solve(
                 &base_parts,
+                base_div,
                 Depths::Base {
                     last: base_depth,
                     finest,
                 },
             );
-            assert_eq!(base.coefficients.len(), base_depth + 1);
-            let above = solve(&whole_parts, Depths::Above(base)).coefficients;
+            assert_eq!(base.len(), base_depth + 1);
+            let above_div = carried(
+                &whole_parts.tree,
+                &whole_parts.field_v,
+                finest,
+                finest as usize,
+                Some((base_depth, handed_over.expect("a base below the finest"))),
+            )
+            .0;
+            let above = solve(&whole_parts, above_div, Depths::Above(base));
             assert_eq!(above.len(), whole.len());
             for (d, (a, w)) in above.iter().zip(&whole).enumerate() {
                 assert!(
@@ -552,12 +601,12 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
     let tree_of = |cores: Vec<Vec<u64>>| {
         Octree::from_cores(cores, params.boundary, degree, &Watch::new()).expect("not cancelled")
     };
-    let solve = |tree: &Octree, rho, field_v, depths, params: &crate::Params| {
+    let solve = |tree: &Octree, rho, coarse_div, depths, params: &crate::Params| {
         cascade(
             System {
                 tree,
                 rho,
-                field_v,
+                coarse_div,
                 positions: &cloud.samples.positions,
                 screening_weights: &weights,
                 proxy_groups: None,
@@ -575,12 +624,19 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
     let whole_tree = tree_of(cloud.cores(&cloud.at_depth, &params));
     let finest = whole_tree.max_depth();
     let (rho, v) = cloud.right_hand_sides(&whole_tree, &cloud.at_depth, &params);
-    let whole = solve(&whole_tree, rho.clone(), v.clone(), Depths::All, &params).coefficients;
+    let whole_div = carried(&whole_tree, &v, finest, finest as usize, None).0;
+    let whole = solve(
+        &whole_tree,
+        rho.clone(),
+        whole_div.clone(),
+        Depths::All,
+        &params,
+    );
     let converged_params = params
         .clone()
         .with_solver_tolerance(1e-9)
         .with_max_solver_iterations(2000);
-    let converged = solve(&whole_tree, rho, v, Depths::All, &converged_params).coefficients;
+    let converged = solve(&whole_tree, rho, whole_div, Depths::All, &converged_params);
 
     // The slabs: balanced columns of depth B + 2.
     let base_depth = 4usize;
@@ -609,16 +665,20 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
         sums.add(&rho, &v, base_depth);
     }
     let base_tree = tree_of(base_cores.clone());
-    let base = solve(
-        &base_tree,
-        sums.rho,
-        sums.field_v,
-        Depths::Base {
-            last: base_depth,
-            finest,
-        },
-        &params,
-    );
+    let (base_div, handed_over) = carried(&base_tree, &sums.field_v, finest, base_depth, None);
+    let base = Solved {
+        coefficients: solve(
+            &base_tree,
+            sums.rho,
+            base_div,
+            Depths::Base {
+                last: base_depth,
+                finest,
+            },
+            &params,
+        ),
+        field_v: handed_over.expect("a base below the finest"),
+    };
 
     // Each slab above the base, on its points and padding; compared where it owns nodes.
     let mut worst_slab = 0.0f64;
@@ -631,11 +691,10 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
         slab_cores.extend(cloud.cores(&at, &params).into_iter().skip(base_depth + 1));
         let tree = tree_of(slab_cores);
         let (rho, v) = cloud.right_hand_sides(&tree, &at, &params);
-        let solved = Solved {
-            coefficients: base.coefficients.clone(),
-            field_v: base.field_v.clone(),
-        };
-        let slab = solve(&tree, rho, v, Depths::Above(solved), &params).coefficients;
+        let above = Some((base_depth, base.field_v.clone()));
+        let slab_div = carried(&tree, &v, finest, finest as usize, above).0;
+        let above = Depths::Above(base.coefficients.clone());
+        let slab = solve(&tree, rho, slab_div, above, &params);
         let owned = layout.owned(k);
         for d in wall_depth as usize..=finest as usize {
             let level = &tree.levels[d];

@@ -27,6 +27,7 @@
 //! divergence of finer vector-field coefficients is restricted to coarser nodes. Both are exact.
 
 mod bricks;
+mod carry;
 mod operator;
 mod rhs;
 mod screening;
@@ -35,10 +36,17 @@ mod simd;
 mod tests;
 mod transfer;
 
-pub(crate) use crate::octree::{fill_mirrors, fill_mirrors_field};
+pub(crate) use crate::octree::fill_mirrors;
+#[cfg(any(test, doc))]
+pub(crate) use crate::octree::fill_mirrors_field;
+pub(crate) use carry::FieldCarry;
 pub(crate) use operator::DepthOperator;
-pub(crate) use rhs::{divergence, divergence_of_prolonged, right_hand_sides, update_on_core};
+#[cfg(any(test, doc))]
+pub(crate) use rhs::divergence_of_prolonged;
+pub(crate) use rhs::{divergence, divergence_of, right_hand_sides, update_on_core};
 pub(crate) use screening::{
     depth_weight, proxy_depth, sample_groups, sample_weights, sample_weights_from_totals, Proxies,
 };
-pub(crate) use transfer::{prolong, ProlongedField};
+pub(crate) use transfer::prolong;
+#[cfg(test)]
+pub(crate) use transfer::ProlongedField;

@@ -62,38 +62,31 @@ pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Result<Vec<f64>> {
 
 /// ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo K_d (index d), finest first: each depth's own
 /// divergence plus the finer depth's ρ restricted (exactly) to it. `rho_finest` is the finest
-/// depth's, computed when its V was splatted (see [`divergence`]); `field_v[d]` is V_d for the
-/// coarser depths. `progress(fraction)` is called after each depth's divergence and after its
-/// restriction, the fraction counting the work as nodes (the divergence over depth d's halo,
-/// the restriction over depth d + 1's), and may stop the work. The first depth done is most of
-/// it (the halos shrink about 4× a depth), so it reports half-way too.
+/// depth's (see [`divergence`]); `own[d]` is ⟨∇B_o, V_d⟩ on K_d for the coarser depths
+/// ([`divergence_of`] of V_d alone, computed as each depth is splatted, before
+/// [`super::FieldCarry`] takes its V), turned into ρ_d in place. `progress(fraction)` is
+/// called after each depth's restriction, the fraction counting the work as the finer depth's
+/// nodes, and may stop the work.
 pub(crate) fn right_hand_sides(
     tree: &Octree,
     rho_finest: Vec<f64>,
-    field_v: &[[Vec<f64>; 3]],
-    pool: &rayon::ThreadPool,
+    own: Vec<Vec<f64>>,
     mut progress: impl FnMut(f32) -> Result<()>,
 ) -> Result<Vec<Vec<f64>>> {
     let max_depth = tree.max_depth() as usize;
-    let work: usize = (0..max_depth)
-        .map(|d| tree.levels[d].len() + tree.levels[d + 1].len())
-        .sum();
+    debug_assert_eq!(own.len(), max_depth);
+    let work: usize = (1..=max_depth).map(|d| tree.levels[d].len()).sum();
     let mut done = 0;
-    let mut step = |nodes: usize| {
-        done += nodes;
-        progress(done as f32 / work.max(1) as f32)
-    };
     let mut rho: Vec<Vec<f64>> = Vec::with_capacity(tree.levels.len());
     rho.push(rho_finest);
-    for d in (0..max_depth).rev() {
+    for (d, mut r) in own.into_iter().enumerate().rev() {
         let level = &tree.levels[d];
-        let mut r = pool.install(|| divergence_of(level, &field_v[d]))?;
-        step(level.len())?;
         let finer: &Vec<f64> = rho.last().expect("finer level computed first");
         restrict_into(level, &tree.levels[d + 1], finer, &mut r);
         fill_mirrors(level, &mut r);
         rho.push(r);
-        step(tree.levels[d + 1].len())?;
+        done += tree.levels[d + 1].len();
+        progress(done as f32 / work.max(1) as f32)?;
     }
     rho.reverse();
     Ok(rho)

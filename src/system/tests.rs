@@ -598,3 +598,87 @@ fn degree_one_prolongation_reproduces_affine_functions_and_restriction_is_its_tr
         assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0), "{lhs} {rhs}");
     }
 }
+
+/// The carry's coarse divergence at every depth is ⟨∇B_o, Σ_{e<d} V_e⟩ with each coarser V
+/// prolonged to depth d on its own (to rounding: the carry adds them up on the way); a carry
+/// cut at a base depth and continued from its hand-off gives the uncut carry's divergences
+/// bit for bit; nothing is carried to the root.
+#[test]
+fn the_carried_coarse_divergence_is_every_coarser_fields_divergence() {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool");
+    for boundary in BOUNDARIES {
+        for tree in trees_of_both_degrees(boundary) {
+            let finest = tree.max_depth() as usize;
+            let field_v: Vec<[Vec<f64>; 3]> = (0..finest)
+                .map(|d| {
+                    let level = &tree.levels[d];
+                    let mut v: [Vec<f64>; 3] = std::array::from_fn(|a| {
+                        (0..level.len())
+                            .map(|i| ((i * (a + 3) + d) % 11) as f64 - 5.0)
+                            .collect()
+                    });
+                    fill_mirrors_field(level, &mut v);
+                    v
+                })
+                .collect();
+            let mut carry = FieldCarry::new(&tree, finest as u32, finest);
+            for (d, v) in field_v.iter().enumerate() {
+                carry.push(d, v.clone(), &pool).unwrap();
+            }
+            let (carried, handed_over) = carry.finish();
+            assert!(handed_over.is_none());
+            assert!(carried[0].is_empty());
+            for (d, level) in tree.levels.iter().enumerate().skip(1) {
+                let mut sum: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; level.len()]);
+                for (e, v) in field_v.iter().enumerate().take(d) {
+                    let mut g = v.clone();
+                    for k in e..d {
+                        let (coarse, fine) = (&tree.levels[k], &tree.levels[k + 1]);
+                        g = std::array::from_fn(|a| prolong(coarse, fine, &g[a], 0.125).unwrap());
+                        fill_mirrors_field(fine, &mut g);
+                    }
+                    for (s, g) in sum.iter_mut().zip(&g) {
+                        s.iter_mut().zip(g).for_each(|(s, g)| *s += g);
+                    }
+                }
+                let whole = divergence_of(level, &sum).unwrap();
+                let scale = whole.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+                assert_eq!(carried[d].len(), level.core.len());
+                for (i, &c) in level.core.iter().enumerate() {
+                    let (got, want) = (carried[d][i], whole[c as usize]);
+                    assert!(
+                        (got - want).abs() <= 1e-12 * scale,
+                        "{boundary:?}, {:?}, depth {d}: {got} vs {want}",
+                        level.degree
+                    );
+                }
+            }
+            // Cut at a base depth, then continued from its hand-off.
+            let base = 2;
+            let mut cut = FieldCarry::new(&tree, finest as u32, base);
+            for (d, v) in field_v.iter().enumerate().take(base + 1) {
+                cut.push(d, v.clone(), &pool).unwrap();
+            }
+            let (below, handed_over) = cut.finish();
+            let mut above =
+                FieldCarry::from_base(&tree, base, handed_over.unwrap(), &pool).unwrap();
+            for (d, v) in field_v.iter().enumerate().skip(base + 1) {
+                above.push(d, v.clone(), &pool).unwrap();
+            }
+            let (above, _) = above.finish();
+            for d in 1..=finest {
+                let got = if d <= base { &below[d] } else { &above[d] };
+                assert!(
+                    got.iter()
+                        .zip(&carried[d])
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{boundary:?}: depth {d} cut at {base}"
+                );
+                assert_eq!(got.len(), carried[d].len());
+            }
+        }
+    }
+}
