@@ -1007,9 +1007,11 @@ pub(crate) fn solve_slabs(
             if !keep_going("slabs", k as f32 / slabs as f32) {
                 return Err(cancelled());
             }
-            let slab = run.load(k, Some(finest))?;
+            let mut slab = run.load(k, Some(finest))?;
             let cores = run.cores(&slab, &slab.at_depth)?;
-            let tree = run.slab_tree(&base_cores, cores.clone())?;
+            let [cores_file, coefficients_file] = solution_files(&scratch, k);
+            write_lists(&cores_file, &cores[b + 1..])?;
+            let tree = run.slab_tree(&base_cores, cores)?;
             // The base's V carried on through the slab's depths above it (the slab's own V
             // of the base's depths is in the base already).
             let mut carry = FieldCarry::from_base(&tree, b, base.field_v.clone(), pool)?;
@@ -1021,6 +1023,9 @@ pub(crate) fn solve_slabs(
                 }
             })?;
             let (coarse_div, _) = carry.finish();
+            // What the solve does not read goes before it: the splat's lists, the normals.
+            slab.at_depth = Vec::new();
+            slab.samples.normals = Vec::new();
             let weights =
                 sample_weights_from_totals(&slab.samples.confidence, total_area, total_confidence);
             let coefficients = run.solve(
@@ -1031,8 +1036,6 @@ pub(crate) fn solve_slabs(
                 Depths::Above(base.coefficients.clone()),
                 &mut |f| keep_going("slabs", (k as f32 + f) / slabs as f32),
             )?;
-            let [cores_file, coefficients_file] = solution_files(&scratch, k);
-            write_lists(&cores_file, &cores[b + 1..])?;
             write_lists(&coefficients_file, &coefficients)?;
             Ok(Vec::new())
         },
