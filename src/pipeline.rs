@@ -17,7 +17,7 @@ use crate::parallel::{self, Watch};
 use crate::points::{PointSet, Samples, UnitCubeMap};
 use crate::solve::{self, Depths, System};
 use crate::splat::splat_level;
-use crate::system::{self, divergence, divergence_of, fill_mirrors, FieldCarry};
+use crate::system::{self, FieldCarry};
 use crate::{Error, Params, Result, VertexPlacement};
 use std::time::Instant;
 
@@ -154,6 +154,16 @@ impl Clock<'_, '_> {
         self.moved = -seconds;
         Ok(())
     }
+
+    /// [`Clock::done`], with `seconds` of this stage's time spent on work of the stage before
+    /// (counted there).
+    fn done_returning(&mut self, stage: Stage, seconds: f64) -> Result<()> {
+        if let Some((_, before)) = self.stats.stage_seconds.last_mut() {
+            *before += seconds;
+        }
+        self.moved += seconds;
+        self.done(stage)
+    }
 }
 
 /// Reconstructs `points` with `params`, the parallel sections in `pool`, reporting each stage
@@ -276,62 +286,63 @@ pub(crate) fn run(
     // Interleaved for memory: the finest V is needed for nothing but ρ at that depth (no finer
     // depth prolongs it), so the system's first step runs here, before the coarser depths' V
     // exist; V's three vectors and ρ (four halo-sized vectors of the finest depth) are the
-    // peak of these stages. Then the coarser depths, root first, each V spent at once on its
-    // own divergence and on the coarse divergences of the depths above (`FieldCarry`), so that
-    // no more than two depths' V are ever alive and none waits for the solve. The divergences
-    // and the carry are the system's work: their time is counted in the system stage.
-    // Cancel points between the depths (the finest splat and its divergence are about half
-    // of the work).
+    // peak of these stages. Its time is counted in the system stage. The coarser depths are
+    // splatted in the system stage, root first, as the carry of V asks (below).
     // The attributes' splat (stage 9) reads each sample's depths and normal again; without
     // attributes each depth's list goes once splatted, and the normals after the last.
     let carries_attributes = !samples.attributes.is_empty();
     let mut at_depth = at_depth;
-    let (rho_finest, own_divergence, coarse_div, system_seconds) =
-        clock.watch(Stage::Splat, pool, |watch| {
-            let spent = |at: &mut Vec<density::DepthSample>| {
-                if !carries_attributes {
-                    *at = Vec::new();
-                }
-            };
-            let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)?;
-            spent(&mut at_depth[finest]);
-            watch.step(1, 4, 0.0, 1.0)?;
-            let system_started = Instant::now();
-            let mut rho_finest = divergence(&tree.levels[finest], v_finest)?;
-            fill_mirrors(&tree.levels[finest], &mut rho_finest);
-            let mut system_seconds = system_started.elapsed().as_secs_f64();
-            watch.step(2, 4, 0.0, 1.0)?;
-            let mut own_divergence: Vec<Vec<f64>> = Vec::with_capacity(finest);
+    let spent = |at_depth: &mut [Vec<density::DepthSample>], d: usize| {
+        if !carries_attributes {
+            at_depth[d] = Vec::new();
+        }
+    };
+    let (rho_finest, finest_system) = clock.watch(Stage::Splat, pool, |watch| {
+        let v_finest = splat_level(&tree.levels[finest], &samples, &at_depth[finest], params)?;
+        spent(&mut at_depth, finest);
+        watch.step(1, 2, 0.0, 1.0)?;
+        let finest_system = Instant::now();
+        let rho_finest = system::finest_right_hand_side(&tree.levels[finest], v_finest)?;
+        Ok((rho_finest, finest_system.elapsed().as_secs_f64()))
+    })?;
+    clock.done_moving(Stage::Splat, finest_system)?;
+
+    // 5. System: the right-hand side of every depth and the samples' screening weights. The
+    // coarser depths are splatted here, root first (their splat's time is counted in the splat
+    // stage), each V spent at once on its own divergence and on the coarse divergences of the
+    // depths above (`FieldCarry`), so that no more than two depths' V are ever alive and none
+    // waits for the solve; then each depth's ρ by restriction. Cancel points between the
+    // depths and between the restrictions.
+    let (rho, coarse_div, screening_weights, splat_seconds) =
+        clock.watch(Stage::System, pool, |watch| {
+            let mut splat_seconds = 0.0;
             let mut carry = FieldCarry::new(&tree, finest as u32, finest);
-            let coarser = tree.levels.iter().zip(&mut at_depth).take(finest);
-            for (d, (level, at)) in coarser.enumerate() {
-                let v = splat_level(level, &samples, at, params)?;
-                spent(at);
-                let system_started = Instant::now();
-                own_divergence.push(divergence_of(level, &v)?);
-                carry.push(d, v, pool)?;
-                system_seconds += system_started.elapsed().as_secs_f64();
-                watch.step(d + 1, finest, 0.5, 1.0)?;
-            }
+            let own_divergence = system::coarser_divergences(
+                &tree,
+                |d| {
+                    watch.step(d, finest, 0.0, 0.5)?;
+                    let splat_started = Instant::now();
+                    let v = splat_level(&tree.levels[d], &samples, &at_depth[d], params)?;
+                    spent(&mut at_depth, d);
+                    splat_seconds += splat_started.elapsed().as_secs_f64();
+                    Ok(v)
+                },
+                |d, v| carry.push(d, v, pool),
+            )?;
             let (coarse_div, _) = carry.finish();
-            Ok((rho_finest, own_divergence, coarse_div, system_seconds))
+            let rho = system::right_hand_sides(&tree, rho_finest, own_divergence, |fraction| {
+                watch.set(0.5 + 0.5 * fraction);
+                watch.check()
+            })?;
+            let screening_weights =
+                system::sample_weights(&sample_density.area, &samples.confidence);
+            Ok((rho, coarse_div, screening_weights, splat_seconds))
         })?;
     if !carries_attributes {
         at_depth = Vec::new();
         samples.normals = Vec::new();
     }
-    clock.done_moving(Stage::Splat, system_seconds)?;
-
-    // 5. System: the right-hand side of every depth and the samples' screening weights.
-    let (rho, screening_weights) = clock.watch(Stage::System, pool, |watch| {
-        let rho = system::right_hand_sides(&tree, rho_finest, own_divergence, |fraction| {
-            watch.set(fraction);
-            watch.check()
-        })?;
-        let screening_weights = system::sample_weights(&sample_density.area, &samples.confidence);
-        Ok((rho, screening_weights))
-    })?;
-    clock.done(Stage::System)?;
+    clock.done_returning(Stage::System, splat_seconds)?;
 
     // 6. Solve, coarse to fine (each depth's ρ and coarse divergence are dropped once read).
     let system = System {

@@ -99,7 +99,6 @@ pub(crate) fn cascade(
     if let Depths::Above(base) = which {
         coefficients = base;
     }
-    coarse_div.resize_with(tree.levels.len().max(last + 1), Vec::new);
     let depths = max_depth + 1;
     for d in first..=last {
         let depth_started = Instant::now();
@@ -143,8 +142,8 @@ pub(crate) fn cascade(
         })?;
         go_on()?;
         // The coarser depths' V at this depth (none at the root).
-        let coarse_div = match std::mem::take(&mut coarse_div[d]) {
-            div if div.len() == level.core.len() => div,
+        let coarse_div = match coarse_div.get_mut(d).map(std::mem::take) {
+            Some(div) if !div.is_empty() => div,
             _ => zeroed(level.core.len(), "a coarse right-hand side")?,
         };
         // b − A·y on the core, computed in A·y's vector.

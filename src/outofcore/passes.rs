@@ -27,7 +27,7 @@ use crate::parallel::Watch;
 use crate::points::{PointSet, Samples};
 use crate::solve::{cascade, Depths, ProxyGroup, Solved, System};
 use crate::system::{
-    depth_weight, divergence, divergence_of, fill_mirrors, proxy_depth, right_hand_sides,
+    coarser_divergences, depth_weight, finest_right_hand_side, proxy_depth, right_hand_sides,
     sample_groups, sample_weights_from_totals, FieldCarry,
 };
 use crate::{Params, Result};
@@ -426,21 +426,15 @@ impl Run<'_> {
         tree: &Octree,
         slab: &SlabSamples,
         at_depth: &[Vec<DepthSample>],
-        mut take_v: impl FnMut(usize, [Vec<f64>; 3]) -> Result<()> + Send,
+        take_v: impl FnMut(usize, [Vec<f64>; 3]) -> Result<()> + Send,
     ) -> Result<Vec<Vec<f64>>> {
-        let finest = tree.max_depth() as usize;
         self.pool.install(|| {
             let splat = |d: usize| {
                 crate::splat::splat_level(&tree.levels[d], &slab.samples, &at_depth[d], self.params)
             };
-            let mut rho_finest = divergence(&tree.levels[finest], splat(finest)?)?;
-            fill_mirrors(&tree.levels[finest], &mut rho_finest);
-            let mut own = Vec::with_capacity(finest);
-            for d in 0..finest {
-                let v = splat(d)?;
-                own.push(divergence_of(&tree.levels[d], &v)?);
-                take_v(d, v)?;
-            }
+            let finest = tree.max_depth() as usize;
+            let rho_finest = finest_right_hand_side(&tree.levels[finest], splat(finest)?)?;
+            let own = coarser_divergences(tree, splat, take_v)?;
             right_hand_sides(tree, rho_finest, own, |_| Ok(()))
         })
     }

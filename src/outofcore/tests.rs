@@ -220,20 +220,21 @@ impl Cloud {
         at_depth: &[Vec<crate::density::DepthSample>],
         params: &crate::Params,
     ) -> (Vec<Vec<f64>>, Vec<[Vec<f64>; 3]>) {
-        let finest = tree.max_depth() as usize;
         let splat = |d: usize| {
             crate::splat::splat_level(&tree.levels[d], &self.samples, &at_depth[d], params)
-                .expect("fits")
         };
-        let mut rho_finest =
-            crate::system::divergence(&tree.levels[finest], splat(finest)).expect("fits");
-        crate::system::fill_mirrors(&tree.levels[finest], &mut rho_finest);
-        let field_v: Vec<[Vec<f64>; 3]> = (0..finest).map(splat).collect();
-        let own = field_v
-            .iter()
-            .enumerate()
-            .map(|(d, v)| crate::system::divergence_of(&tree.levels[d], v).expect("fits"))
-            .collect();
+        let finest = tree.max_depth() as usize;
+        let rho_finest = crate::system::finest_right_hand_side(
+            &tree.levels[finest],
+            splat(finest).expect("fits"),
+        )
+        .expect("fits");
+        let mut field_v = Vec::new();
+        let own = crate::system::coarser_divergences(tree, splat, |_, v| {
+            field_v.push(v);
+            Ok(())
+        })
+        .expect("fits");
         let rho = crate::system::right_hand_sides(tree, rho_finest, own, |_| Ok(()))
             .expect("not cancelled");
         (rho, field_v)

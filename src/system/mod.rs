@@ -37,16 +37,12 @@ mod tests;
 mod transfer;
 
 pub(crate) use crate::octree::fill_mirrors;
-#[cfg(any(test, doc))]
-pub(crate) use crate::octree::fill_mirrors_field;
 pub(crate) use carry::FieldCarry;
 pub(crate) use operator::DepthOperator;
-#[cfg(any(test, doc))]
-pub(crate) use rhs::divergence_of_prolonged;
-pub(crate) use rhs::{divergence, divergence_of, right_hand_sides, update_on_core};
+pub(crate) use rhs::{
+    coarser_divergences, finest_right_hand_side, right_hand_sides, update_on_core,
+};
 pub(crate) use screening::{
     depth_weight, proxy_depth, sample_groups, sample_weights, sample_weights_from_totals, Proxies,
 };
 pub(crate) use transfer::prolong;
-#[cfg(test)]
-pub(crate) use transfer::ProlongedField;

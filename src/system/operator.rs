@@ -3,9 +3,11 @@
 //! [`super::screening`]).
 
 use super::bricks::CoreBricks;
+#[cfg(doc)]
+use super::rhs::{divergence, divergence_of_prolonged};
 use super::screening::{padded, tensor_accumulate, Proxies, ScreeningCell, ScreeningCells};
 #[cfg(doc)]
-use super::{divergence, divergence_of_prolonged, fill_mirrors, update_on_core};
+use super::{fill_mirrors, update_on_core};
 use crate::octree::{Level, CORE};
 
 /// The screening term's sweep over the core bricks: each brick collects from the screening

@@ -60,6 +60,33 @@ pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Result<Vec<f64>> {
     Ok(out)
 }
 
+/// The finest depth's ρ from its V (mirrors filled): its own divergence, no finer depth
+/// restricting into it; V is dropped.
+pub(crate) fn finest_right_hand_side(level: &Level, v: [Vec<f64>; 3]) -> Result<Vec<f64>> {
+    let mut rho = divergence(level, v)?;
+    fill_mirrors(level, &mut rho);
+    Ok(rho)
+}
+
+/// The coarser depths' own divergences, root first, in the order the carry of V asks for:
+/// each depth's V (`splat(d)`) gives ⟨∇B_o, V_d⟩ on K_d, for [`right_hand_sides`], before it
+/// goes to `take_v(d, V)` (a [`super::FieldCarry`], which adds the coarser depths' V into it,
+/// or the out-of-core base's parts).
+pub(crate) fn coarser_divergences(
+    tree: &Octree,
+    mut splat: impl FnMut(usize) -> Result<[Vec<f64>; 3]>,
+    mut take_v: impl FnMut(usize, [Vec<f64>; 3]) -> Result<()>,
+) -> Result<Vec<Vec<f64>>> {
+    let finest = tree.max_depth() as usize;
+    let mut own = Vec::with_capacity(finest);
+    for (d, level) in tree.levels.iter().enumerate().take(finest) {
+        let v = splat(d)?;
+        own.push(divergence_of(level, &v)?);
+        take_v(d, v)?;
+    }
+    Ok(own)
+}
+
 /// ρ_d = ⟨∇B_o, Σ_{e ≥ d} V_e⟩ on every halo K_d (index d), finest first: each depth's own
 /// divergence plus the finer depth's ρ restricted (exactly) to it. `rho_finest` is the finest
 /// depth's (see [`divergence`]); `own[d]` is ⟨∇B_o, V_d⟩ on K_d for the coarser depths

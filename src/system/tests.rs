@@ -1,12 +1,12 @@
 //! The system's tests: operators against closed forms and node-by-node references.
 
 use super::bricks::{window_regions, CoreBricks, WINDOW};
-use super::rhs::divergence_of;
+use super::rhs::{divergence, divergence_of, divergence_of_prolonged};
 use super::screening::ScreeningCells;
-use super::transfer::{prolonged_at, refinement_parents, restrict_into};
+use super::transfer::{prolonged_at, refinement_parents, restrict_into, ProlongedField};
 use super::*;
 use crate::bspline::Degree;
-use crate::octree::{Level, Octree, NONE};
+use crate::octree::{fill_mirrors_field, Level, Octree, NONE};
 use crate::Boundary;
 use glam::DVec3;
 

@@ -12,8 +12,8 @@ use rayon::prelude::*;
 
 /// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
 /// stored (node by node with [`ProlongedField::at`], brick by brick by
-/// [`divergence_of_prolonged`](super::divergence_of_prolonged) and [`ProlongedField::add_to`]): the value at a
-/// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`](super::fill_mirrors_field) would
+/// [`divergence_of_prolonged`](super::rhs::divergence_of_prolonged) and [`ProlongedField::add_to`]): the value at a
+/// fine node is what [`prolong`] of each component followed by [`fill_mirrors_field`](crate::octree::fill_mirrors_field) would
 /// hold there. Reading it where needed saves three halo-sized vectors.
 pub struct ProlongedField<'a> {
     pub coarse: &'a Level,
@@ -29,7 +29,7 @@ impl ProlongedField<'_> {
         let scales = [self.scale; 3];
         if !self.fine.mirrors.is_empty() {
             // Neumann or Dirichlet: a node outside the cube mirrors its reflection inside, if in
-            // K_d, with the signs of [`fill_mirrors_field`](super::fill_mirrors_field).
+            // K_d, with the signs of [`fill_mirrors_field`](crate::octree::fill_mirrors_field).
             let c = self.fine.coord(i);
             if let Some((inside, flips)) = self.fine.reflect(c) {
                 if let Some(j) = self.fine.find(inside) {
