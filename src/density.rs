@@ -304,7 +304,7 @@ pub fn estimate(
 }
 
 /// One sample's contribution at one depth.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct DepthSample {
     /// The sample's index (the position and normal it refers to).
     pub(crate) sample: u32,

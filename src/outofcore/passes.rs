@@ -32,6 +32,7 @@ use crate::system::{
 };
 use crate::{Params, Result};
 use glam::DVec3;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// How the run is cut: the base depth, the slabs asked for, their padding.
@@ -45,7 +46,8 @@ pub(crate) struct Plan {
     pub(crate) slabs: SlabCount,
     /// Columns of depth B + 2 each slab reads beyond its walls (the run takes 24, see
     /// `run.rs`; the tree alone needs 6, three nodes of depth B + 1, and its halos 4 more,
-    /// see `tests.rs`).
+    /// see `tests.rs`); its finer depths splat within [`FINE_PADDING_NODES`] of theirs
+    /// ([`grade_padding`]).
     pub(crate) padding: u32,
     /// Points per chunk read from the input.
     pub(crate) chunk: usize,
@@ -105,7 +107,8 @@ fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
 /// A slab's need is the memory accounting's (`memory.rs`) for its points with its padding and
 /// for its tree: the base's depths (0..=`base_depth`, shared by every slab's tree) predicted
 /// for the whole cloud and the finer depths for the slab's points and its part of the surface
-/// ([`crate::memory::nodes_of_measured_surface`]).
+/// ([`crate::memory::nodes_of_measured_surface`]): up to the wall depth over its padding,
+/// finer over its graded padding's band at each depth.
 #[allow(clippy::too_many_arguments)]
 fn slabs_within(
     budget: u64,
@@ -127,9 +130,24 @@ fn slabs_within(
         )
     };
     let base = nodes(counts.iter().sum(), surface.iter().sum());
-    let need_of = |points: u64, surface: f64| {
-        let mut tree = nodes(points, surface);
+    let within = |columns: Range<u32>| {
+        let points = columns.clone().map(|c| counts[c as usize]).sum::<u64>();
+        (points, columns.map(|c| surface[c as usize]).sum::<f64>())
+    };
+    let need_of = |layout: &SlabLayout, k: usize| {
+        let (points, padded_surface) = within(layout.padded(k));
+        let mut tree = nodes(points, padded_surface);
         tree[..=base_depth as usize].copy_from_slice(&base[..=base_depth as usize]);
+        // Finer than the walls, the graded padding's band ([`grade_padding`]), in whole
+        // columns.
+        let wall_depth = layout.wall_depth;
+        let (owned, columns) = (layout.owned(k), counts.len() as u32);
+        for d in wall_depth + 1..tree.len() as u32 {
+            let reach = FINE_PADDING_NODES.div_ceil(1 << (d - wall_depth).min(31));
+            let band = owned.start.saturating_sub(reach)..(owned.end + reach).min(columns);
+            let (band_points, band_surface) = within(band);
+            tree[d as usize] = nodes(band_points, band_surface)[d as usize];
+        }
         crate::memory::Footprint::with_nodes(points, 0, &tree, 0)
             .peak()
             .saturating_add(shared)
@@ -144,12 +162,7 @@ fn slabs_within(
         }
         previous_len = layout.len();
         let need = (0..layout.len())
-            .map(|k| {
-                let padded = layout.padded(k);
-                let points = padded.clone().map(|c| counts[c as usize]).sum::<u64>();
-                let surface = padded.map(|c| surface[c as usize]).sum::<f64>();
-                need_of(points, surface)
-            })
+            .map(|k| need_of(&layout, k))
             .max()
             .unwrap_or(0);
         if need <= budget {
@@ -341,6 +354,13 @@ impl Run<'_> {
             at_depth.resize_with(finest as usize + 1, Vec::new);
         }
         let layout = self.layout;
+        grade_padding(
+            &mut at_depth,
+            &samples.positions,
+            layout,
+            k,
+            FINE_PADDING_NODES,
+        );
         let owned = samples
             .positions
             .iter()
@@ -539,6 +559,49 @@ struct Cut {
     /// Σ area × confidence and Σ confidence over all the samples (the screening weights').
     total_area: f64,
     total_confidence: f64,
+}
+
+/// Nodes of each depth finer than the walls that a slab's padding keeps on each side of its
+/// columns: past the wall depth B + 2 the padding is graded, a fixed number of every depth's
+/// own nodes (24 nodes of depth B + 3 are half the 24 columns of depth B + 2, of depth B + 4 a
+/// quarter), since the finer depths' corrections reach a fixed number of their own cells. On
+/// the Happy Buddha at depth 10 in 8 slabs, 12 and 24 both kept every vertex within 0.17 finest
+/// cell of the in-memory mesh and its genus (`docs/out-of-core.md`); 24 for a margin.
+pub(crate) const FINE_PADDING_NODES: u32 = 24;
+
+/// The graded padding: past the wall depth, slab k's splats at each depth stay within its band
+/// there ([`SlabLayout::band`], `nodes` nodes of that depth beyond its columns) and the splats
+/// of the samples beyond it go one depth coarser, their mass added there (finest depth first,
+/// so a splat moves down until a band holds it; at the wall depth every splat of the padding
+/// stays). The field V the slab splats is then the whole of its samples', only coarser far
+/// from its columns, so the fine solve near the band's edge sees a smooth field rather than a
+/// cut one (dropping the splats instead gained the Buddha a handle). The splats of the samples
+/// the slab owns never move: its columns lie in every band. Each depth's list stays in sample
+/// order (a sample moved onto a depth where it splats already has two entries there).
+pub(crate) fn grade_padding(
+    at_depth: &mut [Vec<DepthSample>],
+    positions: &[DVec3],
+    layout: &SlabLayout,
+    k: usize,
+    nodes: u32,
+) {
+    let wall_depth = layout.wall_depth as usize;
+    for d in (wall_depth + 1..at_depth.len()).rev() {
+        let band = layout.band(k, d as u32, nodes);
+        let cells = (d as f64).exp2();
+        let (kept, beyond): (Vec<DepthSample>, Vec<DepthSample>) =
+            at_depth[d].iter().partition(|s| {
+                let x = (positions[s.sample as usize].x * cells).floor() as i64;
+                band.contains(&x)
+            });
+        if beyond.is_empty() {
+            continue;
+        }
+        at_depth[d] = kept;
+        let coarser = &mut at_depth[d - 1];
+        coarser.extend(beyond);
+        coarser.sort_by_key(|s| s.sample);
+    }
 }
 
 /// The columns of padding each slab reads beyond its walls: `asked`, or more when the density's
@@ -1233,9 +1296,9 @@ fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, O
 #[cfg(test)]
 mod tests {
     use super::{
-        own_kernel_nodes, pack_sparse, padding_for, read_prepared, slabs_within, surface_by_column,
-        unpack_sparse, write_prepared, DensityField, KernelCounts, SampleDensity, Samples,
-        SlabLayout,
+        grade_padding, own_kernel_nodes, pack_sparse, padding_for, read_prepared, slabs_within,
+        surface_by_column, unpack_sparse, write_prepared, DensityField, DepthSample, KernelCounts,
+        SampleDensity, Samples, SlabLayout,
     };
     use crate::Params;
     use glam::DVec3;
@@ -1448,7 +1511,7 @@ mod tests {
         };
         let least = fewest(0, &surface).expect_err("nothing fits no memory");
         let mut previous = 0;
-        for gib in [16u64, 8, 6, 4] {
+        for gib in [16u64, 8, 4, 3] {
             let slabs = fewest(gib << 30, &surface).expect("a few slabs fit");
             assert!(
                 slabs > previous,
@@ -1456,10 +1519,106 @@ mod tests {
             );
             previous = slabs;
         }
-        assert!(previous <= 16, "4 GiB takes {previous} slabs");
+        assert!(previous <= 16, "3 GiB takes {previous} slabs");
         assert!(least < 2 << 30, "the most slabs need {least} bytes");
         // The same points over four times the surface: more nodes, so more slabs.
         let rougher: Vec<f64> = surface.iter().map(|s| 4.0 * s).collect();
         assert!(fewest(6 << 30, &rougher).unwrap() > fewest(6 << 30, &surface).unwrap());
+    }
+
+    /// Proves the graded padding: past the wall depth no splat lies beyond its depth's band,
+    /// the splats beyond it went one depth coarser (or more, until a band holds them) with
+    /// their mass, every sample's total mass is kept, the owned samples' splats and the wall
+    /// depth's are where they were, and every list stays in sample order.
+    #[test]
+    fn the_graded_padding_moves_the_splats_beyond_a_band_coarser_with_their_mass() {
+        let wall_depth = 4u32;
+        let finest = 7usize;
+        let mut counts = vec![0u64; 1 << wall_depth];
+        // Samples across x at every depth from the wall depth to the finest, every other one
+        // splitting its mass between two depths.
+        let positions: Vec<DVec3> = (0..400)
+            .map(|i| DVec3::new((i as f64 + 0.5) / 400.0, 0.3 + 0.001 * i as f64, 0.5))
+            .collect();
+        let mut at_depth: Vec<Vec<DepthSample>> = vec![Vec::new(); finest + 1];
+        for (i, p) in positions.iter().enumerate() {
+            counts[(p.x * 16.0) as usize] += 1;
+            let d = wall_depth as usize + i % (finest - wall_depth as usize + 1);
+            let mass = 1.0 + i as f64;
+            if d < finest && i % 2 == 0 {
+                at_depth[d].push(DepthSample {
+                    sample: i as u32,
+                    mass: 0.25 * mass,
+                });
+                at_depth[d + 1].push(DepthSample {
+                    sample: i as u32,
+                    mass: 0.75 * mass,
+                });
+            } else {
+                at_depth[d].push(DepthSample {
+                    sample: i as u32,
+                    mass,
+                });
+            }
+        }
+        let layout = SlabLayout::balanced(&counts, wall_depth, 4, 3);
+        let mass_of = |at: &[Vec<DepthSample>]| {
+            let mut m = vec![0.0f64; positions.len()];
+            at.iter()
+                .flatten()
+                .for_each(|s| m[s.sample as usize] += s.mass);
+            m
+        };
+        for k in 0..layout.len() {
+            let padded = layout.padded(k);
+            let mut graded: Vec<Vec<DepthSample>> = at_depth
+                .iter()
+                .map(|at| {
+                    at.iter()
+                        .copied()
+                        .filter(|s| {
+                            padded.contains(&layout.column_of(positions[s.sample as usize].x))
+                        })
+                        .collect()
+                })
+                .collect();
+            let before = graded.clone();
+            grade_padding(&mut graded, &positions, &layout, k, 2);
+            for (after, was) in mass_of(&graded).iter().zip(mass_of(&before)) {
+                assert!(
+                    (after - was).abs() <= 1e-12 * was,
+                    "slab {k}: a sample's mass"
+                );
+            }
+            let owned = |s: &DepthSample| {
+                layout.slab_of_column(layout.column_of(positions[s.sample as usize].x)) == k
+            };
+            let cell = |s: &DepthSample, d: usize| {
+                (positions[s.sample as usize].x * (1u64 << d) as f64).floor() as i64
+            };
+            let mut moved = 0;
+            for d in 0..=finest {
+                assert!(graded[d].windows(2).all(|w| w[0].sample <= w[1].sample));
+                let own_before: Vec<_> = before[d].iter().filter(|s| owned(s)).collect();
+                let own_after: Vec<_> = graded[d].iter().filter(|s| owned(s)).collect();
+                assert_eq!(
+                    own_before, own_after,
+                    "slab {k} depth {d}: the owned splats"
+                );
+                if d as u32 > wall_depth {
+                    let band = layout.band(k, d as u32, 2);
+                    assert!(graded[d].iter().all(|s| band.contains(&cell(s, d))));
+                    moved += before[d]
+                        .iter()
+                        .filter(|s| !band.contains(&cell(s, d)))
+                        .count();
+                } else {
+                    // At the wall depth and coarser, every splat stays (the wall depth gains).
+                    let mut kept = graded[d].iter();
+                    assert!(before[d].iter().all(|s| kept.any(|t| t == s)));
+                }
+            }
+            assert!(moved > 0, "slab {k}: some splats lay beyond a band");
+        }
     }
 }

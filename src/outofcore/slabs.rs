@@ -80,6 +80,19 @@ impl SlabLayout {
         owned.start.saturating_sub(self.padding)..(owned.end + self.padding).min(columns)
     }
 
+    /// Slab k's band at `depth`, finer than the wall depth: the x indices of that depth's cells
+    /// over its own columns and `nodes` cells on each side (the graded padding; it may reach
+    /// past the cube, where no sample lies).
+    pub(crate) fn band(&self, k: usize, depth: u32, nodes: u32) -> Range<i64> {
+        debug_assert!(
+            depth > self.wall_depth,
+            "the band of a depth finer than the walls"
+        );
+        let shift = depth - self.wall_depth;
+        let owned = self.owned(k);
+        ((owned.start as i64) << shift) - nodes as i64..((owned.end as i64) << shift) + nodes as i64
+    }
+
     /// The slabs whose padded range holds column `column`, in order (its owner among them).
     pub(crate) fn slabs_reading(&self, column: u32) -> Range<usize> {
         let first = self.slab_of_column(column.saturating_sub(self.padding));

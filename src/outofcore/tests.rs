@@ -582,12 +582,30 @@ fn the_base_right_hand_sides_are_the_sums_of_the_slabs() {
 
 /// Proves the whole design in one process, on the bumpy sphere at depth 7 (full depth 3) with
 /// base depth 4 and four slabs: the base solved from the slabs' summed parts, then each slab's finer depths on
-/// its own points plus 12 columns of padding, give at every node a slab owns, at every depth
+/// its own points plus 12 columns of padding (graded as the runs grade it, which at depth 7
+/// keeps the whole padding), give at every node a slab owns, at every depth
 /// from the wall depth B + 2 on, coefficients that differ from the in-memory solve's by less than the
 /// in-memory solve's own differ from the converged solution (its solver stops at a relative
 /// residual of 1e-2 per depth).
 #[test]
 fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
+    slabs_above_a_shared_base_against_the_in_memory_solve(super::passes::FINE_PADDING_NODES);
+}
+
+/// Proves the graded padding ([`super::passes::grade_padding`]) where it cuts deep: with the
+/// finest depth's splats kept within 6 of its nodes of a slab's columns (a quarter of the
+/// padding's width) and the rest splatted one depth coarser, the slabs still match the
+/// in-memory solve as the cascade's own tolerance does.
+#[test]
+fn slabs_with_a_narrow_graded_padding_match_the_in_memory_solve() {
+    slabs_above_a_shared_base_against_the_in_memory_solve(6);
+}
+
+/// The bumpy sphere at depth 7 in four slabs above a base of depth 4, each slab's splats
+/// graded to `fine_padding` nodes past the wall depth: at every node a slab owns, its
+/// coefficient differs from the in-memory solve's by less than the in-memory solve's from the
+/// converged one.
+fn slabs_above_a_shared_base_against_the_in_memory_solve(fine_padding: u32) {
     use crate::solve::{cascade, Depths, System};
     // The base holds the complete depths (a complete depth spans the cube, far from any slab).
     let params = crate::Params::default().with_depth(7).with_full_depth(3);
@@ -687,7 +705,8 @@ fn slabs_solved_above_a_shared_base_match_the_in_memory_solve() {
     let mut compared = 0;
     for k in 0..layout.len() {
         let padded = layout.padded(k);
-        let at = cloud.at_depth_where(|p| padded.contains(&column(p)));
+        let mut at = cloud.at_depth_where(|p| padded.contains(&column(p)));
+        super::passes::grade_padding(&mut at, &cloud.samples.positions, &layout, k, fine_padding);
         let mut slab_cores = base_cores.clone();
         slab_cores.extend(cloud.cores(&at, &params).into_iter().skip(base_depth + 1));
         let tree = tree_of(slab_cores);
