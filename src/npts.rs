@@ -11,7 +11,10 @@
 //!
 //!   Blank lines and lines starting with `#` are skipped. (PoissonRecon reads any whitespace,
 //!   line ends included, as a separator, and knows no comments; psr keeps one point per line so
-//!   that an error can name the line.)
+//!   that an error can name the line.) The numbers are read as `f64`; when some coordinate
+//!   states more than `f32` holds (georeferenced clouds: `5412345.456` is `5412345.5` in
+//!   `f32`), the positions are kept in [`PlyPoints::positions_f64`] too, as a PLY's `double`
+//!   ones are ([`f32_states`] decides).
 //! * **Binary `.bnpts`** ([`read_binary`]): no header and no count, only records, one per
 //!   point: six little-endian `float32` `x y z nx ny nz` (24 bytes), or with colours (PoissonRecon's
 //!   `--colors`) those six then `r g b` as three bytes (27 bytes). A file does not say which,
@@ -77,7 +80,10 @@ fn read_ascii_impl(mut reader: impl BufRead, path: Option<&Path>) -> io::Result<
     // The column count of the first point line, and its line number.
     let mut layout: Option<(usize, usize)> = None;
     let mut bytes = Vec::new();
-    let mut values = [0.0f32; 9];
+    let mut values = [0.0f64; 9];
+    // Every position as read, kept when some coordinate states more than f32 holds.
+    let mut exact: Vec<[f64; 3]> = Vec::new();
+    let mut needs_f64 = false;
     let mut line = 0usize;
     let bad = |line: usize, what: String| invalid(path, format!("line {line}: {what}"));
     loop {
@@ -101,9 +107,12 @@ fn read_ascii_impl(mut reader: impl BufRead, path: Option<&Path>) -> io::Result<
         }
         let mut count = 0;
         for word in text.split_ascii_whitespace() {
-            let value: f32 = word
+            let value: f64 = word
                 .parse()
                 .map_err(|_| bad(line, format!("'{word}' is not a number")))?;
+            if count < 3 && !needs_f64 {
+                needs_f64 = !f32_states(word, value);
+            }
             if let Some(slot) = values.get_mut(count) {
                 *slot = value;
             }
@@ -134,7 +143,10 @@ fn read_ascii_impl(mut reader: impl BufRead, path: Option<&Path>) -> io::Result<
                 ))
             }
         };
+        let values64 = values;
+        let values = values64.map(|v| v as f32);
         points.positions.push([values[0], values[1], values[2]]);
+        exact.push([0, 1, 2].map(|a| values64[a]));
         if columns >= 6 {
             points.normals.push([values[3], values[4], values[5]]);
         }
@@ -146,11 +158,46 @@ fn read_ascii_impl(mut reader: impl BufRead, path: Option<&Path>) -> io::Result<
             colors.push(rgb.map(|c| (c as f64 / 255.0) as f32));
         }
     }
+    if needs_f64 {
+        points.positions_f64 = Some(exact);
+    }
     if layout.is_some_and(|(columns, _)| columns == 9) {
         points.colors = Some(Colors::Rgb(colors));
         points.color_type = ColorType::U8;
     }
     Ok(points)
+}
+
+/// Whether `f32` holds all that the decimal `text` (parsed as `value`) states: the value is in
+/// `f32`'s range and its nearest `f32` lies within half a unit of the text's last digit
+/// (`0.100000001`, the nine digits C's `%.9g` writes of an `f32`; `0.1`, the shortest form
+/// psr writes; `12.345678`; every integer up to 2²⁴). Not for `5412345.456`, which is
+/// `5412345.5` in `f32`, nor `123456789`.
+fn f32_states(text: &str, value: f64) -> bool {
+    if !value.is_finite() {
+        // `inf` and `nan` are what they are in f32 too (and refused later, as from any file).
+        return true;
+    }
+    let rounded = value as f32;
+    if !rounded.is_finite() {
+        // Beyond f32's range.
+        return false;
+    }
+    let error = (rounded as f64 - value).abs();
+    if error == 0.0 {
+        return true;
+    }
+    // The unit of the text's last digit: 10^(exponent − digits after the point).
+    let (mantissa, exponent) = match text.find(['e', 'E']) {
+        Some(at) => (&text[..at], text[at + 1..].parse::<i32>().unwrap_or(0)),
+        None => (text, 0),
+    };
+    let decimals = mantissa
+        .split_once('.')
+        .map_or(0, |(_, fraction)| fraction.len() as i32);
+    // (A millionth of slack: a tie, `0.0717773438` for the f32 0.07177734375, is exactly half
+    // a unit apart, which f64 arithmetic may put a hair above.)
+    error <= 0.5 * 10f64.powi(exponent.saturating_sub(decimals)) * (1.0 + 1e-6)
 }
 
 /// Reads the binary `.bnpts` file `path` (see [`read_binary_from`]); errors name the path. A
@@ -430,6 +477,44 @@ mod tests {
         assert!(read_ascii_from(&b"# only a comment\n\n"[..])
             .unwrap()
             .is_empty());
+    }
+
+    /// Proves: positions that state more than `f32` holds (georeferenced coordinates, values
+    /// beyond f32's range, a 9-digit integer) are kept in `f64` too, exactly as written;
+    /// positions that `f32` holds to the text's last digit (`%.9g` of an `f32`, its shortest
+    /// form, six decimals) are not, and normals never make it so.
+    #[test]
+    fn ascii_keeps_positions_in_f64_when_f32_would_lose_them() {
+        let far = read_ascii_from(
+            &b"512345.123 5412345.456 234.5 0 0 1
+1 2 3 0 1 0
+"[..],
+        )
+        .unwrap();
+        assert_eq!(
+            far.positions_f64,
+            Some(vec![[512345.123, 5412345.456, 234.5], [1.0, 2.0, 3.0]])
+        );
+        assert_eq!(far.positions[0], [512345.12, 5412345.5, 234.5]);
+        assert_eq!(far.normals[1], [0.0, 1.0, 0.0]);
+        let huge = read_ascii_from(
+            &b"1e39 0 0
+"[..],
+        )
+        .unwrap();
+        assert_eq!(huge.positions_f64, Some(vec![[1e39, 0.0, 0.0]]));
+        let integer = read_ascii_from(&b"123456789 0 0\n"[..]).unwrap();
+        assert_eq!(integer.positions_f64, Some(vec![[123456789.0, 0.0, 0.0]]));
+        for near in [
+            "0.123456 -4.5 1e-7 0.12345678901 0 0",
+            "0.12345679 0.100000001 -33.333332 0 0 1",
+            "1234567.000 0.25 -16777216 0 0 1",
+            "12.345678 5.2e-3 -7.00000313e+05 0 0 1",
+            "0.0717773438 -0.0200195312 0.139648438 0 0 1",
+        ] {
+            let points = read_ascii_from(near.as_bytes()).unwrap();
+            assert_eq!(points.positions_f64, None, "{near}");
+        }
     }
 
     /// Proves: every malformed ASCII file is an error that names the line and says what is

@@ -72,7 +72,9 @@ struct Args {
     /// PoissonRecon's binary points, per point six little-endian float32 x y z nx ny nz (and
     /// three colour bytes with --colors); .npts or .xyz, ASCII, one point per line: x y z, or
     /// x y z nx ny nz, or x y z nx ny nz r g b with colours 0-255, the same on every line
-    /// (blank lines and lines starting with # are skipped). PoissonRecon: --in (which reads
+    /// (blank lines and lines starting with # are skipped; positions whose digits say more
+    /// than float32 holds, as georeferenced ones do, are kept in double, as a PLY's double x y
+    /// z are, and the mesh is written with double x y z). PoissonRecon: --in (which reads
     /// every name but .ply and .bnpts as ASCII, its numbers in any line layout).
     #[arg(long = "in", value_name = "FILE", value_parser = OsStringValueParser::new().try_map(input_path))]
     input: PathBuf,

@@ -1164,6 +1164,21 @@ fn kitten_in_double(path: &Path, shift: [f64; 3]) {
     std::fs::write(path, bytes).unwrap();
 }
 
+/// Writes the kitten's points as ASCII `x y z nx ny nz` lines, each position shifted by `shift`
+/// and written with every digit its `f64` needs.
+fn kitten_in_ascii(path: &Path, shift: [f64; 3]) {
+    let cloud = psr::ply::read_points(&kitten()).unwrap();
+    let mut text = String::new();
+    for (p, n) in cloud.positions.iter().zip(&cloud.normals) {
+        let p = [0, 1, 2].map(|a| p[a] as f64 + shift[a]);
+        text.push_str(&format!(
+            "{} {} {} {} {} {}\n",
+            p[0], p[1], p[2], n[0], n[1], n[2]
+        ));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
 /// The vertices of a binary mesh PLY that psr wrote with `double` x y z (then a float density).
 fn double_vertices(path: &Path) -> Vec<[f64; 3]> {
     let bytes = std::fs::read(path).unwrap();
@@ -1194,8 +1209,9 @@ fn double_vertices(path: &Path) -> Vec<[f64; 3]> {
 
 /// Proves: a PLY with double x y z 10^6 away is read and reconstructed in double and written
 /// with double x y z, giving the mesh of the same points near 0 shifted (1e-6 of the diagonal,
-/// vertices on the isosurface); --transform with that shift as a translation gives it too from
-/// the float file; a singular or malformed transform is a usage error.
+/// vertices on the isosurface); so does an ASCII `.xyz` of those points (its digits say more
+/// than f32 holds); --transform with that shift as a translation gives it too from the float
+/// file; a singular or malformed transform is a usage error.
 #[test]
 fn double_inputs_and_transforms_keep_far_coordinates() {
     let dir = scratch("double");
@@ -1203,6 +1219,8 @@ fn double_inputs_and_transforms_keep_far_coordinates() {
     let (near, far) = (dir.join("near.ply"), dir.join("far.ply"));
     kitten_in_double(&near, [0.0; 3]);
     kitten_in_double(&far, shift);
+    let far_ascii = dir.join("far.xyz");
+    kitten_in_ascii(&far_ascii, shift);
     let flags = ["--depth", "7", "--vertices", "on-isosurface", "-q"];
     let run = |input: &Path, output: &Path, extra: &[&str]| {
         let mut all = flags.to_vec();
@@ -1224,6 +1242,10 @@ fn double_inputs_and_transforms_keep_far_coordinates() {
     let transform_arg = transform.to_str().unwrap();
     for (label, got) in [
         ("double input", run(&far, &dir.join("far_mesh.ply"), &[])),
+        (
+            "ASCII input",
+            run(&far_ascii, &dir.join("far_ascii_mesh.ply"), &[]),
+        ),
         (
             "--transform",
             run(
