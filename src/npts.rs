@@ -485,23 +485,15 @@ mod tests {
     /// form, six decimals) are not, and normals never make it so.
     #[test]
     fn ascii_keeps_positions_in_f64_when_f32_would_lose_them() {
-        let far = read_ascii_from(
-            &b"512345.123 5412345.456 234.5 0 0 1
-1 2 3 0 1 0
-"[..],
-        )
-        .unwrap();
+        let far =
+            read_ascii_from(&b"512345.123 5412345.456 234.5 0 0 1\n1 2 3 0 1 0\n"[..]).unwrap();
         assert_eq!(
             far.positions_f64,
             Some(vec![[512345.123, 5412345.456, 234.5], [1.0, 2.0, 3.0]])
         );
         assert_eq!(far.positions[0], [512345.12, 5412345.5, 234.5]);
         assert_eq!(far.normals[1], [0.0, 1.0, 0.0]);
-        let huge = read_ascii_from(
-            &b"1e39 0 0
-"[..],
-        )
-        .unwrap();
+        let huge = read_ascii_from(&b"1e39 0 0\n"[..]).unwrap();
         assert_eq!(huge.positions_f64, Some(vec![[1e39, 0.0, 0.0]]));
         let integer = read_ascii_from(&b"123456789 0 0\n"[..]).unwrap();
         assert_eq!(integer.positions_f64, Some(vec![[123456789.0, 0.0, 0.0]]));
