@@ -12,9 +12,9 @@
 //!   Blank lines and lines starting with `#` are skipped. (PoissonRecon reads any whitespace,
 //!   line ends included, as a separator, and knows no comments; psr keeps one point per line so
 //!   that an error can name the line.) The numbers are read as `f64`; when some coordinate
-//!   states more than `f32` holds (georeferenced clouds: `5412345.456` is `5412345.5` in
-//!   `f32`), the positions are kept in [`PlyPoints::positions_f64`] too, as a PLY's `double`
-//!   ones are ([`f32_states`] decides).
+//!   states more than `f32` holds (its nearest `f32` lies more than half a unit of its last
+//!   digit away, as in georeferenced clouds: `5412345.456` is `5412345.5` in `f32`), the
+//!   positions are kept in [`PlyPoints::positions_f64`] too, as a PLY's `double` ones are.
 //! * **Binary `.bnpts`** ([`read_binary`]): no header and no count, only records, one per
 //!   point: six little-endian `float32` `x y z nx ny nz` (24 bytes), or with colours (PoissonRecon's
 //!   `--colors`) those six then `r g b` as three bytes (27 bytes). A file does not say which,
