@@ -138,14 +138,15 @@ fn slabs_within(
         let (points, padded_surface) = within(layout.padded(k));
         let mut tree = nodes(points, padded_surface);
         tree[..=base_depth as usize].copy_from_slice(&base[..=base_depth as usize]);
-        // Finer than the walls, the graded padding's band ([`grade_padding`]), in whole
-        // columns.
+        // Finer than the walls, the graded padding's band ([`grade_padding`]), in the whole
+        // columns that hold it.
         let wall_depth = layout.wall_depth;
-        let (owned, columns) = (layout.owned(k), counts.len() as u32);
         for d in wall_depth + 1..tree.len() as u32 {
-            let reach = FINE_PADDING_NODES.div_ceil(1 << (d - wall_depth).min(31));
-            let band = owned.start.saturating_sub(reach)..(owned.end + reach).min(columns);
-            let (band_points, band_surface) = within(band);
+            let band = layout.band(k, d, FINE_PADDING_NODES);
+            let shift = d - wall_depth;
+            let first = (band.start >> shift).max(0) as u32;
+            let end = (((band.end - 1) >> shift) + 1).min(counts.len() as i64) as u32;
+            let (band_points, band_surface) = within(first..end);
             tree[d as usize] = nodes(band_points, band_surface)[d as usize];
         }
         crate::memory::Footprint::with_nodes(points, 0, &tree, 0)
