@@ -98,6 +98,21 @@ fn splat_depth(
         zeroed(level.len(), "the splatted normals (V)")?,
         zeroed(level.len(), "the splatted normals (V)")?,
     ];
+    // The cells around a node (slot = dx + 3dy + 9dz for the cell at offset (dx, dy, dz) − 1)
+    // whose samples give it weight: all 27 for degree 2; for degree 1 the 8 that share the
+    // corner, a corner's hat being zero over the cells beyond it (t − o ≥ 1). Leaving out
+    // exact zeros changes no sum.
+    const ALL_CELLS: [u8; 27] = {
+        let mut slots = [0u8; 27];
+        let mut k = 0;
+        while k < 27 {
+            slots[k] = k as u8;
+            k += 1;
+        }
+        slots
+    };
+    const CORNER_CELLS: [u8; 8] = [0, 1, 3, 4, 9, 10, 12, 13];
+    let cell_slots: &[u8] = if linear { &CORNER_CELLS } else { &ALL_CELLS };
     let [fx, fy, fz] = &mut field;
     scatter_by_chunk(&level.core, [fx, fy, fz], &mut [], |_, writer, _| {
         // (A cancelled splat skips its remaining chunks; see `stop_requested`.)
@@ -114,7 +129,8 @@ fn splat_depth(
                 samples.fill(&mut window, at.slot);
             }
             let l = at.local.map(|v| v as usize);
-            for slot in 0..27 {
+            for &slot in cell_slots {
+                let slot = slot as usize;
                 let (dx, dy, dz) = (slot % 3, slot / 3 % 3, slot / 9);
                 let (start, end) =
                     window.ranges[(l[0] + dx) + 10 * ((l[1] + dy) + 10 * (l[2] + dz))];

@@ -3,12 +3,13 @@
 //! A brick is an 8×8×8 block of the Morton index ([`crate::octree::BrickIndex`]). The stencils
 //! of a brick's nodes read the input within two nodes of it: a window of [`WINDOW`]³ positions
 //! gathered from the 27 bricks around, in which the tensor-product operators run as three 1-D
-//! passes (5 taps each) on a dense local array instead of 125-entry rows. Every output comes
-//! from its own brick, so bricks run in parallel with no halo-sized buffer. The AVX-512 and
-//! POPCNT variants of the passes and gathers live in [`super::simd`].
+//! passes (5 taps each; 3 at degree 1, whose outer taps are zero) on a dense local array instead
+//! of 125-entry rows. Every output comes from its own brick, so bricks run in parallel with no
+//! halo-sized buffer. The AVX-512 and POPCNT variants of the passes and gathers live in
+//! [`super::simd`].
 
 use super::screening::{Proxies, ScreeningCells, PADDED};
-use crate::bspline::Tables;
+use crate::bspline::{Degree, Tables};
 use crate::octree::{brick_local, BrickIndex, Level};
 use crate::parallel::{split_parts, stop_requested};
 use rayon::prelude::*;
@@ -128,21 +129,28 @@ pub(super) struct BrickScratch {
 
 impl BrickScratch {
     #[inline(always)]
-    pub(super) fn laplacian_passes_portable(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
+    pub(super) fn laplacian_passes_portable<const REACH: usize>(
+        &mut self,
+        w: &[[f64; WINDOW]],
+        t: &Tables,
+    ) {
         for zl in 0..8 {
             for yw in 0..WINDOW {
                 let at = zl * WINDOW + yw;
                 let rows = rows5(w, at, WINDOW);
-                self.z[0][at] = row_sum(&t.mass, rows);
-                self.z[1][at] = row_sum(&t.stiffness, rows);
+                self.z[0][at] = row_sum::<REACH>(&t.mass, rows);
+                self.z[1][at] = row_sum::<REACH>(&t.stiffness, rows);
             }
         }
         for zl in 0..8 {
             for yl in 0..8 {
                 let (at, z) = (zl * WINDOW + yl, &self.z);
                 let (a, b) = (rows5(&z[0], at, 1), rows5(&z[1], at, 1));
-                let mass_a = row_sum(&t.mass, a);
-                let mixed = add_rows(row_sum(&t.stiffness, a), row_sum(&t.mass, b));
+                let mass_a = row_sum::<REACH>(&t.mass, a);
+                let mixed = add_rows(
+                    row_sum::<REACH>(&t.stiffness, a),
+                    row_sum::<REACH>(&t.mass, b),
+                );
                 self.y[0][zl * 8 + yl] = mass_a;
                 self.y[1][zl * 8 + yl] = mixed;
             }
@@ -150,7 +158,7 @@ impl BrickScratch {
     }
 
     /// The x-pass at the core nodes: `scale·(Σ taps[0]·y₀ + Σ taps[1]·y₁)` along x.
-    pub(super) fn x_pass(
+    pub(super) fn x_pass<const REACH: usize>(
         &self,
         core_nodes: &mut dyn Iterator<Item = (&mut f64, [usize; 3])>,
         taps: [&[f64; 5]; 2],
@@ -159,7 +167,7 @@ impl BrickScratch {
         for (o, [x, y, z]) in core_nodes {
             let a: [f64; 5] = self.y[0][z * 8 + y][x..x + 5].try_into().unwrap();
             let b: [f64; 5] = self.y[1][z * 8 + y][x..x + 5].try_into().unwrap();
-            *o = scale * (window_sum(taps[0], &a) + window_sum(taps[1], &b));
+            *o = scale * (window_sum::<REACH>(taps[0], &a) + window_sum::<REACH>(taps[1], &b));
         }
     }
 }
@@ -176,26 +184,51 @@ pub(super) fn rows5(rows: &[[f64; WINDOW]], start: usize, stride: usize) -> [&[f
     std::array::from_fn(|k| &rows[start + k * stride])
 }
 
-/// row-wise Σ_δ taps[δ+2]·rows[δ+2] (each element summed in the order of [`window_sum`]).
-#[inline]
-pub(super) fn row_sum(taps: &[f64; 5], rows: [&[f64; WINDOW]; 5]) -> [f64; WINDOW] {
+/// row-wise Σ_δ taps[δ+2]·rows[δ+2] over |δ| ≤ `REACH` (each element summed in the order of
+/// [`window_sum`]).
+#[inline(always)]
+pub(super) fn row_sum<const REACH: usize>(
+    taps: &[f64; 5],
+    rows: [&[f64; WINDOW]; 5],
+) -> [f64; WINDOW] {
     std::array::from_fn(|x| {
-        taps[2] * rows[2][x]
-            + taps[1] * rows[1][x]
-            + taps[0] * rows[0][x]
-            + taps[3] * rows[3][x]
-            + taps[4] * rows[4][x]
+        if REACH == 1 {
+            taps[2] * rows[2][x] + taps[1] * rows[1][x] + taps[3] * rows[3][x]
+        } else {
+            taps[2] * rows[2][x]
+                + taps[1] * rows[1][x]
+                + taps[0] * rows[0][x]
+                + taps[3] * rows[3][x]
+                + taps[4] * rows[4][x]
+        }
     })
 }
 
-/// Σ_δ taps[δ+2] · window[δ+2], in the order centre, −1, −2, +1, +2.
-#[inline]
-fn window_sum(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
-    taps[2] * window[2]
-        + taps[1] * window[1]
-        + taps[0] * window[0]
-        + taps[3] * window[3]
-        + taps[4] * window[4]
+/// Σ_δ taps[δ+2] · window[δ+2] over |δ| ≤ `REACH`, in the order centre, −1, −2, +1, +2.
+///
+/// `REACH` is the tables' reach ([`reach`]): degree 1's taps at δ = ±2 are zero, and leaving
+/// out a product that is exactly zero changes no sum (at most the sign of a zero), so the
+/// 3-tap sums give the 5-tap sums' values with 40 % fewer operations.
+#[inline(always)]
+fn window_sum<const REACH: usize>(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
+    if REACH == 1 {
+        taps[2] * window[2] + taps[1] * window[1] + taps[3] * window[3]
+    } else {
+        taps[2] * window[2]
+            + taps[1] * window[1]
+            + taps[0] * window[0]
+            + taps[3] * window[3]
+            + taps[4] * window[4]
+    }
+}
+
+/// How many nodes a level's same-depth tables reach on each side: 2 for degree 2, 1 for
+/// degree 1 (whose tables are zero at δ = ±2), the `REACH` of the passes.
+pub(super) fn reach(degree: Degree) -> usize {
+    match degree {
+        Degree::One => 1,
+        Degree::Two => 2,
+    }
 }
 
 impl CoreBricks {
@@ -267,6 +300,21 @@ impl CoreBricks {
         weighted_chi: Option<(&ScreeningCells, &Proxies, &mut [f64])>,
         out: &mut [f64],
     ) {
+        match reach(level.degree) {
+            1 => self.laplacian_reaching::<1>(level, input, h, weighted_chi, out),
+            _ => self.laplacian_reaching::<2>(level, input, h, weighted_chi, out),
+        }
+    }
+
+    /// [`CoreBricks::laplacian`] with passes of `REACH` nodes each side ([`reach`]).
+    fn laplacian_reaching<const REACH: usize>(
+        &self,
+        level: &Level,
+        input: &[f64],
+        h: f64,
+        weighted_chi: Option<(&ScreeningCells, &Proxies, &mut [f64])>,
+        out: &mut [f64],
+    ) {
         let t = level.degree.tables();
         let (screening, chi_parts): (_, Vec<&mut [f64]>) = match weighted_chi {
             Some((cells, proxies, chi)) => {
@@ -285,8 +333,8 @@ impl CoreBricks {
                     // W_q·χ(q) at the proxies of the cells in this brick, from the window.
                     cells.weigh_in_window(self.around[cb][13] as usize, proxies, w, chi);
                 }
-                scratch.laplacian_passes(w, t);
-                scratch.x_pass(core_nodes, [&t.stiffness, &t.mass], h);
+                scratch.laplacian_passes::<REACH>(w, t);
+                scratch.x_pass::<REACH>(core_nodes, [&t.stiffness, &t.mass], h);
             },
         );
     }
@@ -295,6 +343,21 @@ impl CoreBricks {
     /// core node c, for V's coefficients `v(n)` on K_d, with the 1-D tables `t` of the level's
     /// degree.
     pub(super) fn divergence(
+        &self,
+        fill: impl Fn(usize, &mut [Vec<[f64; WINDOW]>; 3], &mut BrickScratch) + Sync,
+        degree: Degree,
+        inv_h: f64,
+        out: &mut [f64],
+    ) {
+        let t = degree.tables();
+        match reach(degree) {
+            1 => self.divergence_reaching::<1>(fill, t, inv_h, out),
+            _ => self.divergence_reaching::<2>(fill, t, inv_h, out),
+        }
+    }
+
+    /// [`CoreBricks::divergence`] with passes of `REACH` nodes each side ([`reach`]).
+    fn divergence_reaching<const REACH: usize>(
         &self,
         fill: impl Fn(usize, &mut [Vec<[f64; WINDOW]>; 3], &mut BrickScratch) + Sync,
         t: &Tables,
@@ -309,24 +372,24 @@ impl CoreBricks {
                 for zl in 0..8 {
                     for yw in 0..WINDOW {
                         let at = zl * WINDOW + yw;
-                        scratch.z[0][at] = row_sum(&t.mass, rows5(wx, at, WINDOW));
-                        scratch.z[1][at] = row_sum(&t.mass, rows5(wy, at, WINDOW));
-                        scratch.z[2][at] = row_sum(&t.advection, rows5(wz, at, WINDOW));
+                        scratch.z[0][at] = row_sum::<REACH>(&t.mass, rows5(wx, at, WINDOW));
+                        scratch.z[1][at] = row_sum::<REACH>(&t.mass, rows5(wy, at, WINDOW));
+                        scratch.z[2][at] = row_sum::<REACH>(&t.advection, rows5(wz, at, WINDOW));
                     }
                 }
                 for zl in 0..8 {
                     for yl in 0..8 {
                         let (at, z) = (zl * WINDOW + yl, &scratch.z);
                         let mixed = add_rows(
-                            row_sum(&t.advection, rows5(&z[1], at, 1)),
-                            row_sum(&t.mass, rows5(&z[2], at, 1)),
+                            row_sum::<REACH>(&t.advection, rows5(&z[1], at, 1)),
+                            row_sum::<REACH>(&t.mass, rows5(&z[2], at, 1)),
                         );
-                        let mass_x = row_sum(&t.mass, rows5(&z[0], at, 1));
+                        let mass_x = row_sum::<REACH>(&t.mass, rows5(&z[0], at, 1));
                         scratch.y[0][zl * 8 + yl] = mass_x;
                         scratch.y[1][zl * 8 + yl] = mixed;
                     }
                 }
-                scratch.x_pass(core_nodes, [&t.advection, &t.mass], inv_h);
+                scratch.x_pass::<REACH>(core_nodes, [&t.advection, &t.mass], inv_h);
             },
         );
     }

@@ -66,6 +66,14 @@ impl<'a> DepthOperator<'a> {
     /// `screening` is the weight α_d of the screening term at this depth.
     pub fn new(level: &'a Level, proxies: &'a Proxies, screening: f64) -> Self {
         let screens = screening > 0.0 && !proxies.is_empty();
+        // The proxies' stencils (their degree) and the sweeps over the level's blocks (the
+        // level's degree: degree 1 skips the block's first node on each axis) must agree.
+        assert!(
+            !screens || proxies.degree == level.degree,
+            "proxies of degree {:?} on a level of degree {:?}",
+            proxies.degree,
+            level.degree
+        );
         let bricks = CoreBricks::new(level);
         let screening_cells = screens.then(|| ScreeningCells::new(level, proxies, &bricks));
         let face_rows = level
@@ -195,7 +203,7 @@ impl<'a> DepthOperator<'a> {
         let mut out = vec![0.0; level.core.len()];
         bricks.divergence(
             |cb, windows, _| bricks.gather(level, cb, &v, windows),
-            level.degree.tables(),
+            level.degree,
             1.0 / level.width(),
             &mut out,
         );

@@ -36,7 +36,7 @@ pub fn divergence_of(level: &Level, v: &[Vec<f64>; 3]) -> Result<Vec<f64>> {
                 bricks.gather_values(level, cb, component, window);
             }
         },
-        level.degree.tables(),
+        level.degree,
         1.0 / level.width(),
         &mut out,
     );
@@ -53,7 +53,7 @@ pub fn divergence_of_prolonged(field: &ProlongedField<'_>) -> Result<Vec<f64>> {
     let mut out = zeroed(level.core.len(), "a coarse right-hand side")?;
     bricks.divergence(
         |cb, windows, scratch| bricks.gather_prolonged(field, cb, windows, scratch),
-        level.degree.tables(),
+        level.degree,
         1.0 / level.width(),
         &mut out,
     );

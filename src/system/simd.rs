@@ -15,20 +15,24 @@ impl BrickScratch {
     /// (checked at run time): its 12-wide rows take 2 vector operations instead of SSE2's 6
     /// (0.090 -> 0.060 s per application at depth 10 on the Happy Buddha; AVX2 0.069 s). No
     /// fused multiply-adds and no reordering, so the values are the same bit for bit.
-    pub(super) fn laplacian_passes(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
+    pub(super) fn laplacian_passes<const REACH: usize>(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU has the feature the function is compiled for.
-            unsafe { self.laplacian_passes_avx512(w, t) };
+            unsafe { self.laplacian_passes_avx512::<REACH>(w, t) };
             return;
         }
-        self.laplacian_passes_portable(w, t);
+        self.laplacian_passes_portable::<REACH>(w, t);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    unsafe fn laplacian_passes_avx512(&mut self, w: &[[f64; WINDOW]], t: &Tables) {
-        self.laplacian_passes_portable(w, t);
+    unsafe fn laplacian_passes_avx512<const REACH: usize>(
+        &mut self,
+        w: &[[f64; WINDOW]],
+        t: &Tables,
+    ) {
+        self.laplacian_passes_portable::<REACH>(w, t);
     }
 }
 

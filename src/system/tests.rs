@@ -366,7 +366,10 @@ fn proxy_stencil_is_the_bspline_at_the_proxy() {
 /// nodes.
 fn proxies_near_the_core(level: &Level) -> Proxies {
     let n = 1i32 << level.depth;
-    let mut proxies = Proxies::default();
+    let mut proxies = Proxies {
+        degree: level.degree,
+        ..Proxies::default()
+    };
     let near: Vec<u32> = (0..level.len() as u32)
         .filter(|&i| level.flags[i as usize] & crate::octree::NEAR != 0)
         .collect();
