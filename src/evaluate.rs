@@ -63,12 +63,12 @@ impl Indicator {
 
     /// χ(p) from the block of a point in p's cell.
     pub fn value_in(&self, block: &Block, p: DVec3) -> f64 {
-        let (_, st) = self.tree.levels[block.depth]
-            .degree
-            .stencil27(p, block.inv_h);
+        let degree = self.tree.levels[block.depth].degree;
+        let (_, st) = degree.stencil27(p, block.inv_h);
         let x = &self.coefficients[block.depth];
         let mut sum = 0.0;
-        for (slot, &n) in block.nodes.iter().enumerate() {
+        for slot in block_slots(degree) {
+            let n = block.nodes[slot];
             if n != NONE {
                 sum += x[n as usize] * st[0][slot % 3] * st[1][(slot / 3) % 3] * st[2][slot / 9];
             }
@@ -128,7 +128,8 @@ impl Indicator {
             .stencil27_with_slopes(p, block.inv_h);
         let x = &self.coefficients[block.depth];
         let mut g = DVec3::ZERO;
-        for (slot, &n) in block.nodes.iter().enumerate() {
+        for slot in block_slots(self.tree.levels[block.depth].degree) {
+            let n = block.nodes[slot];
             if n == NONE {
                 continue;
             }
@@ -142,6 +143,23 @@ impl Indicator {
         }
         g * block.inv_h
     }
+}
+
+/// The slots of a block (x fastest) whose functions can be non-zero in its cell, in slot
+/// order: all 27 at degree 2; at degree 1 the 8 nodes on the cell's corners, the node below
+/// the cell on any axis having value and slope exactly zero there (see
+/// [`Degree::stencil27`]), so that leaving it out changes no sum.
+fn block_slots(degree: Degree) -> impl Iterator<Item = usize> {
+    const ALL: [u8; 27] = [
+        0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24,
+        25, 26,
+    ];
+    const CORNERS: [u8; 8] = [13, 14, 16, 17, 22, 23, 25, 26];
+    let slots: &'static [u8] = match degree {
+        Degree::One => &CORNERS,
+        Degree::Two => &ALL,
+    };
+    slots.iter().map(|&slot| slot as usize)
 }
 
 #[cfg(test)]
