@@ -56,7 +56,11 @@ impl Indicator {
                 (level.flags[index as usize] & NEAR != 0).then(|| Block {
                     depth,
                     inv_h,
-                    nodes: level.block27_at(index, at),
+                    // Only the slots `block_slots` visits: at degree 1 the cell's corners.
+                    nodes: match level.degree {
+                        Degree::One => level.corner_block_at(index, at),
+                        Degree::Two => level.block27_at(index, at),
+                    },
                 })
             })
     }

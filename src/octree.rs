@@ -232,6 +232,21 @@ impl Level {
     /// K_d is `NONE` too.
     #[inline]
     pub fn block27_at(&self, i: u32, at: NodePlace) -> [u32; 27] {
+        self.block_from::<0>(i, at)
+    }
+
+    /// [`Level::block27_at`]'s entries at offsets 0 and +1 on every axis (slots 13, 14, 16, 17,
+    /// 22, 23, 25, 26, the same nodes), `NONE` elsewhere: the nodes on the corners of node `i`'s
+    /// cell, all that a degree-1 function needs there (see [`crate::bspline::Degree::stencil27`]),
+    /// for 8 of the 27 look-ups.
+    #[inline]
+    pub fn corner_block_at(&self, i: u32, at: NodePlace) -> [u32; 27] {
+        self.block_from::<1>(i, at)
+    }
+
+    /// The block of node `i`: its entries whose offsets are at least `FIRST − 1` on every axis.
+    #[inline(always)]
+    fn block_from<const FIRST: usize>(&self, i: u32, at: NodePlace) -> [u32; 27] {
         let steps: [[AxisStep; 3]; 3] = std::array::from_fn(|axis| {
             std::array::from_fn(|d| AxisStep::new(at.local[axis], d as i32 - 1, axis))
         });
@@ -240,18 +255,20 @@ impl Level {
                 .node_at(at.slot, steps[0][x].join(steps[1][y]).join(steps[2][z]))
         };
         let mut out = [NONE; 27];
-        for z in 0..3 {
+        for z in FIRST..3 {
             let zn = if z == 1 { i } else { node(1, 1, z) };
             if zn == NONE {
                 continue;
             }
-            for y in 0..3 {
+            for y in FIRST..3 {
                 let yn = if y == 1 { zn } else { node(1, y, z) };
                 if yn == NONE {
                     continue;
                 }
                 let row = z * 9 + y * 3;
-                out[row] = node(0, y, z);
+                if FIRST == 0 {
+                    out[row] = node(0, y, z);
+                }
                 out[row + 1] = yn;
                 out[row + 2] = node(2, y, z);
             }
@@ -1594,6 +1611,12 @@ mod tests {
                 let at = level.locate(&mut cursor, i);
                 let block = level.block27_at(i, at);
                 assert_eq!(block, level.block27(i));
+                // The corner block: the same nodes at offsets 0 and +1, nothing elsewhere.
+                let corners = level.corner_block_at(i, at);
+                for (slot, (&corner, &full)) in corners.iter().zip(&block).enumerate() {
+                    let on_corner = slot % 3 > 0 && slot / 3 % 3 > 0 && slot / 9 > 0;
+                    assert_eq!(corner, if on_corner { full } else { NONE }, "slot {slot}");
+                }
                 for (slot, &n) in block.iter().enumerate() {
                     let o = [slot % 3, slot / 3 % 3, slot / 9].map(|v| v as i32 - 1);
                     let reached =
