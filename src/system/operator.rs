@@ -38,9 +38,7 @@ fn screening_sweep(
                 acc,
                 &contribute,
             );
-            for (o, [x, y, z]) in core_nodes {
-                *o += scale * acc[padded(x, y, z)];
-            }
+            core_nodes.for_each(|o, [x, y, z]| *o += scale * acc[padded(x, y, z)]);
         },
     );
 }
@@ -242,9 +240,7 @@ impl<'a> DepthOperator<'a> {
                         }
                     },
                 );
-                for (o, [x, y, z]) in core_nodes {
-                    *o += scale * acc[padded(x, y, z)];
-                }
+                core_nodes.for_each(|o, [x, y, z]| *o += scale * acc[padded(x, y, z)]);
             },
         );
         out
