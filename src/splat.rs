@@ -8,8 +8,9 @@
 //! weight per axis, and both reach at most one node beyond the sample's cell on each axis.
 //!
 //! The sum is gathered rather than scattered: every core node adds up what the samples in the
-//! 27 cells around it give it, with those samples in a fixed order, so nodes are independent
-//! (parallel, no atomics) and the result is the same for any number of threads.
+//! 27 cells around it give it (degree 1: the 8 cells that share its corner), with those samples
+//! in a fixed order, so nodes are independent (parallel, no atomics) and the result is the same
+//! for any number of threads.
 //!
 //! With Neumann or Dirichlet boundaries a weight that would go to a node just outside the cube
 //! goes to the node it mirrors inside: along each axis, the first and last node also collect the

@@ -13,7 +13,7 @@
 //! square). α = 0 is the 2006 method.
 //!
 //! Same-depth stencils are tensor products of the 1-D tables of [`crate::bspline`], so they are
-//! applied as three 1-D passes (5 taps each) instead of 125-entry rows:
+//! applied as three 1-D passes (5 taps each; 3 at degree 1) instead of 125-entry rows:
 //! `⟨∇B_o, ∇B_o′⟩ = h (D⊗M⊗M + M⊗D⊗M + M⊗M⊗D)` and `⟨∇B_o, F̃_o′⟩·v = (1/h)(G⊗M⊗M vx + …)`.
 //! The passes run brick by brick on dense 12³ windows gathered from the halo (`CoreBricks`):
 //! over the bricks holding core nodes for the operator in the solve, over every brick of K_d
