@@ -5,7 +5,7 @@
 use super::bricks::CoreBricks;
 #[cfg(doc)]
 use super::rhs::{divergence, divergence_of_prolonged};
-use super::screening::{padded, tensor_accumulate, Proxies, ScreeningCell, ScreeningCells};
+use super::screening::{padded, Proxies, ScreeningCells};
 #[cfg(doc)]
 use super::{fill_mirrors, update_on_core};
 use crate::octree::{Level, CORE};
@@ -21,7 +21,7 @@ fn screening_sweep(
     cells: &ScreeningCells,
     scale: f64,
     out: &mut [f64],
-    contribute: impl Fn(&ScreeningCell, &mut [f64; 27]) + Sync,
+    proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64) + Sync,
 ) {
     bricks.for_each_brick::<0, ()>(
         |_, _, _| {},
@@ -30,14 +30,7 @@ fn screening_sweep(
         |_, scratch, cb, core_nodes, ()| {
             let acc = &mut scratch.screened;
             acc.fill(0.0);
-            cells.accumulate(
-                level,
-                cb,
-                &bricks.around[cb],
-                level.face_sign,
-                acc,
-                &contribute,
-            );
+            cells.accumulate(level, cb, &bricks.around[cb], level.face_sign, acc, &proxy);
             core_nodes.for_each(|o, [x, y, z]| *o += scale * acc[padded(x, y, z)]);
         },
     );
@@ -143,18 +136,9 @@ impl<'a> DepthOperator<'a> {
         }
         cells.weigh_outside_core_bricks(level, proxies, input, chi);
         let chi = &*chi;
-        screening_sweep(
-            level,
-            bricks,
-            cells,
-            self.screening,
-            out,
-            |cell, contribution| {
-                for (slot, q) in cell.slots().zip(cell.proxy_range()) {
-                    tensor_accumulate(&proxies.stencil(q), chi[slot], contribution);
-                }
-            },
-        );
+        screening_sweep(level, bricks, cells, self.screening, out, |slot, q| {
+            (proxies.stencil(q), chi[slot])
+        });
     }
 
     /// Adds α·Σ_q W_q t φ_o(q) to `out[c]` at every core node c (in core order), φ_o the
@@ -170,22 +154,9 @@ impl<'a> DepthOperator<'a> {
         let Some(cells) = &self.screening_cells else {
             return;
         };
-        screening_sweep(
-            level,
-            bricks,
-            cells,
-            self.screening,
-            out,
-            |cell, contribution| {
-                for q in cell.proxy_range() {
-                    tensor_accumulate(
-                        &proxies.stencil(q),
-                        proxies.weight[q] * target,
-                        contribution,
-                    );
-                }
-            },
-        );
+        screening_sweep(level, bricks, cells, self.screening, out, |_, q| {
+            (proxies.stencil(q), proxies.weight[q] * target)
+        });
     }
 
     /// ⟨∇B_o, V⟩ at every core node (in core order) for a field V whose coefficients on K_d
@@ -227,19 +198,10 @@ impl<'a> DepthOperator<'a> {
             |_, scratch, cb, core_nodes, ()| {
                 let acc = &mut scratch.screened;
                 acc.fill(0.0);
-                cells.accumulate(
-                    level,
-                    cb,
-                    &self.bricks.around[cb],
-                    1.0,
-                    acc,
-                    |cell, contribution| {
-                        for q in cell.proxy_range() {
-                            let squared = proxies.stencil(q).map(|axis| axis.map(|b| b * b));
-                            tensor_accumulate(&squared, proxies.weight[q], contribution);
-                        }
-                    },
-                );
+                cells.accumulate(level, cb, &self.bricks.around[cb], 1.0, acc, |_, q| {
+                    let squared = proxies.stencil(q).map(|axis| axis.map(|b| b * b));
+                    (squared, proxies.weight[q])
+                });
                 core_nodes.for_each(|o, [x, y, z]| *o += scale * acc[padded(x, y, z)]);
             },
         );

@@ -287,7 +287,7 @@ fn tensor_contract_from<const FIRST: usize>(st: &[[f64; 3]; 3], x: &[f64; 27]) -
 /// `out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9]` (the transpose of
 /// [`tensor_contract`]); over the 2×2×2 block only when [`corner_block`].
 #[inline]
-pub(super) fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
+fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
     if corner_block(st) {
         tensor_accumulate_from::<1>(st, w, out);
     } else {
@@ -521,10 +521,13 @@ impl ScreeningCells {
     }
 
     /// For every cell within one node of the brick whose 27 surrounding brick slots are
-    /// `around`, `contribute(cell, contribution)` adds the values of the cell's
-    /// 3×3×3 node block (x fastest) to `contribution`, which is added to `acc` (the brick's
-    /// positions padded by two nodes, see [`padded`]): whole blocks, without bounds to test per
-    /// cell; the padding takes the block nodes beyond the brick, which other bricks compute.
+    /// `around`, adds the tensor-product blocks `w · st[0] ⊗ st[1] ⊗ st[2]` of its proxies over the
+    /// cell's 3×3×3 node block, `(st, w) = proxy(slot, q)` for each proxy q (with its slot), to
+    /// `acc` (the brick's positions padded by two nodes, see [`padded`]): whole blocks, without
+    /// bounds to test per cell; the padding takes the block nodes beyond the brick, which other
+    /// bricks compute. A cell's proxies are summed into its block first, then the block into
+    /// `acc`; a cell with one proxy (nearly all) goes straight into `acc`, which adds the same
+    /// values in the same order.
     /// With Neumann or Dirichlet boundaries a block node beyond the cube is the mirror image of
     /// one inside, whose folded function collects it instead, times `face_sign` per face
     /// crossed: [`Level::face_sign`] for the operator (Pᵀ S P, P the signed extension, so the
@@ -538,7 +541,27 @@ impl ScreeningCells {
         around: &[u32; 27],
         face_sign: f64,
         acc: &mut [f64; PADDED],
-        mut contribute: impl FnMut(&ScreeningCell, &mut [f64; 27]),
+        proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64),
+    ) {
+        if level.degree == Degree::One {
+            self.accumulate_from::<1>(level, cb, around, face_sign, acc, proxy);
+        } else {
+            self.accumulate_from::<0>(level, cb, around, face_sign, acc, proxy);
+        }
+    }
+
+    /// [`ScreeningCells::accumulate`] over the block nodes from `FIRST` on along every axis:
+    /// degree 1 gives nothing to block node 0 on any axis (see `corner_block`), so its zeros
+    /// are not added.
+    #[inline(always)]
+    fn accumulate_from<const FIRST: usize>(
+        &self,
+        level: &Level,
+        cb: usize,
+        around: &[u32; 27],
+        face_sign: f64,
+        acc: &mut [f64; PADDED],
+        proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64),
     ) {
         let origin = level.bricks().origin(around[13] as usize);
         let n = 1i32 << level.depth;
@@ -548,20 +571,21 @@ impl ScreeningCells {
         for near in &self.near[entries] {
             let cell = &self.cells[near.cell as usize];
             let w = near.window.map(usize::from);
+            if !reflects && cell.proxies.1 - cell.proxies.0 == 1 {
+                let (st, weight) = proxy(cell.first_slot as usize, cell.proxies.0 as usize);
+                add_tensor::<FIRST>(&st, weight, w, acc);
+                continue;
+            }
             let mut contribution = [0.0; 27];
-            contribute(cell, &mut contribution);
+            for (slot, q) in cell.slots().zip(cell.proxy_range()) {
+                let (st, weight) = proxy(slot, q);
+                tensor_accumulate(&st, weight, &mut contribution);
+            }
             if reflects {
                 Self::add_reflected(level.degree, origin, n, face_sign, w, &contribution, acc);
                 continue;
             }
-            // Block node d of a cell at window coordinate w (local + 2) is at local w − 3 + d,
-            // padded index w − 1 + d. Degree 1 gives nothing to d = 0 on any axis (see
-            // `corner_block`): its zeros are not added.
-            if level.degree == Degree::One {
-                add_block::<1>(&contribution, w, acc);
-            } else {
-                add_block::<0>(&contribution, w, acc);
-            }
+            add_block::<FIRST>(&contribution, w, acc);
         }
     }
 
@@ -594,6 +618,28 @@ impl ScreeningCells {
             }
             for (slot, q) in cell.slots().zip(cell.proxy_range()) {
                 chi[slot - first] = proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
+            }
+        }
+    }
+}
+
+/// `acc` += `weight · st[0] ⊗ st[1] ⊗ st[2]` over a cell's block from block node `FIRST` of
+/// every axis on, the cell at window coordinate `w` (local + 2): [`tensor_accumulate`] into a
+/// zeroed block and then [`add_block`], fused; each element gets the same product, added once.
+#[inline(always)]
+fn add_tensor<const FIRST: usize>(
+    st: &[[f64; 3]; 3],
+    weight: f64,
+    w: [usize; 3],
+    acc: &mut [f64; PADDED],
+) {
+    for dz in FIRST..3 {
+        let wz = weight * st[2][dz];
+        for dy in FIRST..3 {
+            let wzy = wz * st[1][dy];
+            let at = w[0] - 1 + WINDOW * ((w[1] - 1 + dy) + WINDOW * (w[2] - 1 + dz));
+            for x in FIRST..3 {
+                acc[at + x] += wzy * st[0][x];
             }
         }
     }
