@@ -122,12 +122,29 @@ fn splat_depth(
         }
         let mut cursor = BrickCursor::default();
         let mut window = SampleWindow::default();
+        // Along each axis, the weight node c − 1 + k receives from a sample in cell c: the
+        // degree's function of the sample's position and the node only, so computed once per
+        // sample and window instead of once per node the sample reaches (27 at degree 2).
+        let axis_weights = |sample: &DepthSample| -> [[f64; 3]; 3] {
+            let t = positions[sample.sample as usize] * inv_h;
+            let c = cell_of(positions[sample.sample as usize], inv_h);
+            std::array::from_fn(|axis| {
+                std::array::from_fn(|k| {
+                    let o = c[axis] - 1 + k as i32;
+                    if linear {
+                        // Degree 1: the hats of the cell's corners (trilinear weights).
+                        crate::bspline::hat(t[axis] - o as f64)
+                    } else {
+                        axis_weight(splatting, t[axis], c[axis], o, n, fold)
+                    }
+                })
+            })
+        };
         for (k, &node) in writer.indices().iter().enumerate() {
-            let o = level.coord(node);
             let mut sum = DVec3::ZERO;
             let at = level.locate(&mut cursor, node);
             if window.slot != at.slot {
-                samples.fill(&mut window, at.slot);
+                samples.fill(&mut window, at.slot, &by_cell, normals, &axis_weights);
             }
             let l = at.local.map(|v| v as usize);
             for &slot in cell_slots {
@@ -135,28 +152,14 @@ fn splat_depth(
                 let (dx, dy, dz) = (slot % 3, slot / 3 % 3, slot / 9);
                 let (start, end) =
                     window.ranges[(l[0] + dx) + 10 * ((l[1] + dy) + 10 * (l[2] + dz))];
-                for &(_, s) in &by_cell[start as usize..end as usize] {
-                    let p = positions[s.sample as usize];
-                    let t = p * inv_h;
-                    let cell_coord = [
-                        o[0] + dx as i32 - 1,
-                        o[1] + dy as i32 - 1,
-                        o[2] + dz as i32 - 1,
-                    ];
+                // The node is c + 1 − d along each axis for a sample in cell c at offset d − 1.
+                let (kx, ky, kz) = (2 - dx, 2 - dy, 2 - dz);
+                for sample in &window.samples[start as usize..end as usize] {
                     let mut weight = 1.0;
-                    if linear {
-                        // Degree 1: the hats of the cell's corners (trilinear weights).
-                        for axis in 0..3 {
-                            weight *= crate::bspline::hat(t[axis] - o[axis] as f64);
-                        }
-                    } else {
-                        for axis in 0..3 {
-                            weight *=
-                                axis_weight(splatting, t[axis], cell_coord[axis], o[axis], n, fold);
-                        }
-                    }
-                    let normal = DVec3::from_array(normals[s.sample as usize].map(f64::from));
-                    sum += normal * (s.mass * weight);
+                    weight *= sample.weights[0][kx];
+                    weight *= sample.weights[1][ky];
+                    weight *= sample.weights[2][kz];
+                    sum += sample.normal * (sample.mass * weight);
                 }
             }
             for (component, value) in writer.at(k).into_iter().zip(sum.to_array()) {
@@ -174,11 +177,21 @@ struct SampleCells<'a> {
     brick_start: &'a [u32],
 }
 
-/// The sample ranges of the cells within one node of one brick: a 10×10×10 table (window
-/// coordinate = brick-local coordinate + 1, x fastest), empty where a cell has no samples.
+/// The samples of the cells within one node of one brick, each with its normal, mass and axis
+/// weights, and their ranges per cell: a 10×10×10 table (window coordinate = brick-local
+/// coordinate + 1, x fastest) of ranges of `samples`, empty where a cell has no samples.
 struct SampleWindow {
     slot: usize,
     ranges: Box<[(u32, u32); 1000]>,
+    samples: Vec<WindowSample>,
+}
+
+/// A sample of a [`SampleWindow`]: its normal, its mass at the depth, and along each axis the
+/// weight node c − 1 + k receives from it (c its cell), k = 0, 1, 2.
+struct WindowSample {
+    normal: DVec3,
+    mass: f64,
+    weights: [[f64; 3]; 3],
 }
 
 impl Default for SampleWindow {
@@ -186,15 +199,25 @@ impl Default for SampleWindow {
         SampleWindow {
             slot: usize::MAX,
             ranges: Box::new([(0, 0); 1000]),
+            samples: Vec::new(),
         }
     }
 }
 
 impl SampleCells<'_> {
-    /// Fills `window` for brick slot `b` from the cells of the 27 bricks around it.
-    fn fill(&self, window: &mut SampleWindow, b: usize) {
+    /// Fills `window` for brick slot `b` from the cells of the 27 bricks around it: their
+    /// samples (`by_cell`'s ranges, in order) with their normals and `axis_weights`.
+    fn fill(
+        &self,
+        window: &mut SampleWindow,
+        b: usize,
+        by_cell: &[(u32, DepthSample)],
+        normals: &[[f32; 3]],
+        axis_weights: &impl Fn(&DepthSample) -> [[f64; 3]; 3],
+    ) {
         window.slot = b;
         window.ranges.fill((0, 0));
+        window.samples.clear();
         let around = self.level.bricks().bricks_around27(b);
         for (slot, brick) in around.iter().enumerate() {
             let Some(brick) = *brick else { continue };
@@ -206,7 +229,20 @@ impl SampleCells<'_> {
                 let w: [i32; 3] = std::array::from_fn(|a| (l[a] + 8 * offset[a]) as i32 - 7);
                 if w.iter().all(|v| (0..10).contains(v)) {
                     let w = w.map(|v| v as usize);
-                    window.ranges[w[0] + 10 * (w[1] + 10 * w[2])] = (start, end);
+                    let first = window.samples.len() as u32;
+                    window
+                        .samples
+                        .extend(by_cell[start as usize..end as usize].iter().map(|(_, s)| {
+                            WindowSample {
+                                normal: DVec3::from_array(
+                                    normals[s.sample as usize].map(f64::from),
+                                ),
+                                mass: s.mass,
+                                weights: axis_weights(s),
+                            }
+                        }));
+                    window.ranges[w[0] + 10 * (w[1] + 10 * w[2])] =
+                        (first, window.samples.len() as u32);
                 }
             }
         }
