@@ -97,6 +97,29 @@ impl Degree {
         }
     }
 
+    /// How many nodes the same-depth tables reach on each side: 2 at degree 2, 1 at degree 1
+    /// (whose tables are zero at δ = ±2).
+    #[inline]
+    pub fn table_reach(self) -> usize {
+        match self {
+            Degree::One => 1,
+            Degree::Two => 2,
+        }
+    }
+
+    /// Of the three nodes per axis around a cell (c − 1, c, c + 1, as [`Degree::stencil27`]
+    /// lists them), the first whose function can be non-zero in the cell: 1 at degree 1 (node
+    /// c − 1's hat, on the corner below the cell, is zero there with its slope), 0 at degree 2.
+    /// Sums over a cell's 3×3×3 block may start at this node on every axis: what they leave
+    /// out is exactly zero.
+    #[inline]
+    pub fn first_node(self) -> usize {
+        match self {
+            Degree::One => 1,
+            Degree::Two => 0,
+        }
+    }
+
     /// The same-depth tables (5 wide for both degrees: degree 1's are zero at δ = ±2).
     pub fn tables(self) -> &'static Tables {
         match self {

@@ -57,9 +57,10 @@ impl Indicator {
                     depth,
                     inv_h,
                     // Only the slots `block_slots` visits: at degree 1 the cell's corners.
-                    nodes: match level.degree {
-                        Degree::One => level.corner_block_at(index, at),
-                        Degree::Two => level.block27_at(index, at),
+                    nodes: if level.degree.first_node() == 1 {
+                        level.corner_block_at(index, at)
+                    } else {
+                        level.block27_at(index, at)
                     },
                 })
             })
@@ -150,18 +151,20 @@ impl Indicator {
 }
 
 /// The slots of a block (x fastest) whose functions can be non-zero in its cell, in slot
-/// order: all 27 at degree 2; at degree 1 the 8 nodes on the cell's corners, the node below
-/// the cell on any axis having value and slope exactly zero there (see
-/// [`Degree::stencil27`]), so that leaving it out changes no sum.
+/// order: those whose nodes are all from [`Degree::first_node`] on, i.e. all 27 at degree 2
+/// and the 8 on the cell's corners at degree 1 (what is left out has value and slope exactly
+/// zero there, so that leaving it out changes no sum).
 fn block_slots(degree: Degree) -> impl Iterator<Item = usize> {
     const ALL: [u8; 27] = [
         0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24,
         25, 26,
     ];
+    // The slots with every axis's node at 1 or 2.
     const CORNERS: [u8; 8] = [13, 14, 16, 17, 22, 23, 25, 26];
-    let slots: &'static [u8] = match degree {
-        Degree::One => &CORNERS,
-        Degree::Two => &ALL,
+    let slots: &'static [u8] = if degree.first_node() == 1 {
+        &CORNERS
+    } else {
+        &ALL
     };
     slots.iter().map(|&slot| slot as usize)
 }

@@ -234,7 +234,7 @@ pub(super) fn row_sum<const REACH: usize>(
 
 /// Σ_δ taps[δ+2] · window[δ+2] over |δ| ≤ `REACH`, in the order centre, −1, −2, +1, +2.
 ///
-/// `REACH` is the tables' reach ([`reach`]): degree 1's taps at δ = ±2 are zero, and leaving
+/// `REACH` is the tables' reach ([`Degree::table_reach`]): degree 1's taps at δ = ±2 are zero, and leaving
 /// out a product that is exactly zero changes no sum (at most the sign of a zero), so the
 /// 3-tap sums give the 5-tap sums' values with 40 % fewer operations.
 #[inline(always)]
@@ -247,15 +247,6 @@ fn window_sum<const REACH: usize>(taps: &[f64; 5], window: &[f64; 5]) -> f64 {
             + taps[0] * window[0]
             + taps[3] * window[3]
             + taps[4] * window[4]
-    }
-}
-
-/// How many nodes a level's same-depth tables reach on each side: 2 for degree 2, 1 for
-/// degree 1 (whose tables are zero at δ = ±2), the `REACH` of the passes.
-pub(super) fn reach(degree: Degree) -> usize {
-    match degree {
-        Degree::One => 1,
-        Degree::Two => 2,
     }
 }
 
@@ -328,13 +319,14 @@ impl CoreBricks {
         weighted_chi: Option<(&ScreeningCells, &Proxies, &mut [f64])>,
         out: &mut [f64],
     ) {
-        match reach(level.degree) {
+        match level.degree.table_reach() {
             1 => self.laplacian_reaching::<1>(level, input, h, weighted_chi, out),
             _ => self.laplacian_reaching::<2>(level, input, h, weighted_chi, out),
         }
     }
 
-    /// [`CoreBricks::laplacian`] with passes of `REACH` nodes each side ([`reach`]).
+    /// [`CoreBricks::laplacian`] with passes of `REACH` nodes each side
+    /// ([`Degree::table_reach`]).
     fn laplacian_reaching<const REACH: usize>(
         &self,
         level: &Level,
@@ -378,13 +370,14 @@ impl CoreBricks {
         out: &mut [f64],
     ) {
         let t = degree.tables();
-        match reach(degree) {
+        match degree.table_reach() {
             1 => self.divergence_reaching::<1>(fill, t, inv_h, out),
             _ => self.divergence_reaching::<2>(fill, t, inv_h, out),
         }
     }
 
-    /// [`CoreBricks::divergence`] with passes of `REACH` nodes each side ([`reach`]).
+    /// [`CoreBricks::divergence`] with passes of `REACH` nodes each side
+    /// ([`Degree::table_reach`]).
     fn divergence_reaching<const REACH: usize>(
         &self,
         fill: impl Fn(usize, &mut [Vec<[f64; WINDOW]>; 3], &mut BrickScratch) + Sync,

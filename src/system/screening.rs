@@ -254,11 +254,12 @@ pub(crate) fn sample_groups(
 }
 
 /// `Σ_slot x[slot] · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9]` (x fastest), one
-/// axis at a time (39 multiplications instead of 81; 14 over the 2×2×2 block when the first
-/// node of every axis weighs zero, see [`corner_block`]).
+/// axis at a time (39 multiplications instead of 81), over the block nodes from `first` on
+/// along every axis ([`Degree::first_node`] of the stencil's degree: at degree 1 the 2×2×2
+/// block, 14 multiplications; what it leaves out is exactly zero).
 #[inline]
-pub(super) fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27]) -> f64 {
-    if corner_block(st) {
+pub(super) fn tensor_contract(st: &[[f64; 3]; 3], x: &[f64; 27], first: usize) -> f64 {
+    if first == 1 {
         tensor_contract_from::<1>(st, x)
     } else {
         tensor_contract_from::<0>(st, x)
@@ -285,18 +286,9 @@ fn tensor_contract_from<const FIRST: usize>(st: &[[f64; 3]; 3], x: &[f64; 27]) -
 }
 
 /// `out[slot] += w · st[0][slot % 3] · st[1][slot / 3 % 3] · st[2][slot / 9]` (the transpose of
-/// [`tensor_contract`]); over the 2×2×2 block only when [`corner_block`].
-#[inline]
-fn tensor_accumulate(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
-    if corner_block(st) {
-        tensor_accumulate_from::<1>(st, w, out);
-    } else {
-        tensor_accumulate_from::<0>(st, w, out);
-    }
-}
-
+/// [`tensor_contract`]) from block node `FIRST` on along every axis.
 #[inline(always)]
-fn tensor_accumulate_from<const FIRST: usize>(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
+fn tensor_accumulate<const FIRST: usize>(st: &[[f64; 3]; 3], w: f64, out: &mut [f64; 27]) {
     for z in FIRST..3 {
         let wz = w * st[2][z];
         for y in FIRST..3 {
@@ -306,16 +298,6 @@ fn tensor_accumulate_from<const FIRST: usize>(st: &[[f64; 3]; 3], w: f64, out: &
             }
         }
     }
-}
-
-/// Whether a proxy's stencil gives the first node of every axis (cell − 1) a weight of exactly
-/// zero: always at degree 1, whose hats sit on the cell's corners (the node below the cell is
-/// the one whose weight is the leading 0 of [`Proxies::stencil`]). Its products are then exact
-/// zeros, and the 2×2×2 block alone gives the same sums (at most a zero's sign differs) for
-/// 8 of the 27 entries' work.
-#[inline(always)]
-fn corner_block(st: &[[f64; 3]; 3]) -> bool {
-    st[0][0] == 0.0 && st[1][0] == 0.0 && st[2][0] == 0.0
 }
 
 /// A brick's positions with two nodes of padding on each side, [`WINDOW`]³ of them.
@@ -509,13 +491,15 @@ impl ScreeningCells {
         input: &[f64],
         chi: &mut [f64],
     ) {
+        let first_node = proxies.degree.first_node();
         for &(node, k) in &self.outside_core_bricks {
             let x = level
                 .block27(node)
                 .map(|n| if n == NONE { 0.0 } else { input[n as usize] });
             let cell = &self.cells[k as usize];
             for (slot, q) in cell.slots().zip(cell.proxy_range()) {
-                chi[slot] = proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
+                chi[slot] =
+                    proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x, first_node);
             }
         }
     }
@@ -543,49 +527,42 @@ impl ScreeningCells {
         acc: &mut [f64; PADDED],
         proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64),
     ) {
-        if level.degree == Degree::One {
-            self.accumulate_from::<1>(level, cb, around, face_sign, acc, proxy);
-        } else {
-            self.accumulate_from::<0>(level, cb, around, face_sign, acc, proxy);
-        }
-    }
-
-    /// [`ScreeningCells::accumulate`] over the block nodes from `FIRST` on along every axis:
-    /// degree 1 gives nothing to block node 0 on any axis (see `corner_block`), so its zeros
-    /// are not added.
-    #[inline(always)]
-    fn accumulate_from<const FIRST: usize>(
-        &self,
-        level: &Level,
-        cb: usize,
-        around: &[u32; 27],
-        face_sign: f64,
-        acc: &mut [f64; PADDED],
-        proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64),
-    ) {
         let origin = level.bricks().origin(around[13] as usize);
         let n = 1i32 << level.depth;
         let reflects =
             !level.mirrors.is_empty() && (0..3).any(|a| origin[a] == 0 || origin[a] + 8 >= n);
+        // The block nodes from `first` on along every axis: degree 1 gives nothing to the
+        // first (`Degree::first_node`), and its zeros are not added.
+        let corners_only = level.degree.first_node() == 1;
         let entries = self.near_start[cb] as usize..self.near_start[cb + 1] as usize;
         for near in &self.near[entries] {
             let cell = &self.cells[near.cell as usize];
             let w = near.window.map(usize::from);
             if !reflects && cell.proxies.1 - cell.proxies.0 == 1 {
                 let (st, weight) = proxy(cell.first_slot as usize, cell.proxies.0 as usize);
-                add_tensor::<FIRST>(&st, weight, w, acc);
+                if corners_only {
+                    add_tensor::<1>(&st, weight, w, acc);
+                } else {
+                    add_tensor::<0>(&st, weight, w, acc);
+                }
                 continue;
             }
             let mut contribution = [0.0; 27];
             for (slot, q) in cell.slots().zip(cell.proxy_range()) {
                 let (st, weight) = proxy(slot, q);
-                tensor_accumulate(&st, weight, &mut contribution);
+                if corners_only {
+                    tensor_accumulate::<1>(&st, weight, &mut contribution);
+                } else {
+                    tensor_accumulate::<0>(&st, weight, &mut contribution);
+                }
             }
             if reflects {
                 Self::add_reflected(level.degree, origin, n, face_sign, w, &contribution, acc);
-                continue;
+            } else if corners_only {
+                add_block::<1>(&contribution, w, acc);
+            } else {
+                add_block::<0>(&contribution, w, acc);
             }
-            add_block::<FIRST>(&contribution, w, acc);
         }
     }
 
@@ -609,6 +586,7 @@ impl ScreeningCells {
         chi: &mut [f64],
     ) {
         let first = self.slots_in_brick(b).start;
+        let first_node = proxies.degree.first_node();
         for cell in self.in_brick(b) {
             let c = brick_local(cell.position as usize).map(|v| v + 2);
             let mut x = [0.0; 27];
@@ -617,7 +595,8 @@ impl ScreeningCells {
                 x.copy_from_slice(&row[c[0] - 1..c[0] + 2]);
             }
             for (slot, q) in cell.slots().zip(cell.proxy_range()) {
-                chi[slot - first] = proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x);
+                chi[slot - first] =
+                    proxies.weight[q] * tensor_contract(&proxies.stencil(q), &x, first_node);
             }
         }
     }
