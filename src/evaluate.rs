@@ -6,10 +6,10 @@
 //! p the deepest depth whose core functions reach p (p's cell has the `NEAR` flag) holds all of
 //! χ(p): no finer node function is non-zero there, and every coarser one is included in z_d.
 
-#[cfg(test)]
-use crate::bspline::stencil27;
 use crate::bspline::Degree;
 use crate::grid::cell_of;
+#[cfg(test)]
+use crate::octree::SPLIT;
 use crate::octree::{Octree, NEAR, NONE};
 use glam::DVec3;
 
@@ -81,17 +81,26 @@ impl Indicator {
         sum
     }
 
-    /// χ at the eight corners (x + 2y + 4z) of a cell of the finest depth, from that cell's 27
-    /// nodes (`nodes`, as [`crate::octree::Level::block27_at`] gives them): at each corner the
-    /// value [`Indicator::value`] gives, bit for bit, when the corner's own cell at the finest
-    /// depth is reached by core functions, `None` otherwise (χ there comes from a coarser
-    /// depth). At a corner the B-spline weights per axis of the corner's block are ½, ½ and 0
+    /// χ at the eight corners (x + 2y + 4z) of a cell of depth `depth`, from that cell's 27
+    /// nodes there (`nodes`, as [`crate::octree::Level::block27_at`] gives them; `split`: bit
+    /// `s` set when the node in slot `s` is `SPLIT`): at each corner the value
+    /// [`Indicator::value`] gives, bit for bit, when the corner's own cell at depth `depth` is
+    /// reached by core functions and no finer depth's cell is, `None` otherwise (χ there comes
+    /// from another depth).
+    ///
+    /// No finer depth reaches a corner unless one of the eight nodes of depth `depth` around it
+    /// (slots c − 1 and c per axis, c the corner's) is split: a cell of depth D > `depth` is
+    /// `NEAR` only within one node of a core node of depth D, that node's ancestor at `depth`
+    /// lies within those eight (floor((2^k p ± 1) / 2^k) is p or p − 1), and every ancestor of
+    /// a core node is split. At the finest depth nothing is split.
+    ///
+    /// At a corner the B-spline weights per axis of the corner's block are ½, ½ and 0
     /// (exactly), so the sum runs over the eight nodes that touch the corner, all in the
     /// cell's block: the corners of a cell need no look-up of their own, and its 27
     /// coefficients are read once for all of them. With degree 1 the weights are 0, 1 and 0:
     /// χ at a corner is the coefficient of the node on it.
-    pub fn finest_corner_values(&self, nodes: &[u32; 27]) -> [Option<f64>; 8] {
-        let depth = self.tree.levels.len() - 1;
+    pub fn corner_values(&self, depth: u32, nodes: &[u32; 27], split: u32) -> [Option<f64>; 8] {
+        let depth = depth as usize;
         let flags = &self.tree.levels[depth].flags;
         let linear = self.tree.levels[depth].degree == Degree::One;
         let x = &self.coefficients[depth];
@@ -99,7 +108,7 @@ impl Indicator {
         std::array::from_fn(|corner| {
             let c = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
             let own = nodes[(1 + c[0]) + 3 * (1 + c[1]) + 9 * (1 + c[2])];
-            if own == NONE || flags[own as usize] & NEAR == 0 {
+            if own == NONE || flags[own as usize] & NEAR == 0 || split & CORNER_NODES[corner] != 0 {
                 return None;
             }
             if linear {
@@ -150,6 +159,27 @@ impl Indicator {
     }
 }
 
+/// Per corner of a cell (x + 2y + 4z): the slots of its block (x fastest) of the eight nodes
+/// around that corner, those with slot c or c + 1 per axis (node offsets c − 1 and c), as a
+/// bit mask.
+const CORNER_NODES: [u32; 8] = {
+    let mut masks = [0u32; 8];
+    let mut corner = 0;
+    while corner < 8 {
+        let mut slot = 0;
+        while slot < 27 {
+            let (i, j, k) = (slot % 3, (slot / 3) % 3, slot / 9);
+            let (a, b, c) = (corner & 1, corner >> 1 & 1, corner >> 2 & 1);
+            if (i == a || i == a + 1) && (j == b || j == b + 1) && (k == c || k == c + 1) {
+                masks[corner] |= 1 << slot;
+            }
+            slot += 1;
+        }
+        corner += 1;
+    }
+    masks
+};
+
 /// The slots of a block (x fastest) whose functions can be non-zero in its cell, in slot
 /// order: those whose nodes are all from [`Degree::first_node`] on, i.e. all 27 at degree 2
 /// and the 8 on the cell's corners at degree 1 (what is left out has value and slope exactly
@@ -174,58 +204,92 @@ mod tests {
     use super::*;
     use crate::Boundary;
 
-    /// The corners of every cell of the finest depth, read off the cell's 27 nodes, give
-    /// [`Indicator::value`] bit for bit wherever the shortcut applies, on a sparse tree (cells
-    /// at the edge of the refined region fall back) with arbitrary coefficients.
+    /// The corners of every cell of every depth, read off the cell's 27 nodes and their split
+    /// flags, give [`Indicator::value`] bit for bit wherever the shortcut applies, on sparse
+    /// trees of both degrees (cells at the edge of the refined region fall back, and so do the
+    /// corners beside split nodes, where a finer depth holds χ) with arbitrary coefficients.
     #[test]
     fn corner_values_from_the_cells_nodes_match_the_point_evaluation() {
-        let cells: Vec<Vec<[i32; 3]>> = (0..=5)
-            .map(|d| {
-                let n = 1 << d;
-                (0..n)
-                    .flat_map(|i| [[i, i / 2, n / 3], [n - 1 - i, i, i / 3]])
-                    .collect()
-            })
-            .collect();
-        let tree = Octree::build(cells, 2, Boundary::Neumann);
-        let coefficients: Vec<Vec<f64>> = tree
-            .levels
-            .iter()
-            .map(|l| {
-                (0..l.len())
-                    .map(|i| ((i * 7919) % 101) as f64 / 7.0 - 6.0)
-                    .collect()
-            })
-            .collect();
-        let chi = Indicator { tree, coefficients };
-        let depth = chi.tree.levels.len() - 1;
-        let level = &chi.tree.levels[depth];
-        let h = 1.0 / (1u32 << depth) as f64;
-        let (mut shortcut, mut fallback) = (0, 0);
-        for i in 0..level.len() as u32 {
-            let cell = level.coord(i);
-            let Some((index, at)) = level.find_place(cell) else {
-                continue;
-            };
-            let nodes = level.block27_at(index, at);
-            let values = chi.finest_corner_values(&nodes);
-            for (corner, value) in values.into_iter().enumerate() {
-                let p = DVec3::new(
-                    (cell[0] + (corner & 1) as i32) as f64,
-                    (cell[1] + (corner >> 1 & 1) as i32) as f64,
-                    (cell[2] + (corner >> 2 & 1) as i32) as f64,
-                ) * h;
-                assert_eq!(stencil27(p, 1.0 / h).1, [[0.5, 0.5, 0.0]; 3]);
-                match value {
-                    Some(v) => {
-                        assert_eq!(v.to_bits(), chi.value(p).to_bits(), "{cell:?} {corner}");
-                        shortcut += 1;
+        for degree in [Degree::One, Degree::Two] {
+            let cells: Vec<Vec<[i32; 3]>> = (0..=5)
+                .map(|d| {
+                    let n = 1 << d;
+                    (0..n)
+                        .flat_map(|i| [[i, i / 2, n / 3], [n - 1 - i, i, i / 3]])
+                        .collect()
+                })
+                .collect();
+            let tree = Octree::build_for(cells, 2, Boundary::Neumann, degree);
+            let coefficients: Vec<Vec<f64>> = tree
+                .levels
+                .iter()
+                .map(|l| {
+                    (0..l.len())
+                        .map(|i| ((i * 7919) % 101) as f64 / 7.0 - 6.0)
+                        .collect()
+                })
+                .collect();
+            let chi = Indicator { tree, coefficients };
+            let finest = chi.tree.levels.len() - 1;
+            // Corners given at the finest depth and at coarser ones; corners whose own node is
+            // NEAR but that fall back for a split node beside them, and how many of those the
+            // cell's own depth would have got wrong.
+            let (mut finest_given, mut coarser_given) = (0, 0);
+            let (mut split_beside, mut finer_differs) = (0, 0);
+            for (depth, level) in chi.tree.levels.iter().enumerate().skip(1) {
+                let h = 1.0 / (1u32 << depth) as f64;
+                for i in 0..level.len() as u32 {
+                    let cell = level.coord(i);
+                    let Some((index, at)) = level.find_place(cell) else {
+                        continue;
+                    };
+                    let nodes = level.block27_at(index, at);
+                    let split = (0..27)
+                        .filter(|&s| {
+                            nodes[s] != NONE && level.flags[nodes[s] as usize] & SPLIT != 0
+                        })
+                        .fold(0u32, |m, s| m | 1 << s);
+                    let given = chi.corner_values(depth as u32, &nodes, split);
+                    let unsplit = chi.corner_values(depth as u32, &nodes, 0);
+                    for corner in 0..8 {
+                        let p = DVec3::new(
+                            (cell[0] + (corner & 1) as i32) as f64,
+                            (cell[1] + (corner >> 1 & 1) as i32) as f64,
+                            (cell[2] + (corner >> 2 & 1) as i32) as f64,
+                        ) * h;
+                        let weights = level.degree.stencil27(p, 1.0 / h).1;
+                        match degree {
+                            Degree::One => assert_eq!(weights, [[0.0, 1.0, 0.0]; 3]),
+                            Degree::Two => assert_eq!(weights, [[0.5, 0.5, 0.0]; 3]),
+                        }
+                        let value = chi.value(p);
+                        match (given[corner], unsplit[corner]) {
+                            (Some(v), _) => {
+                                assert_eq!(
+                                    v.to_bits(),
+                                    value.to_bits(),
+                                    "{depth} {cell:?} {corner}"
+                                );
+                                if depth == finest {
+                                    finest_given += 1;
+                                } else {
+                                    coarser_given += 1;
+                                }
+                            }
+                            (None, Some(v)) => {
+                                split_beside += 1;
+                                finer_differs += usize::from(v != value);
+                            }
+                            (None, None) => {}
+                        }
                     }
-                    None => fallback += 1,
                 }
             }
+            assert!(
+                finest_given > 1000 && coarser_given > 1000 && finer_differs > 100,
+                "{degree:?}: {finest_given} {coarser_given} {split_beside} {finer_differs}"
+            );
         }
-        assert!(shortcut > 1000 && fallback > 0, "{shortcut} {fallback}");
     }
 
     /// With coefficients extended by the mirrors (node centres at i + ½, so node −1 − i is

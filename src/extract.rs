@@ -689,11 +689,12 @@ pub(crate) fn extract_traced(
     let mut traced = 0usize;
 
     // Where each leaf of the wave stands among its neighbours, its points and χ − γ there.
-    // The corners of a leaf of the finest depth come from the leaf's own 27 nodes, which
-    // its block looked up anyway (a pure function of the position, so the leaves sharing a
-    // corner get the same value). Every other point (`looked_up`) is evaluated once and
-    // kept in `values`: coarser leaves share their points more, and evaluating them costs
-    // a look-up each. Into a buffer kept from batch to batch: a batch's plans are about 14 MB,
+    // The corners of a leaf away from the cube's faces come from the leaf's own 27 nodes,
+    // which its block looked up anyway, wherever χ there is its depth's (its corner node is
+    // NEAR, and no split node beside the corner lets a finer depth reach it): a pure function
+    // of the position, so the leaves sharing a corner get the same value. Every other point
+    // (`looked_up`) is evaluated once and kept in `values`: it costs a look-up from the finest
+    // depth down. Into a buffer kept from batch to batch: a batch's plans are about 14 MB,
     // and a fresh buffer each time faulted in fresh pages (a quarter of a degree-1 run's page
     // faults on the bunny at depth 10).
     let plan_batch = |batch: &[Leaf], plans: &mut Vec<Plan>| {
@@ -703,8 +704,13 @@ pub(crate) fn extract_traced(
                 let (block, nodes) = leaves.block(leaf);
                 let (points, used) = leaf_points(leaf, &block, finest);
                 let corners = match &nodes {
-                    Some(nodes) if leaf.depth == finest => chi.finest_corner_values(nodes),
-                    _ => [None; 8],
+                    Some(nodes) => {
+                        let split = (0..27)
+                            .filter(|&s| block[s] == Status::Split)
+                            .fold(0u32, |m, s| m | 1 << s);
+                        chi.corner_values(leaf.depth, nodes, split)
+                    }
+                    None => [None; 8],
                 };
                 let mut values = [0.0; SLOTS];
                 let mut looked_up = 0u32;
