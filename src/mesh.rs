@@ -70,7 +70,8 @@ pub struct Stats {
     /// octree's node counts: what [`crate::Params::max_memory`] was checked against before the
     /// system was built (`docs/benchmarks.md`, issue 19, compares it with measured peaks).
     pub estimated_memory: u64,
-    /// Table slots of the density field (all its depths), which the memory accounting counts.
+    /// Node slots of the density field's bricks (all its depths), which the memory accounting
+    /// counts.
     pub density_slots: usize,
 }
 
