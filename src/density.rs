@@ -170,16 +170,25 @@ impl BricksAround {
     }
 }
 
+/// A node's place in its brick: its key's low six bits (the low two bits of each coordinate,
+/// interleaved; [`OFFSET`] is a multiple of 4, so they are the coordinates' own), without
+/// computing the whole key: only a brick not yet found needs that.
+#[inline]
+fn brick_local(node: Coord) -> usize {
+    // Bits 0 and 1 of v to bits 0 and 3.
+    let spread = |v: i32| ((v & 1) | (v & 2) << 2) as usize;
+    spread(node[0]) | spread(node[1]) << 1 | spread(node[2]) << 2
+}
+
 impl BrickCounts {
     /// The count of `node`, if it has one (its brick found through `around`).
     #[inline]
     fn get(&self, around: &mut BricksAround, node: Coord) -> Option<f64> {
-        let key = morton(node);
         let which = around.which(node);
         if around.slots[which] == BricksAround::UNKNOWN {
             around.slots[which] = self
                 .slot
-                .get(&(key >> BRICK_SHIFT))
+                .get(&(morton(node) >> BRICK_SHIFT))
                 .copied()
                 .unwrap_or(NONE);
         }
@@ -188,22 +197,22 @@ impl BrickCounts {
             return None;
         }
         let brick = &self.bricks[b as usize];
-        let local = key & 63;
-        (brick.touched >> local & 1 == 1).then(|| brick.counts[local as usize])
+        let local = brick_local(node);
+        (brick.touched >> local & 1 == 1).then(|| brick.counts[local])
     }
 
     /// The count of `node`, made 0 first if it had none (its brick found or made through
     /// `around`).
     #[inline]
     fn count_mut(&mut self, around: &mut BricksAround, node: Coord) -> &mut f64 {
-        let key = morton(node);
         let which = around.which(node);
         if around.slots[which] == BricksAround::UNKNOWN {
+            let key = morton(node) >> BRICK_SHIFT;
             let next = self.bricks.len() as u32;
-            let b = *self.slot.entry(key >> BRICK_SHIFT).or_insert(next);
+            let b = *self.slot.entry(key).or_insert(next);
             if b == next {
                 self.bricks.push(CountBrick {
-                    key: key >> BRICK_SHIFT,
+                    key,
                     touched: 0,
                     counts: [0.0; 64],
                 });
@@ -211,9 +220,9 @@ impl BrickCounts {
             around.slots[which] = b;
         }
         let brick = &mut self.bricks[around.slots[which] as usize];
-        let local = key & 63;
+        let local = brick_local(node);
         brick.touched |= 1 << local;
-        &mut brick.counts[local as usize]
+        &mut brick.counts[local]
     }
 
     /// Every node with a count, as (key, count): in key order within a brick, bricks in the
@@ -518,6 +527,18 @@ mod tests {
         assert!(q.windows(2).all(|w| w[0] <= w[1]));
         assert!(quantiles(&[]).is_empty());
         assert_eq!(quantiles(&[3.0]), vec![3.0f32; QUANTILE_STEPS + 1]);
+    }
+
+    /// A node's place in its brick is its key's low six bits, halo coordinates included.
+    #[test]
+    fn brick_local_is_the_keys_low_bits() {
+        for x in -8..12 {
+            for y in [-3, 0, 5, 6] {
+                for z in [-1, 2, 7] {
+                    assert_eq!(brick_local([x, y, z]) as u64, morton([x, y, z]) & 63);
+                }
+            }
+        }
     }
 
     #[test]
