@@ -138,6 +138,23 @@ struct CountBrick {
     counts: [f64; 64],
 }
 
+impl CountBrick {
+    /// Its nodes with a count, as (key, count), in key order.
+    fn nodes(&self) -> impl Iterator<Item = (u64, f64)> + '_ {
+        let mut bits = self.touched;
+        std::iter::from_fn(move || {
+            (bits != 0).then(|| {
+                let local = bits.trailing_zeros();
+                bits &= bits - 1;
+                (
+                    self.key << BRICK_SHIFT | local as u64,
+                    self.counts[local as usize],
+                )
+            })
+        })
+    }
+}
+
 /// Where the bricks of a block of nodes at most four wide on every axis (from `low` on) are,
 /// each looked up once: at most two bricks per axis, eight in all.
 struct BricksAround {
@@ -228,39 +245,14 @@ impl BrickCounts {
     /// Every node with a count, as (key, count): in key order within a brick, bricks in the
     /// order they were made.
     fn nodes(&self) -> impl Iterator<Item = (u64, f64)> + '_ {
-        self.bricks.iter().flat_map(|brick| {
-            let mut bits = brick.touched;
-            std::iter::from_fn(move || {
-                (bits != 0).then(|| {
-                    let local = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    (
-                        brick.key << BRICK_SHIFT | local as u64,
-                        brick.counts[local as usize],
-                    )
-                })
-            })
-        })
+        self.bricks.iter().flat_map(CountBrick::nodes)
     }
 
     /// Every node with a count, as (key, count), in key order.
     fn sorted_nodes(&self) -> Vec<(u64, f64)> {
-        let mut order: Vec<(u64, u32)> = self.slot.iter().map(|(&k, &b)| (k, b)).collect();
-        order.sort_unstable();
-        let mut nodes = Vec::with_capacity(self.bricks.len() * 16);
-        for (_, b) in order {
-            let brick = &self.bricks[b as usize];
-            let mut bits = brick.touched;
-            while bits != 0 {
-                let local = bits.trailing_zeros();
-                bits &= bits - 1;
-                nodes.push((
-                    brick.key << BRICK_SHIFT | local as u64,
-                    brick.counts[local as usize],
-                ));
-            }
-        }
-        nodes
+        let mut order: Vec<&CountBrick> = self.bricks.iter().collect();
+        order.sort_unstable_by_key(|brick| brick.key);
+        order.into_iter().flat_map(CountBrick::nodes).collect()
     }
 
     /// The node slots its bricks hold (64 a brick, touched or not).
