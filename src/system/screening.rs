@@ -527,41 +527,48 @@ impl ScreeningCells {
         acc: &mut [f64; PADDED],
         proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64),
     ) {
+        // The block nodes from `FIRST` on along every axis: degree 1 gives nothing to the
+        // first (`Degree::first_node`), and its zeros are not added.
+        if level.degree.first_node() == 1 {
+            self.accumulate_from::<1>(level, cb, around, face_sign, acc, proxy)
+        } else {
+            self.accumulate_from::<0>(level, cb, around, face_sign, acc, proxy)
+        }
+    }
+
+    /// [`ScreeningCells::accumulate`] for node functions that are zero on block nodes before
+    /// `FIRST` along each axis.
+    fn accumulate_from<const FIRST: usize>(
+        &self,
+        level: &Level,
+        cb: usize,
+        around: &[u32; 27],
+        face_sign: f64,
+        acc: &mut [f64; PADDED],
+        proxy: impl Fn(usize, usize) -> ([[f64; 3]; 3], f64),
+    ) {
         let origin = level.bricks().origin(around[13] as usize);
         let n = 1i32 << level.depth;
         let reflects =
             !level.mirrors.is_empty() && (0..3).any(|a| origin[a] == 0 || origin[a] + 8 >= n);
-        // The block nodes from `first` on along every axis: degree 1 gives nothing to the
-        // first (`Degree::first_node`), and its zeros are not added.
-        let corners_only = level.degree.first_node() == 1;
         let entries = self.near_start[cb] as usize..self.near_start[cb + 1] as usize;
         for near in &self.near[entries] {
             let cell = &self.cells[near.cell as usize];
             let w = near.window.map(usize::from);
             if !reflects && cell.proxies.1 - cell.proxies.0 == 1 {
                 let (st, weight) = proxy(cell.first_slot as usize, cell.proxies.0 as usize);
-                if corners_only {
-                    add_tensor::<1>(&st, weight, w, acc);
-                } else {
-                    add_tensor::<0>(&st, weight, w, acc);
-                }
+                add_tensor::<FIRST>(&st, weight, w, acc);
                 continue;
             }
             let mut contribution = [0.0; 27];
             for (slot, q) in cell.slots().zip(cell.proxy_range()) {
                 let (st, weight) = proxy(slot, q);
-                if corners_only {
-                    tensor_accumulate::<1>(&st, weight, &mut contribution);
-                } else {
-                    tensor_accumulate::<0>(&st, weight, &mut contribution);
-                }
+                tensor_accumulate::<FIRST>(&st, weight, &mut contribution);
             }
             if reflects {
                 Self::add_reflected(level.degree, origin, n, face_sign, w, &contribution, acc);
-            } else if corners_only {
-                add_block::<1>(&contribution, w, acc);
             } else {
-                add_block::<0>(&contribution, w, acc);
+                add_block::<FIRST>(&contribution, w, acc);
             }
         }
     }
