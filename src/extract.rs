@@ -966,18 +966,21 @@ pub fn fit_to_surface(mesh: &mut RawMesh, watch: &Watch) -> Result<()> {
     );
     let (vertices, normals) = (&mesh.vertices, &mesh.normals);
     let valid: Vec<bool> = normals.iter().map(|n| *n != DVec3::ZERO).collect();
-    let mut sag = mean_over_edges(&mesh.triangles, &valid, |a, b| {
-        (normals[b] - normals[a]).dot(vertices[b] - vertices[a]) / 8.0
-    });
+    let mut edges = EdgeMeans::new(&mesh.triangles, &valid);
+    let mut sag = vec![0.0; vertices.len()];
+    edges.mean_into(
+        |a, b| (normals[b] - normals[a]).dot(vertices[b] - vertices[a]) / 8.0,
+        &mut sag,
+    );
+    let mut around = vec![0.0; vertices.len()];
     for pass in 0..SMOOTHING_PASSES {
         watch.step(pass, SMOOTHING_PASSES + 1, 0.8, 0.9)?;
-        let around = mean_over_edges(&mesh.triangles, &valid, |_, b| sag[b]);
-        sag = sag
-            .iter()
+        edges.mean_into(|_, b| sag[b], &mut around);
+        sag.par_iter_mut()
             .zip(&around)
-            .map(|(s, a)| 0.5 * (s + a))
-            .collect();
+            .for_each(|(s, a)| *s = 0.5 * (*s + a));
     }
+    drop(edges);
     mesh.vertices
         .par_iter_mut()
         .zip(mesh.normals.par_iter().zip(sag.par_iter()))
@@ -986,47 +989,118 @@ pub fn fit_to_surface(mesh: &mut RawMesh, watch: &Watch) -> Result<()> {
     Ok(())
 }
 
-/// The fixed-point unit of the sums in [`mean_over_edges`]: 2⁻¹¹⁰. A term is at most a quarter
+/// The fixed-point unit of the sums in [`EdgeMeans`]: 2⁻¹¹⁰. A term is at most a quarter
 /// of an edge (|term| < 1, see [`fit_to_surface`]) and a vertex has a few dozen edges at most,
 /// so its sum stays far below 2¹²⁷; a term is read to within 2⁻¹¹⁰ ≈ 8e-34, far below the
 /// spacing of the f64 coordinates it moves (2⁻⁵³ near 1, 2⁻⁶⁹ at the finest cell of depth 16).
 const SUM_UNIT: f64 = 1.0 / (1u128 << 110) as f64;
 
-/// For every vertex of a closed mesh, the mean of `term(vertex, neighbour)` over its edges
-/// whose two ends are `valid` (0 with none). Each triangle's directed edges a→b visit every
-/// edge once from each end.
+/// For every vertex of a closed mesh, the mean of a term over its edges whose two ends are
+/// `valid` (0 with none), pass after pass. Each triangle's directed edges a→b visit every edge
+/// once from each end.
 ///
 /// The sums are exact integers of [`SUM_UNIT`]s, so a vertex's mean does not depend on the order
 /// of its triangles: a slab of the out-of-core mode, which traces the surface in another order,
 /// fits its vertices bit for bit as the whole mesh does (`crate::outofcore::seams`). (Summed
-/// in f64, one vertex in a few differed in its last bits.)
-fn mean_over_edges(
+/// in f64, one vertex in a few differed in its last bits.) For the same reason the vertices
+/// are shared between the threads in ranges, each scanning every triangle for the edges that
+/// start in its range: no sum is split, none is held twice. The counts and the sums are kept
+/// from pass to pass (the sums' pages, 16 bytes a vertex, were faulted in afresh every pass,
+/// the most of this step's time).
+struct EdgeMeans<'m> {
+    triangles: &'m [[u32; 3]],
+    valid: &'m [bool],
+    /// Vertices per range (the last may be shorter).
+    per_range: usize,
+    /// Per vertex, its edges with both ends valid.
+    count: Vec<u32>,
+    /// Per vertex, the sum of the pass's terms.
+    sum: Vec<i128>,
+}
+
+impl<'m> EdgeMeans<'m> {
+    fn new(triangles: &'m [[u32; 3]], valid: &'m [bool]) -> Self {
+        let per_range = valid.len().div_ceil(rayon::current_num_threads()).max(1);
+        let mut count = vec![0u32; valid.len()];
+        count
+            .par_chunks_mut(per_range)
+            .enumerate()
+            .for_each(|(range, count)| {
+                for_each_edge_from(triangles, range * per_range, count.len(), |i, a, b| {
+                    if valid[a] && valid[b] {
+                        count[i] += 1;
+                    }
+                });
+            });
+        EdgeMeans {
+            triangles,
+            valid,
+            per_range,
+            count,
+            sum: vec![0; valid.len()],
+        }
+    }
+
+    /// `means[v]` = the mean of `term(v, w)` over the edges v→w with both ends valid, 0 when
+    /// v has none.
+    fn mean_into(&mut self, term: impl Fn(usize, usize) -> f64 + Sync, means: &mut [f64]) {
+        let (triangles, valid, per_range) = (self.triangles, self.valid, self.per_range);
+        self.sum
+            .par_chunks_mut(per_range)
+            .zip(means.par_chunks_mut(per_range))
+            .zip(self.count.par_chunks(per_range))
+            .enumerate()
+            .for_each(|(range, ((sum, means), count))| {
+                sum.fill(0);
+                for_each_edge_from(triangles, range * per_range, sum.len(), |i, a, b| {
+                    if valid[a] && valid[b] {
+                        sum[i] += in_sum_units(term(a, b));
+                    }
+                });
+                for ((mean, &s), &c) in means.iter_mut().zip(sum.iter()).zip(count) {
+                    *mean = if c > 0 {
+                        s as f64 * SUM_UNIT / c as f64
+                    } else {
+                        0.0
+                    };
+                }
+            });
+    }
+}
+
+/// Calls `edge(i, a, b)` for every directed edge a→b of `triangles`, in their order, that
+/// starts at vertex a = `first` + i with i < `len`.
+#[inline]
+fn for_each_edge_from(
     triangles: &[[u32; 3]],
-    valid: &[bool],
-    term: impl Fn(usize, usize) -> f64,
-) -> Vec<f64> {
-    let mut sum = vec![0i128; valid.len()];
-    let mut count = vec![0u32; valid.len()];
+    first: usize,
+    len: usize,
+    mut edge: impl FnMut(usize, usize, usize),
+) {
     for t in triangles {
         for k in 0..3 {
             let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
-            if valid[a] && valid[b] {
-                // Truncated towards zero: one rounding per term, whatever the order.
-                sum[a] += (term(a, b) / SUM_UNIT) as i128;
-                count[a] += 1;
+            if let Some(i) = a.checked_sub(first).filter(|&i| i < len) {
+                edge(i, a, b);
             }
         }
     }
-    sum.into_iter()
-        .zip(count)
-        .map(|(s, c)| {
-            if c > 0 {
-                s as f64 * SUM_UNIT / c as f64
-            } else {
-                0.0
-            }
-        })
-        .collect()
+}
+
+/// `term` in [`SUM_UNIT`]s, truncated towards zero: `(term / SUM_UNIT) as i128`, from two
+/// conversions to i64 (the one to i128 is a library call). With s = term·2⁵⁵ (exact), its
+/// whole part h and its fraction f = s − h (exact, of the sign of s):
+/// trunc(s·2⁵⁵) = h·2⁵⁵ + trunc(f·2⁵⁵), since h·2⁵⁵ is a whole number of f's sign.
+#[inline]
+fn in_sum_units(term: f64) -> i128 {
+    const HALF: f64 = (1u64 << 55) as f64;
+    debug_assert!(term.abs() < 1.0, "a term is less than one (see `SUM_UNIT`)");
+    let scaled = term * HALF;
+    // `as` truncates towards zero (`f64::trunc` would be a library call without SSE4.1), and
+    // h goes back to f64 exactly: below 2⁵³, or s was whole already.
+    let whole = scaled as i64;
+    let fraction = ((scaled - whole as f64) * HALF) as i64;
+    ((whole as i128) << 55) + fraction as i128
 }
 
 /// The leaves around a crossed minimal edge on the boundary of `leaf` (whose neighbourhood is
@@ -1425,6 +1499,52 @@ mod tests {
         let normal = (point(&lp[1]) - point(&lp[0])).cross(point(&lp[2]) - point(&lp[0]));
         // Outside (larger values) is towards corner 0, i.e. −(1,1,1).
         assert!(normal.dot(DVec3::ONE) < 0.0);
+    }
+
+    /// Proves: the fixed-point terms of `EdgeMeans` come out as the direct conversion to
+    /// i128 gives them, for terms of either sign and every magnitude below 1 (down to those
+    /// that truncate to 0), and a mesh's means do not depend on how many threads sum them.
+    #[test]
+    fn fixed_point_terms_match_the_direct_conversion_and_means_any_thread_count() {
+        let check = |t: f64| assert_eq!(in_sum_units(t), (t / SUM_UNIT) as i128, "term {t:e}");
+        let mut state = 7u64;
+        for _ in 0..200_000 {
+            let mantissa = (lcg(&mut state) as f64 + 0.5) / (1u64 << 31) as f64;
+            let exponent = -((lcg(&mut state) % 120) as i32);
+            let sign = if lcg(&mut state) & 1 == 0 { 1.0 } else { -1.0 };
+            check(sign * mantissa * 2f64.powi(exponent) * 0.999);
+        }
+        for term in [
+            0.0,
+            -0.0,
+            0.999_999_999_999,
+            -0.999_999_999_999,
+            SUM_UNIT,
+            -SUM_UNIT,
+        ] {
+            check(term);
+        }
+        // A strip of triangles over 1,000 vertices, some invalid; terms of both signs.
+        let triangles: Vec<[u32; 3]> = (0..998u32).map(|i| [i, i + 1, i + 2]).collect();
+        let valid: Vec<bool> = (0..1000).map(|i| i % 17 != 3).collect();
+        let term = |a: usize, b: usize| ((a * 31 + b * 7) % 101) as f64 / 404.0 - 0.12;
+        let means: Vec<Vec<f64>> = [1, 2, 3, 7]
+            .iter()
+            .map(|&threads| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| {
+                        let mut means = vec![f64::NAN; valid.len()];
+                        EdgeMeans::new(&triangles, &valid).mean_into(term, &mut means);
+                        means
+                    })
+            })
+            .collect();
+        assert!(means.iter().all(|m| m == &means[0]));
+        assert!(means[0].iter().any(|&m| m < 0.0) && means[0].iter().any(|&m| m > 0.0));
+        assert_eq!(means[0][3], 0.0, "an invalid vertex has no edges");
     }
 
     #[test]
