@@ -333,22 +333,37 @@ impl KernelCounts {
 /// The counts of one depth coarser: each node's count, as a mass at its centre, splatted
 /// trilinearly onto the coarser nodes. A centre lies a quarter of a coarse width from the
 /// nearest coarse centre on each axis, so it gives ¾ to that node and ¼ to the next one away
-/// (total mass kept). Nodes are visited in key order, so the sums do not depend on the map's
-/// layout.
+/// (total mass kept). Nodes are visited in key order (bricks by key, nodes by key within
+/// each), so the sums do not depend on the map's layout. The coarse nodes a fine brick's
+/// nodes reach lie within four of each other on every axis, so each fine brick looks up its
+/// coarse bricks once, not each node.
 fn restrict(fine: &BrickCounts) -> BrickCounts {
     let mut coarse = BrickCounts::default();
     coarse.bricks.reserve(fine.bricks.len() / 2);
-    for (key, count) in fine.sorted_nodes() {
-        let node = unmorton(key);
-        let axis = node.map(|j| {
-            let i = j.div_euclid(2);
-            [(i, 0.75), (if j % 2 == 0 { i - 1 } else { i + 1 }, 0.25)]
-        });
-        let mut bricks = BricksAround::new(std::array::from_fn(|a| axis[a][0].0.min(axis[a][1].0)));
-        for (x, wx) in axis[0] {
-            for (y, wy) in axis[1] {
-                for (z, wz) in axis[2] {
-                    *coarse.count_mut(&mut bricks, [x, y, z]) += count * wx * wy * wz;
+    let mut order: Vec<&CountBrick> = fine.bricks.iter().collect();
+    order.sort_unstable_by_key(|brick| brick.key);
+    for brick in order {
+        // Its node of local index 0; its nodes are 4b..4b + 3 per axis, so the coarse nodes
+        // they reach are 2b − 1..2b + 2.
+        let origin = unmorton(brick.key << BRICK_SHIFT);
+        let mut bricks = BricksAround::new(origin.map(|o| o.div_euclid(2) - 1));
+        let mut bits = brick.touched;
+        while bits != 0 {
+            let local = bits.trailing_zeros() as i32;
+            bits &= bits - 1;
+            let count = brick.counts[local as usize];
+            // The inverse of `brick_local`: bits a and a + 3 are axis a's low two bits.
+            let node: Coord =
+                std::array::from_fn(|a| origin[a] + (local >> a & 1) + (local >> (a + 3) & 1) * 2);
+            let axis = node.map(|j| {
+                let i = j.div_euclid(2);
+                [(i, 0.75), (if j % 2 == 0 { i - 1 } else { i + 1 }, 0.25)]
+            });
+            for (x, wx) in axis[0] {
+                for (y, wy) in axis[1] {
+                    for (z, wz) in axis[2] {
+                        *coarse.count_mut(&mut bricks, [x, y, z]) += count * wx * wy * wz;
+                    }
                 }
             }
         }
