@@ -130,7 +130,11 @@ pub struct Params {
     pub kernel_depth: Option<u32>,
     /// Target number of samples per octree node: a sample whose density estimate is lower than
     /// this is splatted at a coarser, fractional depth (§4.5). Default 1.5, range [1, 1e6].
-    /// PoissonRecon `--samplesPerNode`, PCL `setSamplesPerNode`.
+    /// PoissonRecon `--samplesPerNode`, PCL `setSamplesPerNode`, counted differently: psr
+    /// compares the density estimate W itself, which a surface with n samples per node area
+    /// reads as about 0.6·n, where PoissonRecon divides that factor out, so the same value puts
+    /// psr's samples about a third of a depth coarser (what keeps exact samples of sharp shapes
+    /// free of bumps; measured in `docs/benchmarks.md`).
     pub samples_per_node: f32,
     /// The bounding cube is the points' bounding box enlarged by this factor. Default 1.1, range
     /// [1, 100]. PoissonRecon `--scale`, Open3D `scale`, PCL `setScale`.
