@@ -248,11 +248,19 @@ impl BrickCounts {
         self.bricks.iter().flat_map(CountBrick::nodes)
     }
 
-    /// Every node with a count, as (key, count), in key order.
-    fn sorted_nodes(&self) -> Vec<(u64, f64)> {
+    /// Its bricks in key order (so their nodes, each brick's in key order, are too).
+    fn sorted_bricks(&self) -> Vec<&CountBrick> {
         let mut order: Vec<&CountBrick> = self.bricks.iter().collect();
         order.sort_unstable_by_key(|brick| brick.key);
-        order.into_iter().flat_map(CountBrick::nodes).collect()
+        order
+    }
+
+    /// Every node with a count, as (key, count), in key order.
+    fn sorted_nodes(&self) -> Vec<(u64, f64)> {
+        self.sorted_bricks()
+            .into_iter()
+            .flat_map(CountBrick::nodes)
+            .collect()
     }
 
     /// The node slots its bricks hold (64 a brick, touched or not).
@@ -340,9 +348,7 @@ impl KernelCounts {
 fn restrict(fine: &BrickCounts) -> BrickCounts {
     let mut coarse = BrickCounts::default();
     coarse.bricks.reserve(fine.bricks.len() / 2);
-    let mut order: Vec<&CountBrick> = fine.bricks.iter().collect();
-    order.sort_unstable_by_key(|brick| brick.key);
-    for brick in order {
+    for brick in fine.sorted_bricks() {
         // Its node of local index 0; its nodes are 4b..4b + 3 per axis, so the coarse nodes
         // they reach are 2b − 1..2b + 2.
         let origin = unmorton(brick.key << BRICK_SHIFT);
