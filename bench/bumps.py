@@ -7,6 +7,7 @@ agreement of the triangle normals with the true normals, and the number of compo
 
     python3 bench/bumps.py --shape cube --sampling uniform:100000 --depths 8,9,10,11,12
     python3 bench/bumps.py --shape torus --sampling scan:6:800:80   # 6 views, 800x80 rays each
+    python3 bench/bumps.py --shape sphere --noise 0.005   # positions and normals perturbed
 
 Needs numpy and open3d (bench/requirements.txt) and target/release/psr. Variants: psr, pw0
 (psr --point-weight 0), o3d, and X:NAME:VAR=VALUE+VAR2=VALUE2 (psr with environment variables,
@@ -154,16 +155,21 @@ def evaluate(shape, mesh_path, truth, o3d):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--shape", default="sphere")
-    ap.add_argument("--sampling", default="uniform")  # uniform:N or scan:views:res
+    ap.add_argument("--sampling", default="uniform:100000")  # uniform:N or scan:views:res
     ap.add_argument("--depths", default="8,9,10,11")
     ap.add_argument("--psr", default=os.path.join(HERE, "..", "target", "release", "psr"))
     ap.add_argument("--variants", default="psr,pw0,o3d")
     ap.add_argument("--psr-args", default="")
     ap.add_argument("--seed", type=int, default=1)
+    # Gaussian noise: SIGMA on each coordinate of the positions (shape units; the sphere's
+    # radius is 1), and 0.1 on each component of the normals before renormalising them.
+    ap.add_argument("--noise", type=float, default=0.0)
     a = ap.parse_args()
     import open3d as o3d
     rng = np.random.default_rng(a.seed)
     tag = f"{a.shape}_{a.sampling.replace(':', '-')}_{a.seed}"
+    if a.noise > 0:
+        tag += f"_noise{a.noise:g}"
     work = os.path.join(HERE, "runs", tag)
     os.makedirs(work, exist_ok=True)
     ply = os.path.join(work, "in.ply")
@@ -173,6 +179,10 @@ def main():
     else:
         p = scan_samples(a.shape, int(rest[0]), int(rest[1]), rng, int(rest[2]) if len(rest) > 2 else None)
     n = grad(a.shape, p)
+    if a.noise > 0:
+        p = p + rng.normal(size=p.shape) * a.noise
+        n = n + rng.normal(size=n.shape) * 0.1
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
     write_ply(ply, p, n)
     truth = uniform_samples(a.shape, 200000, np.random.default_rng(99))
     print(f"# {tag}: {len(p)} samples", flush=True)
