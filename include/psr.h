@@ -910,8 +910,11 @@ psr_status psr_reconstructor_get_scale(const psr_reconstructor *r, float *out);
 /**
  * Sets the screening weight alpha (Kazhdan & Hoppe 2013): how strongly the surface is pulled
  * onto the samples; 0 gives the unscreened 2006 method. Default 4 (2 x the default degree 2;
- * psr_reconstructor_set_degree sets it to 2 x the degree), range 0 to 1e6.
- * PoissonRecon --pointWeight, PCL setPointWeight.
+ * psr_reconstructor_set_degree sets it to 2 x the degree), range 0 to 1e6. The pull is
+ * scaled by 2^depth (the depth asked for), so on noisy clouds (noise a sizeable fraction of a
+ * finest cell) a depth past what the samples support pulls the surface onto the noise: there
+ * use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
+ * docs/benchmarks.md) or a lower depth. PoissonRecon --pointWeight, PCL setPointWeight.
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
  *

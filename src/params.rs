@@ -142,8 +142,11 @@ pub struct Params {
     /// Screening weight α (Kazhdan & Hoppe 2013): how strongly the surface is pulled onto the
     /// samples. 0 gives the 2006 method. Default 4 (2 × the B-spline degree, PoissonRecon's rule);
     /// [`Params::with_degree`] sets it to 2 × the new degree, so set it after the degree to
-    /// override. Range [0, 1e6]. PoissonRecon `--pointWeight`, PCL `setPointWeight`, Open3D's
-    /// fixed 2 (with degree 1).
+    /// override. Range [0, 1e6]. The pull is scaled by 2^depth (the depth asked for) at every
+    /// depth, so on noisy clouds (noise a sizeable fraction of a finest cell) a depth past what
+    /// the samples support pulls the surface onto the noise: there use a lower weight (0 was
+    /// the most accurate on the noisy shapes measured in docs/benchmarks.md) or a lower depth.
+    /// PoissonRecon `--pointWeight`, PCL `setPointWeight`, Open3D's fixed 2 (with degree 1).
     pub point_weight: f32,
     /// Degree of the B-spline node functions: 2 (default; support 3 cells, continuous ∇χ) or 1
     /// (piecewise-linear hats on the cell corners, support 2 cells: 3-wide stencils instead of

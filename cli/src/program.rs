@@ -125,8 +125,11 @@ struct Args {
 
     /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples; 0 is the
     /// unscreened 2006 method. Default 2 × --degree (4 at psr's default degree 2, 2 at degree
-    /// 1). PoissonRecon: --pointWeight (default 2 × the B-spline degree there too: 2 for its
-    /// default --degree 1).
+    /// 1). The pull is scaled by 2^--depth, so on noisy clouds (noise a sizeable fraction of a
+    /// finest cell) a depth past what the samples support pulls the surface onto the noise:
+    /// there use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
+    /// docs/benchmarks.md) or a lower --depth. PoissonRecon: --pointWeight (default 2 × the
+    /// B-spline degree there too: 2 for its default --degree 1).
     #[arg(long, alias = "pointWeight", value_name = "W")]
     point_weight: Option<f32>,
 

@@ -415,7 +415,9 @@ class Reconstructor:
         ctypes.c_float,
         _real,
         float,
-        "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 2 x degree: 4).",
+        "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 2 x degree: 4). Scaled by "
+        "2^depth: on noisy clouds a depth past what the samples support pulls the surface onto "
+        "the noise; use a lower weight (0 on the noisy shapes of docs/benchmarks.md) or depth.",
     )
     threads = _Param[int](
         ctypes.c_uint32, _u32, int, "Worker threads of a solve; 0 (default) is one per core."
