@@ -437,19 +437,75 @@ struct Crossing {
     faces: u8,
 }
 
+/// The surface loops of consecutive leaves, flattened so that tracing allocates per run of
+/// leaves rather than per leaf and per loop: every crossing in order, where each loop ends in
+/// `crossings`, and where each leaf's loops end in `loop_ends`.
+#[derive(Debug, Default)]
+struct Loops {
+    crossings: Vec<Crossing>,
+    loop_ends: Vec<u32>,
+    leaf_ends: Vec<u32>,
+}
+
+impl Loops {
+    /// Closes the loops of the next leaf (none if it was not crossed).
+    fn end_leaf(&mut self) {
+        self.leaf_ends.push(self.loop_ends.len() as u32);
+    }
+
+    /// The number of leaves whose loops are here.
+    fn leaves(&self) -> usize {
+        self.leaf_ends.len()
+    }
+
+    /// The range in `loop_ends` of leaf `k`'s loops.
+    fn loops_of(&self, k: usize) -> Range<usize> {
+        let start = k.checked_sub(1).map_or(0, |j| self.leaf_ends[j] as usize);
+        start..self.leaf_ends[k] as usize
+    }
+
+    /// The range in `crossings` of loop `l`.
+    fn crossings_of(&self, l: usize) -> Range<usize> {
+        let start = l.checked_sub(1).map_or(0, |j| self.loop_ends[j] as usize);
+        start..self.loop_ends[l] as usize
+    }
+
+    /// Leaf `k`'s crossings, loop after loop.
+    fn crossings_of_leaf(&self, k: usize) -> &[Crossing] {
+        let loops = self.loops_of(k);
+        let start = loops
+            .start
+            .checked_sub(1)
+            .map_or(0, |j| self.loop_ends[j] as usize);
+        let end = loops
+            .end
+            .checked_sub(1)
+            .map_or(0, |j| self.loop_ends[j] as usize);
+        &self.crossings[start..end]
+    }
+
+    /// Leaf `k`'s loops, each a slice of crossings.
+    #[cfg(test)]
+    fn of_leaf(&self, k: usize) -> impl Iterator<Item = &[Crossing]> {
+        self.loops_of(k)
+            .map(move |l| &self.crossings[self.crossings_of(l)])
+    }
+}
+
 /// The surface loops of one leaf, each a list of crossings in order (counter-clockwise about the
 /// normal pointing to larger values), from its minimal faces, its points and their values
-/// (χ − γ). `centre_value` gives χ − γ at the centre of a face with cut edges, needed only when
-/// such a face has more than two crossings.
+/// (χ − γ), appended to `out` (the caller closes the leaf). `centre_value` gives χ − γ at the
+/// centre of a face with cut edges, needed only when such a face has more than two crossings.
 fn leaf_loops(
     faces: &[MinimalFace],
     points: &[Point; SLOTS],
     values: &[f64; SLOTS],
     centre_value: &impl Fn(Point) -> f64,
-) -> Vec<Vec<Crossing>> {
+    out: &mut Loops,
+) {
     // Segments, as pairs of minimal edges (slot pairs), from a crossing where the boundary walk
     // enters the inside to one where it leaves; with the face each lies on.
-    const MAX_SEGMENTS: usize = 48;
+    const MAX_SEGMENTS: usize = MAX_LOOP;
     let mut segments = [((0u8, 0u8), (0u8, 0u8), 0u8); MAX_SEGMENTS];
     let mut count = 0;
     for f in faces {
@@ -510,20 +566,19 @@ fn leaf_loops(
             faces,
         }
     };
-    let mut loops = Vec::new();
     let mut used = [false; MAX_SEGMENTS];
     for start in 0..count {
         if used[start] {
             continue;
         }
         used[start] = true;
-        let mut lp = Vec::new();
+        let first = out.crossings.len();
         let mut s = start;
         loop {
             let next = (0..count).find(|&t| !used[t] && same(segments[t].0, segments[s].1));
             // Each crossing starts one segment and ends the previous one: it lies on both faces.
             let after = next.unwrap_or(start);
-            lp.push(crossing(
+            out.crossings.push(crossing(
                 segments[after].0,
                 1 << segments[after].2 | 1 << segments[s].2,
             ));
@@ -536,10 +591,9 @@ fn leaf_loops(
             }
         }
         // The loop was built from its second crossing: rotate so it starts at the first.
-        lp.rotate_right(1);
-        loops.push(lp);
+        out.crossings[first..].rotate_right(1);
+        out.loop_ends.push(out.crossings.len() as u32);
     }
-    loops
 }
 
 /// The centre of a square face from its boundary points.
@@ -586,6 +640,22 @@ pub(crate) fn extract_around_samples(
 
 /// Leaves planned and traced together (fixed, so the mesh does not depend on the thread count).
 const WAVE_BATCH: usize = 16384;
+
+/// Leaves whose loops are found and triangulated together, into one [`Loops`] and one [`Fans`]
+/// (the work is split by runs; the order of the results is the leaves' whatever the split).
+const LOOP_RUN: usize = 256;
+
+/// The most crossings a leaf's loop can have: one per segment of its minimal faces.
+const MAX_LOOP: usize = 48;
+
+/// The triangles of a run of leaves (centres as `ADDED_CENTRE` | their index in `centres`,
+/// counted from the run's first), and per leaf the ends of its triangles and centres.
+#[derive(Debug, Default)]
+struct Fans {
+    triangles: Vec<[u32; 3]>,
+    centres: Vec<DVec3>,
+    leaf_ends: Vec<(usize, usize)>,
+}
 
 /// What the out-of-core slabs (`crate::outofcore::seams`) ask of the trace besides the mesh.
 /// The default asks for nothing: the in-memory extraction.
@@ -740,7 +810,8 @@ pub(crate) fn extract_traced(
         }
         let mut needed: Vec<u64> = plans
             .par_iter()
-            .flat_map_iter(|&(_, points, _, _, looked_up)| {
+            .flat_map_iter(|(_, points, _, _, looked_up)| {
+                // By reference: a plan's points are 624 bytes, copied per leaf otherwise.
                 (0..SLOTS)
                     .filter(move |&i| looked_up >> i & 1 == 1)
                     .map(move |i| pack(points[i]))
@@ -760,21 +831,27 @@ pub(crate) fn extract_traced(
                 }
             });
 
-        // The surface's loops in each leaf of the wave (independent: in parallel). Face
-        // centres, needed only by rare ambiguous faces, are evaluated where they are needed.
-        let crossed: Vec<Vec<Vec<Crossing>>> = plans
-            .par_iter()
-            .map(|&(_, points, used, vals, _)| {
-                let (mut outside, mut inside) = (false, false);
-                for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                    outside |= vals[i] >= 0.0;
-                    inside |= vals[i] < 0.0;
+        // The surface's loops in each leaf of the wave (independent: in parallel, by runs of
+        // leaves). Face centres, needed only by rare ambiguous faces, are evaluated where they
+        // are needed.
+        let crossed: Vec<Loops> = plans
+            .par_chunks(LOOP_RUN)
+            .map(|run| {
+                let mut out = Loops::default();
+                for (_, points, used, vals, _) in run {
+                    let used = *used;
+                    let (mut outside, mut inside) = (false, false);
+                    for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
+                        outside |= vals[i] >= 0.0;
+                        inside |= vals[i] < 0.0;
+                    }
+                    if outside && inside {
+                        let (faces, count) = minimal_faces(used, &cycles);
+                        leaf_loops(&faces[..count], points, vals, &evaluate, &mut out);
+                    }
+                    out.end_leaf();
                 }
-                if !(outside && inside) {
-                    return Vec::new();
-                }
-                let (faces, count) = minimal_faces(used, &cycles);
-                leaf_loops(&faces[..count], &points, &vals, &evaluate)
+                out
             })
             .collect();
         watch.check()?;
@@ -782,7 +859,10 @@ pub(crate) fn extract_traced(
         // Every crossing of this batch may make a vertex and every loop a centre vertex: their
         // ids must stay below ADDED_CENTRE (and so fit in u32), checked here once for the
         // batch so that the loops below convert with `as` (debug-asserted) at no cost.
-        let new_at_most: usize = crossed.iter().flatten().map(|lp| lp.len() + 1).sum();
+        let new_at_most: usize = crossed
+            .iter()
+            .map(|run| run.crossings.len() + run.loop_ends.len())
+            .sum();
         let ids_needed = mesh.vertices.len() + new_at_most;
         if ids_needed > ADDED_CENTRE as usize {
             return Err(Error::TooLarge {
@@ -800,8 +880,13 @@ pub(crate) fn extract_traced(
         let number = || {
             let mut new_edges: Vec<Crossing> = Vec::new();
             let mut crossing_ids: Vec<u32> = Vec::new();
-            for ((leaf, (block, _, _, _, _)), loops) in batch.iter().zip(&plans).zip(&crossed) {
-                for c in loops.iter().flatten() {
+            let leaf_crossings = crossed
+                .iter()
+                .flat_map(|run| (0..run.leaves()).map(move |k| run.crossings_of_leaf(k)));
+            for ((leaf, (block, _, _, _, _)), crossings) in
+                batch.iter().zip(&plans).zip(leaf_crossings)
+            {
+                for c in crossings {
                     let next_id = mesh.vertices.len() + new_edges.len();
                     debug_assert!(next_id < ADDED_CENTRE as usize, "checked for the batch");
                     let next_id = next_id as u32;
@@ -847,52 +932,76 @@ pub(crate) fn extract_traced(
         if with_normals {
             mesh.normals.extend(placed.iter().map(|&(_, n)| n));
         }
-        // Triangulate each leaf's loops (in parallel), then append in wave order, numbering the
-        // centre vertices some loops add after this wave's edge vertices.
+        // Triangulate each run's loops (in parallel), then append in wave order, numbering the
+        // centre vertices some loops add after this wave's edge vertices, leaf after leaf.
         let vertices = &mesh.vertices;
         let mut first_id = Vec::with_capacity(crossed.len());
         let mut count = 0;
-        for loops in &crossed {
+        for run in &crossed {
             first_id.push(count);
-            count += loops.iter().map(Vec::len).sum::<usize>();
+            count += run.crossings.len();
         }
-        let fans: Vec<(Vec<[u32; 3]>, Vec<DVec3>)> = crossed
+        let fans: Vec<Fans> = crossed
             .par_iter()
             .zip(&first_id)
-            .map(|(loops, &first)| {
-                let (mut triangles, mut centres) = (Vec::new(), Vec::new());
-                let mut next = first;
-                for lp in loops {
-                    let ids = &crossing_ids[next..next + lp.len()];
-                    next += lp.len();
-                    let on_faces: Vec<u8> = lp.iter().map(|c| c.faces).collect();
-                    triangulate(ids, &on_faces, vertices, &mut triangles, &mut centres);
+            .map(|(run, &first)| {
+                let mut fans = Fans::default();
+                for k in 0..run.leaves() {
+                    for l in run.loops_of(k) {
+                        let at = run.crossings_of(l);
+                        let ids = &crossing_ids[first + at.start..first + at.end];
+                        let mut on_faces = [0u8; MAX_LOOP];
+                        for (f, c) in on_faces.iter_mut().zip(&run.crossings[at]) {
+                            *f = c.faces;
+                        }
+                        let on_faces = &on_faces[..ids.len()];
+                        triangulate(
+                            ids,
+                            on_faces,
+                            vertices,
+                            &mut fans.triangles,
+                            &mut fans.centres,
+                        );
+                    }
+                    fans.leaf_ends
+                        .push((fans.triangles.len(), fans.centres.len()));
                 }
-                (triangles, centres)
+                fans
             })
             .collect();
-        for (leaf, (triangles, centres)) in batch.iter().zip(fans) {
-            debug_assert!(mesh.vertices.len() + centres.len() <= ADDED_CENTRE as usize);
+        let mut leaves_in_batch = batch.iter();
+        for fans in fans {
+            debug_assert!(mesh.vertices.len() + fans.centres.len() <= ADDED_CENTRE as usize);
+            // The run's centres are numbered from its first: the same ids as leaf by leaf, as
+            // nothing else is appended between the leaves of a run.
             let base = mesh.vertices.len() as u32;
             if tracing.keyed {
-                if centres.len() > 8 {
-                    return Err(Error::Internal(format!(
-                        "a leaf added {} centre vertices, more than its keys can number",
-                        centres.len()
-                    )));
+                let (mut triangles_before, mut centres_before) = (0, 0);
+                for &(triangles_end, centres_end) in &fans.leaf_ends {
+                    let leaf = leaves_in_batch
+                        .next()
+                        .expect("a run's leaves are in the batch");
+                    let centres = centres_end - centres_before;
+                    if centres > 8 {
+                        return Err(Error::Internal(format!(
+                            "a leaf added {centres} centre vertices, more than its keys can number"
+                        )));
+                    }
+                    let leaf_key = leaves.key(leaf);
+                    keyed
+                        .vertex
+                        .extend((0..centres as u64).map(|k| CENTRE_KEY | k << 60 | leaf_key));
+                    let size = 1i64 << (finest - leaf.depth);
+                    keyed.leaf_x.extend(std::iter::repeat_n(
+                        leaf.cell[0] * size,
+                        triangles_end - triangles_before,
+                    ));
+                    (triangles_before, centres_before) = (triangles_end, centres_end);
                 }
-                let leaf_key = leaves.key(leaf);
-                keyed
-                    .vertex
-                    .extend((0..centres.len() as u64).map(|k| CENTRE_KEY | k << 60 | leaf_key));
-                let size = 1i64 << (finest - leaf.depth);
-                keyed
-                    .leaf_x
-                    .extend(std::iter::repeat_n(leaf.cell[0] * size, triangles.len()));
             }
             if with_normals {
                 let inside = |v: &DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::ONE).all();
-                mesh.normals.extend(centres.iter().map(|v| {
+                mesh.normals.extend(fans.centres.iter().map(|v| {
                     if inside(v) {
                         chi.gradient(*v).normalize_or_zero()
                     } else {
@@ -900,8 +1009,8 @@ pub(crate) fn extract_traced(
                     }
                 }));
             }
-            mesh.vertices.extend(centres);
-            mesh.triangles.extend(triangles.into_iter().map(|t| {
+            mesh.vertices.extend(fans.centres);
+            mesh.triangles.extend(fans.triangles.into_iter().map(|t| {
                 t.map(|i| {
                     if i & ADDED_CENTRE != 0 {
                         base + (i & !ADDED_CENTRE)
@@ -1396,7 +1505,11 @@ mod tests {
     ) -> Vec<Vec<Crossing>> {
         let (faces, count) = minimal_faces(used, &face_cycles());
         let faces = &faces[..count];
-        let loops = leaf_loops(faces, points, vals, centre_value);
+        let mut run = Loops::default();
+        leaf_loops(faces, points, vals, centre_value, &mut run);
+        run.end_leaf();
+        assert_eq!(run.leaves(), 1);
+        let loops: Vec<Vec<Crossing>> = run.of_leaf(0).map(<[Crossing]>::to_vec).collect();
         let mut expected: Vec<u64> = Vec::new();
         for f in faces {
             let len = f.len as usize;
