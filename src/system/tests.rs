@@ -326,6 +326,57 @@ fn prolongation_reproduces_coarse_quadratics_and_restriction_is_its_transpose() 
     assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0));
 }
 
+/// Proves: the restriction, whose coarse nodes are cut into one run of bricks per thread,
+/// gives the node-by-node sums bit for bit at 1, 2, 3 and 7 threads, on levels of many bricks
+/// (so that every split falls inside the level), for both degrees and every boundary.
+#[test]
+fn restriction_is_the_same_at_every_thread_count() {
+    let mut most_bricks = 0;
+    for boundary in BOUNDARIES {
+        for tree in trees_of_both_degrees(boundary) {
+            for d in 1..tree.levels.len() {
+                let (coarse, fine) = (&tree.levels[d - 1], &tree.levels[d]);
+                most_bricks = most_bricks.max(coarse.bricks().brick_count());
+                let fine_values: Vec<f64> = (0..fine.len())
+                    .map(|i| {
+                        if i % 7 == 0 {
+                            0.0
+                        } else {
+                            (i % 11) as f64 * 0.3 - 1.4
+                        }
+                    })
+                    .collect();
+                let mut by_node = vec![0.25; coarse.len()];
+                for i in 0..fine.len() as u32 {
+                    for (n, w) in refinement_parents(coarse, fine, i) {
+                        if n != NONE && fine_values[i as usize] != 0.0 {
+                            by_node[n as usize] += w * fine_values[i as usize];
+                        }
+                    }
+                }
+                for threads in [1, 2, 3, 7] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .expect("a thread pool");
+                    let mut by_part = vec![0.25; coarse.len()];
+                    pool.install(|| restrict_into(coarse, fine, &fine_values, &mut by_part));
+                    for (i, (a, b)) in by_node.iter().zip(&by_part).enumerate() {
+                        assert!(
+                            a.to_bits() == b.to_bits() || (*a == 0.0 && *b == 0.0),
+                            "{boundary:?} depth {d} node {i} at {threads} threads: {a} vs {b}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        most_bricks > 7,
+        "the levels have {most_bricks} bricks at most"
+    );
+}
+
 /// A proxy's stencil is the B-spline's values at the three nodes around its cell, as
 /// [`crate::bspline::Degree::stencil27`] evaluates them at the proxy's position, for both
 /// degrees.

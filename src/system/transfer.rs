@@ -9,6 +9,7 @@ use crate::memory::zeroed;
 use crate::octree::{axis_interval_masks, brick_local, AxisStep, Level, NONE};
 use crate::parallel::{split_parts, stop_requested};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// A coarser vector field prolonged to a finer halo, evaluated where it is read instead of
 /// stored (node by node with [`ProlongedField::at`], brick by brick by
@@ -454,24 +455,53 @@ pub(super) fn prolonged_at<const N: usize>(
 ///
 /// Fine brick by fine brick: the coarse nodes its nodes refine from (a 6×6×6 block) are looked
 /// up once per brick, then every fine node adds to its eight parents, in node order and with
-/// the parents `refinement_parents` gives (so sums come out the same as node by node).
+/// the parents `refinement_parents` gives (so sums come out the same as node by node). The
+/// coarse nodes are cut into one run of whole coarse bricks per thread; each thread walks the
+/// fine bricks that reach its run, in the same order, and adds only to its own nodes, so every
+/// coarse node receives the same terms in the same order at any thread count.
 pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_out: &mut [f64]) {
+    let coarse_index = coarse.bricks();
+    let bricks = coarse_index.brick_count();
+    let parts = rayon::current_num_threads().clamp(1, bricks.max(1));
+    let brick_bounds: Vec<usize> = (0..=parts).map(|p| p * bricks / parts).collect();
+    let first_node = |b: usize| {
+        if b < bricks {
+            coarse_index.brick(b).0 as usize
+        } else {
+            coarse.len()
+        }
+    };
+    let node_ranges = brick_bounds
+        .windows(2)
+        .map(|w| first_node(w[0])..first_node(w[1]));
+    let outputs = split_parts(coarse_out, node_ranges);
+    outputs
+        .into_par_iter()
+        .zip(brick_bounds.par_windows(2))
+        .for_each(|(out, w)| {
+            restrict_part(coarse, fine, fine_values, w[0]..w[1], first_node(w[0]), out)
+        });
+}
+
+/// [`restrict_into`]'s work for the coarse bricks `coarse_bricks` (slots), whose nodes start at
+/// `first` and are `out`.
+fn restrict_part(
+    coarse: &Level,
+    fine: &Level,
+    fine_values: &[f64],
+    coarse_bricks: Range<usize>,
+    first: usize,
+    out: &mut [f64],
+) {
     const SIDE: usize = 6;
     let fine_index = fine.bricks();
     let coarse_index = coarse.bricks();
     let mut window = [NONE; SIDE * SIDE * SIDE];
     for b in 0..fine_index.brick_count() {
-        // (One thread walks every brick: a cancelled solve skips the rest; see
+        // (Every thread walks every fine brick: a cancelled solve skips the rest; see
         // `stop_requested`.)
         if b % 64 == 0 && stop_requested() {
             return;
-        }
-        let walk = BrickNodes::new(fine_index, b);
-        if walk
-            .clone()
-            .all(|(node, _)| fine_values[node as usize] == 0.0)
-        {
-            continue;
         }
         let fine_origin = fine_index.origin(b);
         // Window coordinate w along an axis is coarse coordinate origin + w; it spans the two
@@ -483,6 +513,19 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
                 coarse_brick[a] + 8 * ((k >> a) & 1) as i32
             }))
         });
+        if !slots
+            .iter()
+            .any(|s| s.is_some_and(|s| coarse_bricks.contains(&s)))
+        {
+            continue;
+        }
+        let walk = BrickNodes::new(fine_index, b);
+        if walk
+            .clone()
+            .all(|(node, _)| fine_values[node as usize] == 0.0)
+        {
+            continue;
+        }
         for (w, entry) in window.iter_mut().enumerate() {
             let w = [w % SIDE, w / SIDE % SIDE, w / (SIDE * SIDE)];
             // The coordinate relative to the first coarse brick of each axis (0..16).
@@ -526,8 +569,12 @@ pub fn restrict_into(coarse: &Level, fine: &Level, fine_values: &[f64], coarse_o
                         at(k)
                     }
                 };
-                if parents[k] != NONE {
-                    coarse_out[parents[k] as usize] += weights[k] * v;
+                // Only this part's nodes (NONE, u32::MAX, is past every part).
+                if let Some(sum) = (parents[k] as usize)
+                    .checked_sub(first)
+                    .and_then(|i| out.get_mut(i))
+                {
+                    *sum += weights[k] * v;
                 }
             }
         }
