@@ -288,6 +288,7 @@ impl Zero for f64 {}
 impl Zero for f32 {}
 impl Zero for u32 {}
 impl Zero for u64 {}
+impl Zero for u8 {}
 
 /// `vec![0; n]`, but a refusal by the allocator is [`Error::OutOfMemory`] naming `what`
 /// instead of an abort. Like `vec![0; n]` it asks for zeroed memory (`calloc`), so the pages

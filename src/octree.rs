@@ -22,7 +22,7 @@ use crate::bspline::Degree;
 use crate::density::DepthSample;
 use crate::error::Result;
 use crate::grid::{cell_of, compact, morton, spread, unmorton, Coord, KeyMap, BITS, OFFSET};
-use crate::parallel::{stop_requested, DistinctIndices, Watch};
+use crate::parallel::{split_parts, stop_requested, DistinctIndices, Watch};
 use crate::Boundary;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -731,6 +731,11 @@ fn coarse_parents(coarse: &Level, keys: &[u64], out: &mut [u32]) {
         });
 }
 
+/// The number of nodes a brick's 512-bit occupancy holds.
+fn ones(mask: &[u64; 8]) -> usize {
+    mask.iter().map(|w| w.count_ones() as usize).sum()
+}
+
 /// Key of the parent of the node with key `k`.
 #[inline]
 pub fn parent_key(k: u64) -> u64 {
@@ -750,8 +755,7 @@ impl Level {
         degree: Degree,
     ) -> Result<Option<Level>> {
         // Ok(None) as soon as the watched job that builds the level is cancelled: between the
-        // steps below, and every STOP_CHECK_BRICKS bricks of the serial listing.
-        const STOP_CHECK_BRICKS: usize = 4096;
+        // steps below, and in the listing (each brick skips its work once it is).
         let core_rows = BrickRows::from_packed(core);
         if stop_requested() {
             return Ok(None);
@@ -783,65 +787,118 @@ impl Level {
             .collect();
         drop((core_rows, near_rows, halo_rows));
 
-        let total: usize = masks
+        // Per brick: where its nodes and its core nodes start (prefix sums of the masks' bit
+        // counts), so that bricks list their nodes side by side in parallel, each into its own
+        // part of the arrays, in the same order as one after another.
+        let counts: Vec<(usize, usize)> = masks
+            .par_iter()
+            .map(|[halo, _, in_core]| (ones(halo), ones(in_core)))
+            .collect();
+        let (mut total, mut total_core) = (0usize, 0usize);
+        let starts: Vec<(usize, usize)> = counts
             .iter()
-            .map(|m| m[0].iter().map(|w| w.count_ones() as usize).sum::<usize>())
-            .sum();
+            .map(|&(nodes, core)| {
+                let at = (total, total_core);
+                (total, total_core) = (total + nodes, total_core + core);
+                at
+            })
+            .collect();
+        if total > NONE as usize {
+            return Err(crate::Error::TooLarge {
+                what: "octree nodes at one depth",
+                count: total,
+                limit: NONE as usize,
+            });
+        }
         // The level's largest arrays (a node each): a refusal is an out-of-memory error.
-        let mut keys = crate::memory::with_capacity(total, "an octree level's node keys")?;
-        let mut flags = crate::memory::with_capacity(total, "an octree level's node flags")?;
-        let mut core = Vec::new();
-        let mut mirrors = Vec::new();
-        let mut faces = Vec::new();
+        let mut keys: Vec<u64> = crate::memory::zeroed(total, "an octree level's node keys")?;
+        let mut flags: Vec<u8> = crate::memory::zeroed(total, "an octree level's node flags")?;
+        let mut core: Vec<u32> = crate::memory::zeroed(total_core, "an octree level's core")?;
+        let node_parts = split_parts(
+            &mut keys,
+            starts.iter().zip(&counts).map(|(s, c)| s.0..s.0 + c.0),
+        );
+        let flag_parts = split_parts(
+            &mut flags,
+            starts.iter().zip(&counts).map(|(s, c)| s.0..s.0 + c.0),
+        );
+        let core_parts = split_parts(
+            &mut core,
+            starts.iter().zip(&counts).map(|(s, c)| s.1..s.1 + c.1),
+        );
         let n = 1i32 << depth;
-        for (b, (&(brick, _), [halo, near, in_core])) in bricks.iter().zip(&masks).enumerate() {
-            if b % STOP_CHECK_BRICKS == 0 && stop_requested() {
-                return Ok(None);
-            }
-            let first = keys.len() as u32;
-            let mut k = first;
-            for word in 0..8 {
-                let mut bits = halo[word];
-                while bits != 0 {
-                    let bit = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    let key = brick << BrickIndex::BRICK_BITS | (word as u64 * 64 + bit as u64);
-                    let mut flag = 0;
-                    if near[word] >> bit & 1 == 1 {
-                        flag |= NEAR;
+        // Per brick, its mirrors (outside node, inside key, flips) and degree-1 face nodes.
+        type BrickMirrors = (Vec<(u32, u64, u8)>, Vec<Mirror>);
+        let listed: Vec<BrickMirrors> = node_parts
+            .into_par_iter()
+            .zip(flag_parts)
+            .zip(core_parts)
+            .zip(bricks.par_iter().zip(&masks).zip(&starts))
+            .map(
+                |(((keys, flags), core), ((&(brick, _), [halo, near, in_core]), &(first, _)))| {
+                    if stop_requested() {
+                        return (Vec::new(), Vec::new());
                     }
-                    if in_core[word] >> bit & 1 == 1 {
-                        flag |= CORE;
-                        core.push(k);
-                    }
-                    keys.push(key);
-                    flags.push(flag);
-                    k += 1;
-                }
-            }
-            if mirror_sign.is_some() {
-                // A brick's nodes outside the cube mirror nodes inside; in the same halo,
-                // since the reflection of a halo node is within two nodes of the same core nodes.
-                for i in first..k {
-                    let c = unmorton(keys[i as usize]);
-                    let reflected = match degree {
-                        Degree::Two => reflect(c, n),
-                        Degree::One => reflect_corner(c, n),
-                    };
-                    if let Some((inside, flips)) = reflected {
-                        mirrors.push((i, morton(inside), flips));
-                    } else if degree == Degree::One {
-                        let on = (0..3).fold(0u8, |f, a| f | ((c[a] == 0 || c[a] == n) as u8) << a);
-                        if on != 0 {
-                            faces.push(Mirror {
-                                outside: i,
-                                inside: i,
-                                flips: on,
-                            });
+                    let (mut at, mut at_core) = (0, 0);
+                    for word in 0..8 {
+                        let mut bits = halo[word];
+                        while bits != 0 {
+                            let bit = bits.trailing_zeros();
+                            bits &= bits - 1;
+                            keys[at] =
+                                brick << BrickIndex::BRICK_BITS | (word as u64 * 64 + bit as u64);
+                            let mut flag = 0;
+                            if near[word] >> bit & 1 == 1 {
+                                flag |= NEAR;
+                            }
+                            if in_core[word] >> bit & 1 == 1 {
+                                flag |= CORE;
+                                core[at_core] = (first + at) as u32;
+                                at_core += 1;
+                            }
+                            flags[at] = flag;
+                            at += 1;
                         }
                     }
-                }
-            }
+                    let (mut mirrors, mut faces) = (Vec::new(), Vec::new());
+                    if mirror_sign.is_some() {
+                        // A brick's nodes outside the cube mirror nodes inside; in the same
+                        // halo, since the reflection of a halo node is within two nodes of the
+                        // same core nodes.
+                        for (j, &key) in keys.iter().enumerate() {
+                            let i = (first + j) as u32;
+                            let c = unmorton(key);
+                            let reflected = match degree {
+                                Degree::Two => reflect(c, n),
+                                Degree::One => reflect_corner(c, n),
+                            };
+                            if let Some((inside, flips)) = reflected {
+                                mirrors.push((i, morton(inside), flips));
+                            } else if degree == Degree::One {
+                                let on = (0..3)
+                                    .fold(0u8, |f, a| f | ((c[a] == 0 || c[a] == n) as u8) << a);
+                                if on != 0 {
+                                    faces.push(Mirror {
+                                        outside: i,
+                                        inside: i,
+                                        flips: on,
+                                    });
+                                }
+                            }
+                        }
+                    }
+                    (mirrors, faces)
+                },
+            )
+            .collect();
+        if stop_requested() {
+            return Ok(None);
+        }
+        let mut mirrors = Vec::new();
+        let mut faces = Vec::new();
+        for (m, f) in listed {
+            mirrors.extend(m);
+            faces.extend(f);
         }
         let index = BrickIndex::from_bricks(
             bricks.iter().map(|&(b, _)| b).collect(),
