@@ -175,14 +175,7 @@ fn brick_prolongations_match_node_by_node_prolongation() {
                         }
                     })
                     .collect();
-                let mut by_node = vec![0.5; coarse.len()];
-                for i in 0..fine.len() as u32 {
-                    for (n, w) in refinement_parents(coarse, fine, i) {
-                        if n != NONE && fine_values[i as usize] != 0.0 {
-                            by_node[n as usize] += w * fine_values[i as usize];
-                        }
-                    }
-                }
+                let by_node = restricted_node_by_node(coarse, fine, &fine_values, 0.5);
                 let mut by_brick = vec![0.5; coarse.len()];
                 restrict_into(coarse, fine, &fine_values, &mut by_brick);
                 same(&by_node, &by_brick, "restrict");
@@ -326,6 +319,25 @@ fn prolongation_reproduces_coarse_quadratics_and_restriction_is_its_transpose() 
     assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0));
 }
 
+/// The restriction's reference: every fine node, in index order, adds w · value to each of
+/// its `refinement_parents`, onto coarse nodes that start at `start`.
+fn restricted_node_by_node(
+    coarse: &Level,
+    fine: &Level,
+    fine_values: &[f64],
+    start: f64,
+) -> Vec<f64> {
+    let mut by_node = vec![start; coarse.len()];
+    for i in 0..fine.len() as u32 {
+        for (n, w) in refinement_parents(coarse, fine, i) {
+            if n != NONE && fine_values[i as usize] != 0.0 {
+                by_node[n as usize] += w * fine_values[i as usize];
+            }
+        }
+    }
+    by_node
+}
+
 /// Proves: the restriction, whose coarse nodes are cut into one run of bricks per thread,
 /// gives the node-by-node sums bit for bit at 1, 2, 3 and 7 threads, on levels of many bricks
 /// (so that every split falls inside the level), for both degrees and every boundary.
@@ -346,14 +358,7 @@ fn restriction_is_the_same_at_every_thread_count() {
                         }
                     })
                     .collect();
-                let mut by_node = vec![0.25; coarse.len()];
-                for i in 0..fine.len() as u32 {
-                    for (n, w) in refinement_parents(coarse, fine, i) {
-                        if n != NONE && fine_values[i as usize] != 0.0 {
-                            by_node[n as usize] += w * fine_values[i as usize];
-                        }
-                    }
-                }
+                let by_node = restricted_node_by_node(coarse, fine, &fine_values, 0.25);
                 for threads in [1, 2, 3, 7] {
                     let pool = rayon::ThreadPoolBuilder::new()
                         .num_threads(threads)
