@@ -464,24 +464,20 @@ impl Loops {
         start..self.leaf_ends[k] as usize
     }
 
+    /// Where loop `l`'s crossings start in `crossings` (where loop `l − 1` ends).
+    fn loop_start(&self, l: usize) -> usize {
+        l.checked_sub(1).map_or(0, |j| self.loop_ends[j] as usize)
+    }
+
     /// The range in `crossings` of loop `l`.
     fn crossings_of(&self, l: usize) -> Range<usize> {
-        let start = l.checked_sub(1).map_or(0, |j| self.loop_ends[j] as usize);
-        start..self.loop_ends[l] as usize
+        self.loop_start(l)..self.loop_ends[l] as usize
     }
 
     /// Leaf `k`'s crossings, loop after loop.
     fn crossings_of_leaf(&self, k: usize) -> &[Crossing] {
         let loops = self.loops_of(k);
-        let start = loops
-            .start
-            .checked_sub(1)
-            .map_or(0, |j| self.loop_ends[j] as usize);
-        let end = loops
-            .end
-            .checked_sub(1)
-            .map_or(0, |j| self.loop_ends[j] as usize);
-        &self.crossings[start..end]
+        &self.crossings[self.loop_start(loops.start)..self.loop_start(loops.end)]
     }
 
     /// Leaf `k`'s loops, each a slice of crossings.

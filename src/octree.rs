@@ -814,14 +814,13 @@ impl Level {
         let mut keys: Vec<u64> = crate::memory::zeroed(total, "an octree level's node keys")?;
         let mut flags: Vec<u8> = crate::memory::zeroed(total, "an octree level's node flags")?;
         let mut core: Vec<u32> = crate::memory::zeroed(total_core, "an octree level's core")?;
-        let node_parts = split_parts(
-            &mut keys,
-            starts.iter().zip(&counts).map(|(s, c)| s.0..s.0 + c.0),
-        );
-        let flag_parts = split_parts(
-            &mut flags,
-            starts.iter().zip(&counts).map(|(s, c)| s.0..s.0 + c.0),
-        );
+        let node_ranges: Vec<std::ops::Range<usize>> = starts
+            .iter()
+            .zip(&counts)
+            .map(|(s, c)| s.0..s.0 + c.0)
+            .collect();
+        let node_parts = split_parts(&mut keys, node_ranges.iter().cloned());
+        let flag_parts = split_parts(&mut flags, node_ranges);
         let core_parts = split_parts(
             &mut core,
             starts.iter().zip(&counts).map(|(s, c)| s.1..s.1 + c.1),
