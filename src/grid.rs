@@ -101,6 +101,29 @@ pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
     [t.x as i32, t.y as i32, t.z as i32]
 }
 
+/// Where to cut `positions` (in Morton order at a depth ≥ `depth`, so that each cell's points
+/// are consecutive) into pieces of about `per_piece` points without splitting a cell of
+/// `depth`: the pieces' bounds, from 0 to the count (a fixed count apart, so the same pieces at
+/// any thread count).
+pub(crate) fn cuts_between_cells(positions: &[DVec3], depth: u32, per_piece: usize) -> Vec<usize> {
+    let inv_h = (depth as f64).exp2();
+    let cell = |s: usize| cell_of(positions[s], inv_h);
+    let n = positions.len();
+    let mut cuts = vec![0];
+    while let Some(&last) = cuts.last() {
+        let mut cut = last + per_piece;
+        if cut >= n {
+            break;
+        }
+        while cut < n && cell(cut) == cell(cut - 1) {
+            cut += 1;
+        }
+        cuts.push(cut);
+    }
+    cuts.push(n);
+    cuts
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

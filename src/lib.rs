@@ -42,6 +42,7 @@ mod implicit;
 mod isovalue;
 mod memory;
 mod mesh;
+mod noise;
 mod normals;
 pub mod npts;
 pub mod obj;

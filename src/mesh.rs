@@ -73,6 +73,14 @@ pub struct Stats {
     /// Node slots of the density field's bricks (all its depths), which the memory accounting
     /// counts.
     pub density_slots: usize,
+    /// The samples' positional noise σ, in input units (the RMS scatter across the surface,
+    /// 0 for exact samples of a smooth surface), when [`crate::Params::screening_follows_noise`]
+    /// asked for it; `None` otherwise.
+    pub sample_noise: Option<f64>,
+    /// The depth d whose 2^d scaled the screening weight ([`crate::Params::point_weight`]): the
+    /// depth D, or less when the screening followed the noise (the depth whose cells are 10 σ
+    /// wide, fractional). 0 for a mesh not made by a reconstruction.
+    pub screening_depth: f64,
 }
 
 /// What [`crate::trim`] did: the threshold it cut at, in both of its units, and what it kept.

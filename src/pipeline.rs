@@ -12,6 +12,7 @@ use crate::implicit::ImplicitFunction;
 use crate::isovalue;
 use crate::memory::{Budget, Footprint};
 use crate::mesh::{self, Mesh, Stats};
+use crate::noise;
 use crate::octree::Octree;
 use crate::parallel::{self, Watch};
 use crate::points::{PointSet, Samples, UnitCubeMap};
@@ -221,9 +222,12 @@ pub(crate) fn run(
     })?;
     clock.done(Stage::Points)?;
 
-    // 2. Density: each sample's area and depth(s) (before the octree: they decide its nodes).
+    // 2. Density: each sample's area and depth(s) (before the octree: they decide its nodes);
+    // and when the screening is to follow the samples' noise, how far they scatter across the
+    // surface (its 2^d scale then stops at the depth whose cells are 10 σ wide;
+    // `system::screening_depth`).
     let kernel_depth = params.effective_kernel_depth();
-    let (field, mut sample_density) = clock.watch(Stage::Density, pool, |watch| {
+    let (field, mut sample_density, noise) = clock.watch(Stage::Density, pool, |watch| {
         let field =
             DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
         watch.step(1, 2, 0.0, 1.0)?;
@@ -234,12 +238,18 @@ pub(crate) fn run(
             params.samples_per_node as f64,
             watch,
         )?;
-        Ok((field, sample_density))
+        let noise = params
+            .screening_follows_noise
+            .then(|| noise::estimate(&samples.positions, &sample_density.area, params.depth));
+        Ok((field, sample_density, noise))
     })?;
     clock.stats.kernel_depth = kernel_depth;
     let density_slots = field.slots() as u64;
     clock.stats.density_slots = field.slots();
     clock.stats.sample_density_quantiles = std::mem::take(&mut sample_density.quantiles);
+    clock.stats.sample_noise = noise.map(|noise| noise.sigma * map.size);
+    let screening_depth = system::screening_depth(params.depth, noise.map_or(0.0, |n| n.sigma));
+    clock.stats.screening_depth = screening_depth;
     clock.done(Stage::Density)?;
 
     // 3. Octree: around the cells of each sample at its one or two depths.
@@ -352,7 +362,7 @@ pub(crate) fn run(
         positions: &samples.positions,
         screening_weights: &screening_weights,
         proxy_groups: None,
-        screening: system::depth_weight(params.point_weight, params.depth),
+        screening: system::weight_at_depth(params.point_weight, screening_depth),
         depths: Depths::All,
     };
     let (coefficients, solves) = clock.watch(Stage::Solve, pool, |watch| {

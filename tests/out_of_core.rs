@@ -324,6 +324,25 @@ fn cancels_and_bad_points_leave_no_temporary_files() {
         "{shallow:?}"
     );
     assert!(dir.entries("tmp").is_empty());
+    // The screening that follows the noise is in memory only: refused by name, not ignored.
+    let follows = psr::reconstruct_out_of_core(
+        &input,
+        &dir.path("mesh.ply"),
+        &params.clone().with_screening_follows_noise(true),
+        &options,
+    )
+    .expect_err("screening_follows_noise out of core");
+    assert!(
+        matches!(
+            follows,
+            OutOfCoreError::Reconstruction(psr::Error::InvalidParameter {
+                name: "screening_follows_noise",
+                ..
+            })
+        ),
+        "{follows:?}"
+    );
+    assert!(dir.entries("tmp").is_empty());
     let missing = psr::reconstruct_out_of_core(
         &dir.path("no-such.ply"),
         &dir.path("mesh.ply"),

@@ -211,7 +211,7 @@ pub(super) fn fill_undefined(
 
 /// Eigenvalues (ascending) and unit eigenvectors of the symmetric matrix `a`, by cyclic Jacobi
 /// rotations (Golub & Van Loan §8.5), to full f64 accuracy.
-pub(super) fn jacobi_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [DVec3; 3]) {
+pub(crate) fn jacobi_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [DVec3; 3]) {
     // Columns of v are the eigenvectors.
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     for _sweep in 0..50 {

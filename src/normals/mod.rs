@@ -29,6 +29,8 @@ mod neighbors;
 mod orient;
 mod sheets;
 
+pub(crate) use estimate::jacobi_eigen;
+
 use crate::error::{Error, Result};
 use crate::{Progress, Stage, Workers};
 use glam::DVec3;

@@ -119,6 +119,15 @@ pub(crate) fn run(
         }
         .into());
     }
+    if params.screening_follows_noise {
+        return Err(crate::Error::InvalidParameter {
+            name: "screening_follows_noise",
+            value: "true".into(),
+            expected: "false: out of core the screening keeps its 2^depth scale (the noise \
+                       estimate needs every sample's cell at once; not built yet)",
+        }
+        .into());
+    }
     // (Agreed: a member without its threads must not leave the others waiting for it.)
     let workers = agreed(
         team,
