@@ -914,7 +914,8 @@ psr_status psr_reconstructor_get_scale(const psr_reconstructor *r, float *out);
  * scaled by 2^depth (the depth asked for), so on noisy clouds (noise a sizeable fraction of a
  * finest cell) a depth past what the samples support pulls the surface onto the noise: there
  * use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
- * docs/benchmarks.md) or a lower depth. PoissonRecon --pointWeight, PCL setPointWeight.
+ * docs/benchmarks.md), a lower depth, or psr_reconstructor_set_screening_follows_noise.
+ * PoissonRecon --pointWeight, PCL setPointWeight.
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
  *
@@ -931,6 +932,31 @@ psr_status psr_reconstructor_set_point_weight(psr_reconstructor *r, float point_
  * `r` is NULL or a live handle; `out` is NULL or valid for writes.
  */
 psr_status psr_reconstructor_get_point_weight(const psr_reconstructor *r, float *out);
+
+/**
+ * Sets whether the screening follows the samples' noise: the reconstruction estimates how far
+ * the samples scatter across the surface (sigma, psr_mesh_sample_noise) and scales the
+ * screening weight by 2^d no finer than the depth whose cells are 10 sigma wide, so that a
+ * high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
+ * (psr_mesh_screening_depth says which d was used). Default false. Not with
+ * psr_reconstruct_out_of_core (PSR_STATUS_INVALID_PARAMETER there). No PoissonRecon, Open3D or
+ * PCL equivalent.
+ *
+ * r must not be NULL. Returns the statuses of psr_reconstructor_set_vertex_normals.
+ *
+ * # Safety
+ * `r` is NULL or a live handle from psr_reconstructor_new.
+ */
+psr_status psr_reconstructor_set_screening_follows_noise(psr_reconstructor *r, bool follows);
+
+/**
+ * Writes whether the screening follows the samples' noise to *out. r and out must not be
+ * NULL. Returns the statuses of psr_reconstructor_get_depth.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_get_screening_follows_noise(const psr_reconstructor *r, bool *out);
 
 /**
  * Sets the degree of the B-spline node functions: 2 (the default; a smooth gradient) or 1
@@ -1793,6 +1819,30 @@ psr_status psr_mesh_depth(const psr_mesh *m, uint32_t *out);
  * `m` is NULL or a live mesh; `out` is NULL or valid for writes.
  */
 psr_status psr_mesh_finest_depth(const psr_mesh *m, uint32_t *out);
+
+/**
+ * Writes to *out the depth d whose 2^d scaled the screening weight: psr_mesh_depth's, or less
+ * (fractional) when the screening followed the samples' noise
+ * (psr_reconstructor_set_screening_follows_noise). 0 for a mesh no reconstruction made.
+ *
+ * m and out must not be NULL. Returns the statuses of psr_mesh_depth.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or valid for writes.
+ */
+psr_status psr_mesh_screening_depth(const psr_mesh *m, double *out);
+
+/**
+ * Writes to *out the samples' positional noise sigma in input units (their RMS scatter across
+ * the surface; 0 for exact samples of a smooth surface) as the reconstruction of m estimated
+ * it, or NaN when it did not (psr_reconstructor_set_screening_follows_noise was false).
+ *
+ * m and out must not be NULL. Returns the statuses of psr_mesh_depth.
+ *
+ * # Safety
+ * `m` is NULL or a live mesh; `out` is NULL or valid for writes.
+ */
+psr_status psr_mesh_sample_noise(const psr_mesh *m, double *out);
 
 /**
  * Copies the octree's node (unknown) counts per depth into out, index = depth, from 0 to

@@ -3116,6 +3116,94 @@ fn vertex_normals_setting_round_trips() {
     }
 }
 
+/// Proves: the screening-follows-noise setting defaults to false and round-trips, NULL is
+/// refused, and the mesh reports what the reconstruction did: without it the screening depth is
+/// the depth and the noise NaN; with it, on a jittered sphere, the Rust API's figures.
+#[test]
+fn screening_follows_noise_round_trips_and_the_mesh_reports_the_noise() {
+    let status = psr_status::Ok;
+    let (p, nrm) = sphere(20_000, [0.1, -0.2, 0.3], 1.0);
+    // A deterministic jitter of 0.01 along each axis (a sawtooth over the index).
+    let jittered: Vec<f32> = p
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v + 0.02 * ((i * 7919 % 1000) as f32 / 1000.0 - 0.5))
+        .collect();
+    unsafe {
+        let mut on = true;
+        assert_eq!(
+            psr_reconstructor_set_screening_follows_noise(ptr::null_mut(), true),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_reconstructor_get_screening_follows_noise(ptr::null(), &mut on),
+            psr_status::NullArgument
+        );
+        let (mut depth, mut noise) = (0.0f64, 0.0f64);
+        assert_eq!(
+            psr_mesh_screening_depth(ptr::null(), &mut depth),
+            psr_status::NullArgument
+        );
+        assert_eq!(
+            psr_mesh_sample_noise(ptr::null(), &mut noise),
+            psr_status::NullArgument
+        );
+        for follows in [false, true] {
+            let r = new_handle();
+            assert_eq!(
+                psr_reconstructor_get_screening_follows_noise(r, &mut on),
+                status
+            );
+            assert!(!on);
+            assert_eq!(
+                psr_reconstructor_get_screening_follows_noise(r, ptr::null_mut()),
+                psr_status::NullArgument
+            );
+            assert_eq!(
+                psr_reconstructor_set_screening_follows_noise(r, follows),
+                status
+            );
+            assert_eq!(
+                psr_reconstructor_get_screening_follows_noise(r, &mut on),
+                status
+            );
+            assert_eq!(on, follows);
+            assert_eq!(psr_reconstructor_set_depth(r, 8), status);
+            assert_eq!(
+                psr_reconstructor_add_points(r, jittered.as_ptr(), 0, nrm.as_ptr(), 0, 20_000),
+                status
+            );
+            let Some(m) = solve_or_skip(r, "screening_follows_noise_round_trips") else {
+                psr_reconstructor_free(r);
+                return;
+            };
+            psr_reconstructor_free(r);
+            assert_eq!(
+                psr_mesh_screening_depth(m, ptr::null_mut()),
+                psr_status::NullArgument
+            );
+            assert_eq!(psr_mesh_screening_depth(m, &mut depth), status);
+            assert_eq!(psr_mesh_sample_noise(m, &mut noise), status);
+            let points =
+                psr::PointSet::from_slices(triples(&jittered).as_slice(), triples(&nrm).as_slice())
+                    .unwrap();
+            let params = psr::Params::default()
+                .with_depth(8)
+                .with_screening_follows_noise(follows);
+            let want = psr::reconstruct(&points, &params).unwrap().stats;
+            assert_eq!(depth, want.screening_depth);
+            match want.sample_noise {
+                Some(sigma) => {
+                    assert_eq!(noise, sigma);
+                    assert!(sigma > 0.0 && depth < 8.0, "{sigma} {depth}");
+                }
+                None => assert!(noise.is_nan() && depth == 8.0, "{noise} {depth}"),
+            }
+            psr_mesh_free(m);
+        }
+    }
+}
+
 /// The tetrahedron with normals, RGBA colours and two channels.
 fn tetrahedron_with_attributes() -> *mut psr_mesh {
     let mut mesh = psr::Mesh::default();

@@ -481,6 +481,7 @@ unsafe fn get_params(r: *mut psr_reconstructor, null_out: bool) {
     get!(psr_reconstructor_get_normal_neighbors, u32);
     get!(psr_reconstructor_get_normal_orientation, i32);
     get!(psr_reconstructor_get_vertex_normals, bool);
+    get!(psr_reconstructor_get_screening_follows_noise, bool);
     get!(psr_reconstructor_get_degree, i32);
     get!(psr_reconstructor_get_max_memory, u64);
 }
@@ -774,6 +775,14 @@ unsafe fn read_mesh(m: *const psr_mesh, capacity: u32, index: u8) {
         check(psr_mesh_origin(m, origin.as_mut_ptr()), "origin");
         let mut depth = 0u32;
         check(psr_mesh_depth(m, &mut depth), "mesh_depth");
+        let (mut screening_depth, mut noise) = (0.0f64, 0.0f64);
+        check(
+            psr_mesh_screening_depth(m, &mut screening_depth),
+            "screening_depth",
+        );
+        assert!(screening_depth <= depth as f64, "screening past the depth");
+        check(psr_mesh_sample_noise(m, &mut noise), "sample_noise");
+        assert!(noise.is_nan() || noise >= 0.0, "negative noise");
         check(psr_mesh_finest_depth(m, &mut depth), "finest_depth");
         let mut count = 0usize;
         check(

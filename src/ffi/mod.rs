@@ -143,13 +143,14 @@ pub use self::params::{
     psr_reconstructor_get_kernel_depth, psr_reconstructor_get_max_solver_iterations,
     psr_reconstructor_get_min_component_samples, psr_reconstructor_get_point_weight,
     psr_reconstructor_get_samples_per_node, psr_reconstructor_get_scale,
-    psr_reconstructor_get_solver_tolerance, psr_reconstructor_get_splatting,
-    psr_reconstructor_get_threads, psr_reconstructor_get_vertex_placement,
-    psr_reconstructor_get_width, psr_reconstructor_set_boundary, psr_reconstructor_set_degree,
-    psr_reconstructor_set_depth, psr_reconstructor_set_full_depth,
-    psr_reconstructor_set_kernel_depth, psr_reconstructor_set_max_solver_iterations,
-    psr_reconstructor_set_min_component_samples, psr_reconstructor_set_point_weight,
-    psr_reconstructor_set_samples_per_node, psr_reconstructor_set_scale,
+    psr_reconstructor_get_screening_follows_noise, psr_reconstructor_get_solver_tolerance,
+    psr_reconstructor_get_splatting, psr_reconstructor_get_threads,
+    psr_reconstructor_get_vertex_placement, psr_reconstructor_get_width,
+    psr_reconstructor_set_boundary, psr_reconstructor_set_degree, psr_reconstructor_set_depth,
+    psr_reconstructor_set_full_depth, psr_reconstructor_set_kernel_depth,
+    psr_reconstructor_set_max_solver_iterations, psr_reconstructor_set_min_component_samples,
+    psr_reconstructor_set_point_weight, psr_reconstructor_set_samples_per_node,
+    psr_reconstructor_set_scale, psr_reconstructor_set_screening_follows_noise,
     psr_reconstructor_set_solver_tolerance, psr_reconstructor_set_splatting,
     psr_reconstructor_set_threads, psr_reconstructor_set_vertex_placement,
     psr_reconstructor_set_width, psr_splatting, psr_vertex_placement,
@@ -175,7 +176,8 @@ pub use self::solve::{psr_reconstructor_set_progress_callback, psr_reconstructor
 pub use self::stage::{psr_progress_fn, psr_stage, psr_stage_string};
 pub use self::stats::{
     psr_depth_solve, psr_mesh_depth, psr_mesh_finest_depth, psr_mesh_node_counts,
-    psr_mesh_solve_count, psr_mesh_solve_stats, psr_mesh_unsupported_components,
+    psr_mesh_sample_noise, psr_mesh_screening_depth, psr_mesh_solve_count, psr_mesh_solve_stats,
+    psr_mesh_unsupported_components,
 };
 pub use self::status::{psr_status, psr_status_string};
 pub use self::trim::{

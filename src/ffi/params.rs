@@ -302,7 +302,8 @@ pub unsafe extern "C" fn psr_reconstructor_get_scale(
 /// scaled by 2^depth (the depth asked for), so on noisy clouds (noise a sizeable fraction of a
 /// finest cell) a depth past what the samples support pulls the surface onto the noise: there
 /// use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
-/// docs/benchmarks.md) or a lower depth. PoissonRecon --pointWeight, PCL setPointWeight.
+/// docs/benchmarks.md), a lower depth, or psr_reconstructor_set_screening_follows_noise.
+/// PoissonRecon --pointWeight, PCL setPointWeight.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
 ///
@@ -337,6 +338,53 @@ pub unsafe extern "C" fn psr_reconstructor_get_point_weight(
         get_param("psr_reconstructor_get_point_weight", r, out, |p| {
             p.point_weight
         })
+    }
+}
+
+/// Sets whether the screening follows the samples' noise: the reconstruction estimates how far
+/// the samples scatter across the surface (sigma, psr_mesh_sample_noise) and scales the
+/// screening weight by 2^d no finer than the depth whose cells are 10 sigma wide, so that a
+/// high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
+/// (psr_mesh_screening_depth says which d was used). Default false. Not with
+/// psr_reconstruct_out_of_core (PSR_STATUS_INVALID_PARAMETER there). No PoissonRecon, Open3D or
+/// PCL equivalent.
+///
+/// r must not be NULL. Returns the statuses of psr_reconstructor_set_vertex_normals.
+///
+/// # Safety
+/// `r` is NULL or a live handle from psr_reconstructor_new.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_set_screening_follows_noise(
+    r: *mut psr_reconstructor,
+    follows: bool,
+) -> psr_status {
+    // SAFETY: `r` is NULL or a live handle (this function's contract).
+    unsafe {
+        set_param("psr_reconstructor_set_screening_follows_noise", r, |p| {
+            p.screening_follows_noise = follows
+        })
+    }
+}
+
+/// Writes whether the screening follows the samples' noise to *out. r and out must not be
+/// NULL. Returns the statuses of psr_reconstructor_get_depth.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_get_screening_follows_noise(
+    r: *const psr_reconstructor,
+    out: *mut bool,
+) -> psr_status {
+    // SAFETY: `r` is NULL or a live handle and `out` is NULL or valid for writes (this
+    // function's contract).
+    unsafe {
+        get_param(
+            "psr_reconstructor_get_screening_follows_noise",
+            r,
+            out,
+            |p| p.screening_follows_noise,
+        )
     }
 }
 

@@ -85,6 +85,49 @@ pub unsafe extern "C" fn psr_mesh_finest_depth(m: *const psr_mesh, out: *mut u32
     })
 }
 
+/// Writes to *out the depth d whose 2^d scaled the screening weight: psr_mesh_depth's, or less
+/// (fractional) when the screening followed the samples' noise
+/// (psr_reconstructor_set_screening_follows_noise). 0 for a mesh no reconstruction made.
+///
+/// m and out must not be NULL. Returns the statuses of psr_mesh_depth.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_screening_depth(m: *const psr_mesh, out: *mut f64) -> psr_status {
+    const F: &str = "psr_mesh_screening_depth";
+    guard_no_handle(F, || {
+        // SAFETY: `m` is NULL or a live mesh and `out` is NULL or valid for writes (this
+        // function's contract).
+        unsafe { write_out(F, "out", out, stats_of(F, m)?.screening_depth) }
+    })
+}
+
+/// Writes to *out the samples' positional noise sigma in input units (their RMS scatter across
+/// the surface; 0 for exact samples of a smooth surface) as the reconstruction of m estimated
+/// it, or NaN when it did not (psr_reconstructor_set_screening_follows_noise was false).
+///
+/// m and out must not be NULL. Returns the statuses of psr_mesh_depth.
+///
+/// # Safety
+/// `m` is NULL or a live mesh; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_mesh_sample_noise(m: *const psr_mesh, out: *mut f64) -> psr_status {
+    const F: &str = "psr_mesh_sample_noise";
+    guard_no_handle(F, || {
+        // SAFETY: `m` is NULL or a live mesh and `out` is NULL or valid for writes (this
+        // function's contract).
+        unsafe {
+            write_out(
+                F,
+                "out",
+                out,
+                stats_of(F, m)?.sample_noise.unwrap_or(f64::NAN),
+            )
+        }
+    })
+}
+
 /// Copies the octree's node (unknown) counts per depth into out, index = depth, from 0 to
 /// psr_mesh_finest_depth; capacity is the number of uint64_t out can hold, and *count gets
 /// the number written. To ask for the count alone, pass out = NULL and capacity = 0: *count

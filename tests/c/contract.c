@@ -203,6 +203,8 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_get_width(NULL, &d), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_finest_depth(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_screening_depth(NULL, &d), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_sample_noise(NULL, &d), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_node_counts(NULL, NULL, 0, &z), PSR_STATUS_NULL_ARGUMENT);
     CHECK(psr_mesh_solve_count(NULL) == 0);
     CHECK(psr_mesh_unsupported_components(NULL) == 0);
@@ -228,7 +230,7 @@ static void test_stats(void) {
     uint32_t depth = 0, finest = 0;
     uint64_t nodes[20], short_nodes[2] = {7, 7};
     size_t count = 0, unchanged = 99, k, solves;
-    double width = 0.0;
+    double width = 0.0, screening_depth = 0.0, noise = 0.0;
     psr_depth_solve s;
     newer_depth_solve newer;
 
@@ -257,6 +259,12 @@ static void test_stats(void) {
     CHECK(depth == 6);
     CHECK_STATUS(psr_mesh_finest_depth(m, &finest), PSR_STATUS_OK);
     CHECK(finest >= 5 && finest <= depth);
+    /* The screening's 2^d scale: the depth, the noise not estimated (the default). */
+    CHECK_STATUS(psr_mesh_screening_depth(m, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_mesh_screening_depth(m, &screening_depth), PSR_STATUS_OK);
+    CHECK(screening_depth == 6.0);
+    CHECK_STATUS(psr_mesh_sample_noise(m, &noise), PSR_STATUS_OK);
+    CHECK(isnan(noise));
 
     CHECK_STATUS(psr_mesh_node_counts(m, NULL, 0, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_mesh_node_counts(m, NULL, 4, &count), PSR_STATUS_NULL_ARGUMENT);
@@ -1177,7 +1185,7 @@ static void test_point_arrays(void) {
     psr_point_arrays a;
     older_point_arrays old;
     size_t count = 0, k, nv;
-    bool vertex_normals = true;
+    bool vertex_normals = true, follows = true;
     float worst = 0.0f, *buffer;
     int unit_outward = 1;
 
@@ -1205,6 +1213,15 @@ static void test_point_arrays(void) {
     CHECK(!vertex_normals);
     CHECK_STATUS(psr_reconstructor_get_vertex_normals(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_vertex_normals(NULL, true), PSR_STATUS_NULL_ARGUMENT);
+    /* The screening that follows the noise: off by default, round-trips. */
+    CHECK_STATUS(psr_reconstructor_get_screening_follows_noise(r, &follows), PSR_STATUS_OK);
+    CHECK(!follows);
+    CHECK_STATUS(psr_reconstructor_set_screening_follows_noise(r, true), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_screening_follows_noise(r, &follows), PSR_STATUS_OK);
+    CHECK(follows);
+    CHECK_STATUS(psr_reconstructor_set_screening_follows_noise(r, false), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_screening_follows_noise(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_screening_follows_noise(NULL, true), PSR_STATUS_NULL_ARGUMENT);
 
     /* A struct from an older header: its smaller size, its fields only. */
     old.struct_size = sizeof old;
