@@ -5,7 +5,8 @@
 //!
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8 | --width W] [--full-depth 5] [--kernel-depth N]
-//!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--threads 0] [--iters 60]
+//!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--screening-follows-noise]
+//!     [--threads 0] [--iters 60]
 //!     [--tolerance 1e-2] [--boundary neumann|free|dirichlet] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
 //!     [--orientation propagate|viewpoint|sensors] [--viewpoint X,Y,Z] [--confidence]
@@ -128,10 +129,18 @@ struct Args {
     /// 1). The pull is scaled by 2^--depth, so on noisy clouds (noise a sizeable fraction of a
     /// finest cell) a depth past what the samples support pulls the surface onto the noise:
     /// there use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
-    /// docs/benchmarks.md) or a lower --depth. PoissonRecon: --pointWeight (default 2 × the
-    /// B-spline degree there too: 2 for its default --degree 1).
+    /// docs/benchmarks.md), a lower --depth, or --screening-follows-noise. PoissonRecon:
+    /// --pointWeight (default 2 × the B-spline degree there too: 2 for its default --degree 1).
     #[arg(long, alias = "pointWeight", value_name = "W")]
     point_weight: Option<f32>,
+
+    /// Let the screening follow the samples' noise: estimate how far the samples scatter
+    /// across the surface (σ, printed with --verbose) and scale the pull by 2^d no finer than
+    /// the depth whose cells are 10 σ wide, so that a high --depth no longer pulls the surface
+    /// onto the noise; exact samples keep 2^--depth. Not with --out-of-core. PoissonRecon:
+    /// none.
+    #[arg(long)]
+    screening_follows_noise: bool,
 
     /// Degree of the B-spline node functions: 2 (default; smooth gradient) or 1 (piecewise-linear,
     /// PoissonRecon's and Open3D's default: cheaper per unknown). Also sets the default
@@ -553,6 +562,7 @@ impl Args {
             None => params,
         };
         params
+            .with_screening_follows_noise(self.screening_follows_noise)
             .with_threads(self.threads)
             .with_max_solver_iterations(self.iters)
             .with_solver_tolerance(self.tolerance)
@@ -1021,6 +1031,7 @@ fn run_out_of_core(
             "--normals estimate|reorient",
         ),
         (args.vertex_normals, "--vertex-normals"),
+        (args.screening_follows_noise, "--screening-follows-noise"),
         (args.estimate_memory, "--estimate-memory"),
         (args.ascii, "--ascii"),
         (args.no_density, "--no-density"),
@@ -1467,6 +1478,14 @@ fn print_details(mesh: &Mesh) {
         stats.halo_nodes_per_depth.iter().sum::<usize>(),
         stats.halo_nodes_per_depth,
         stats.density_slots
+    ));
+    out.push_str(&format!(
+        "psr: screening weight scaled by 2^{:.2}{}\n",
+        stats.screening_depth,
+        match stats.sample_noise {
+            Some(sigma) => format!(" (the samples' noise: {sigma:.4e} in input units)"),
+            None => String::new(),
+        }
     ));
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
     out.push_str(&format!(

@@ -254,6 +254,7 @@ fn help_gives_every_option_its_poissonrecon_equivalent() {
         ("--samples-per-node", "--samplesPerNode"),
         ("--scale", "--scale"),
         ("--point-weight", "--pointWeight"),
+        ("--screening-follows-noise", "none"),
         ("--degree", "--degree"),
         ("--threads", "none"),
         ("--iters", "--iters"),
@@ -1462,12 +1463,15 @@ fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
             "--out-of-core",
             "--vertex-normals",
             "--no-density",
+            "--screening-follows-noise",
         ],
     );
     assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
     let message = stderr(&refused);
     assert!(
-        message.contains("--vertex-normals") && message.contains("--no-density"),
+        message.contains("--vertex-normals")
+            && message.contains("--no-density")
+            && message.contains("--screening-follows-noise"),
         "{message}"
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -62,6 +62,7 @@ CHANGED: dict[str, Any] = {
     "scale": 1.25,
     "degree": 1,
     "point_weight": 0.0,
+    "screening_follows_noise": True,
     "threads": 2,
     "max_solver_iterations": 30,
     "solver_tolerance": 1e-4,
@@ -102,6 +103,20 @@ def test_parameters_change_the_result(
     assert not np.array_equal(on_iso.vertices, ball_mesh.vertices)
     by_width = psr.reconstruct(*ball, width=2.2 / 32)
     assert by_width.depth == 5
+
+
+def test_screening_follows_the_samples_noise(ball: tuple[np.ndarray, np.ndarray]) -> None:
+    points, normals = sphere(20000)
+    rng = np.random.default_rng(3)
+    noisy = points + rng.normal(scale=0.01, size=points.shape)
+    plain = psr.reconstruct(noisy, normals, depth=8)
+    assert plain.sample_noise is None and plain.screening_depth == 8.0
+    follows = psr.reconstruct(noisy, normals, depth=8, screening_follows_noise=True)
+    # sigma 0.01 per coordinate reads about 0.007 (a plane through 16 samples takes some)
+    assert follows.sample_noise == pytest.approx(0.007, rel=0.3)
+    assert follows.screening_depth < 6.0
+    exact = psr.reconstruct(*ball, depth=6, screening_follows_noise=True)
+    assert exact.sample_noise == pytest.approx(0.0, abs=1e-3) and exact.screening_depth == 6.0
 
 
 def test_degree_one(ball: tuple[np.ndarray, np.ndarray], ball_mesh: psr.Mesh) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import math
 import operator
 import os
 import threading
@@ -251,6 +252,7 @@ DEFAULTS: dict[str, Any] = {
     "scale": 1.1,
     "degree": 2,
     "point_weight": 4.0,
+    "screening_follows_noise": False,
     "threads": 0,
     "max_solver_iterations": 60,
     "solver_tolerance": 1e-2,
@@ -417,7 +419,8 @@ class Reconstructor:
         float,
         "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 2 x degree: 4). Scaled by "
         "2^depth: on noisy clouds a depth past what the samples support pulls the surface onto "
-        "the noise; use a lower weight (0 on the noisy shapes of docs/benchmarks.md) or depth.",
+        "the noise; use a lower weight (0 on the noisy shapes of docs/benchmarks.md), a lower "
+        "depth, or screening_follows_noise.",
     )
     threads = _Param[int](
         ctypes.c_uint32, _u32, int, "Worker threads of a solve; 0 (default) is one per core."
@@ -470,6 +473,15 @@ class Reconstructor:
     vertex_normals = _Param[bool](
         ctypes.c_bool, _bool, bool, "Whether the mesh gets unit vertex normals (default False)."
     )
+    screening_follows_noise = _Param[bool](
+        ctypes.c_bool,
+        _bool,
+        bool,
+        "Whether the screening follows the samples' noise (default False): psr estimates their "
+        "scatter sigma across the surface (Mesh.sample_noise) and scales the screening by 2^d "
+        "no finer than the depth whose cells are 10 sigma wide, so that a high depth no longer "
+        "pulls the surface onto the noise; exact samples keep 2^depth. Not out of core.",
+    )
     normal_neighbors = _Param[int](
         ctypes.c_uint32,
         _u32,
@@ -495,6 +507,7 @@ class Reconstructor:
         scale: float = 1.1,
         degree: int = 2,
         point_weight: float | None = None,
+        screening_follows_noise: bool = False,
         threads: int = 0,
         max_solver_iterations: int = 60,
         solver_tolerance: float = 1e-2,
@@ -534,6 +547,7 @@ class Reconstructor:
         self.degree = degree  # (sets point_weight to 2 x degree)
         if point_weight is not None:
             self.point_weight = point_weight
+        self.screening_follows_noise = screening_follows_noise
         self.threads = threads
         self.max_solver_iterations = max_solver_iterations
         self.solver_tolerance = solver_tolerance
@@ -1209,6 +1223,22 @@ class Mesh:
         return out.value
 
     @property
+    def screening_depth(self) -> float:
+        """The depth d whose 2^d scaled the screening weight: ``depth``, or less when the
+        screening followed the samples' noise (``screening_follows_noise``)."""
+        out = ctypes.c_double()
+        _check(LIB.psr_mesh_screening_depth(self._live(), ctypes.byref(out)))
+        return out.value
+
+    @property
+    def sample_noise(self) -> float | None:
+        """The samples' scatter across the surface (sigma, input units; 0 for exact samples of
+        a smooth surface), or None when the reconstruction did not estimate it."""
+        out = ctypes.c_double()
+        _check(LIB.psr_mesh_sample_noise(self._live(), ctypes.byref(out)))
+        return None if math.isnan(out.value) else out.value
+
+    @property
     def node_counts(self) -> np.ndarray:
         """Octree nodes per depth, index = depth, 0 to ``finest_depth``."""
         ptr = self._live()
@@ -1478,6 +1508,7 @@ def reconstruct(
     scale: float = 1.1,
     degree: int = 2,
     point_weight: float | None = None,
+    screening_follows_noise: bool = False,
     threads: int = 0,
     max_solver_iterations: int = 60,
     solver_tolerance: float = 1e-2,
@@ -1525,6 +1556,7 @@ def reconstruct(
         scale=scale,
         degree=degree,
         point_weight=point_weight,
+        screening_follows_noise=screening_follows_noise,
         threads=threads,
         max_solver_iterations=max_solver_iterations,
         solver_tolerance=solver_tolerance,
