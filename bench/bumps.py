@@ -10,8 +10,8 @@ agreement of the triangle normals with the true normals, and the number of compo
     python3 bench/bumps.py --shape sphere --noise 0.005   # positions and normals perturbed
 
 Needs numpy and open3d (bench/requirements.txt) and target/release/psr. Variants: psr, pw0
-(psr --point-weight 0), o3d, and X:NAME:VAR=VALUE+VAR2=VALUE2 (psr with environment variables,
-for experiments). Work files go to bench/runs/ (not committed)."""
+(psr --point-weight 0), follow (psr --screening-follows-noise), o3d, and
+X:NAME:VAR=VALUE+VAR2=VALUE2 (psr with environment variables, for experiments). Work files go to bench/runs/ (not committed)."""
 import argparse, json, os, subprocess, sys, time
 import numpy as np
 
@@ -209,8 +209,8 @@ def main():
                 extra = a.psr_args.split() if var == "psr" else []
                 if var == "pw0":
                     extra = ["--point-weight", "0"]
-                elif var.startswith("env"):  # envNAME=VALUE variants handled by caller
-                    pass
+                elif var == "follow":
+                    extra = a.psr_args.split() + ["--screening-follows-noise"]
                 cmd = [a.psr, "--in", ply, "--out", out, "--depth", str(d), "--no-density"] + extra
                 r = subprocess.run(cmd, capture_output=True, text=True, env=env)
                 if r.returncode:
