@@ -1,43 +1,45 @@
-//! Stage 2b — the samples' positional noise: how far they scatter across the surface they
+//! Stage 2b — the samples' positional noise: how far they scatter about the surface they
 //! sample, for a screening term that does not pull the solution onto that scatter
 //! ([`crate::Params::screening_follows_noise`]).
 //!
 //! The samples (in the unit cube, in Morton order) are grouped by the cells of the depth at
 //! which a cell of the surface holds about [`SAMPLES_PER_CELL`] of them (from the density
-//! estimate's areas). In each cell with at least [`MIN_SAMPLES`] the **thickness** is the RMS
-//! distance of its samples from their least-squares plane (the square root of the smallest
-//! eigenvalue of their covariance), and its median over the cells is taken, at that depth (t₁,
-//! cells of width h) and one coarser (t₂, width 2h). The median ignores the minority of cells
-//! across a crease or holding two sheets.
+//! estimate's areas). In each cell with at least [`MIN_SAMPLES`] the **residual** is the RMS
+//! distance of its samples from their least-squares quadric (a height field over their plane:
+//! a smooth surface's curvature is fitted, not counted as noise), unbiased for the quadric's six
+//! coefficients; r₁ is its median over the cells, r₂ the same in cells twice as wide.
 //!
-//! A thickness holds two parts: the noise σ, the same in a cell of any width, and the sag of a
-//! curved surface across the cell, which grows as the square of the width (about r²/(7R) for a
-//! disc of radius r on a sphere of radius R): t² ≈ σ² + c·h⁴. So t₁² = σ² + c·h⁴ and t₂² = σ² +
-//! 16·c·h⁴ give σ² = (16·t₁² − t₂²) / 15: exact samples of a curved surface read 0 (a sphere's
-//! t₂ is 4·t₁), noisy ones σ (t₂ ≈ t₁). Measured on 100k samples of a sphere of radius 1 in a
-//! cube of width 2.2 (`docs/benchmarks.md`, issue 16): exact 0; Gaussian noise of 0.001 and
-//! 0.005 per coordinate read 3.6e-4 and 1.56e-3 of the cube (0.0008 and 0.0034 of the sphere's
-//! units: a plane fit through 16 samples takes some of their scatter with it).
+//! Noise adds the same σ² at every cell width; what the quadric leaves of the shape, s(h),
+//! grows with the width (as h⁶ on a smooth surface, and at least doubling from h to 2h for
+//! detail at the cells' scale). So with r₁² = σ² + s(h) and r₂² = σ² + s(2h),
+//! σ² ≥ 2·r₁² − r₂², taken as the estimate (at least 0): r₁² when r₂ = r₁ (noise alone), 0 when
+//! r₂² ≥ 2·r₁² (shape, or a shape the cells cannot resolve), and never more than the noise while
+//! the shape's part at least doubles. Measured (`docs/benchmarks.md`, issue 16): exact samples
+//! of a sphere, a torus and a box read 0; Gaussian noise reads 0.7–0.9 of its σ (the median of
+//! the cells' residuals lies below their RMS).
 
 use crate::grid::{cell_of, cuts_between_cells};
 use crate::normals::jacobi_eigen;
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// About how many samples a cell of the estimate's finer depth holds: enough for a plane fit
-/// to see the scatter, few enough for the cell to be small against the surface's curvature.
+/// About how many samples a cell of the estimate's finer depth holds: enough for a quadric fit
+/// to leave the noise over ten degrees of freedom, few enough for the cell to be small against
+/// the surface's shape.
 pub(crate) const SAMPLES_PER_CELL: f64 = 16.0;
-/// The fewest samples in a cell that count towards the estimate.
-pub(crate) const MIN_SAMPLES: usize = 8;
+/// The fewest samples in a cell that count towards the estimate (four more than a quadric's
+/// six coefficients).
+pub(crate) const MIN_SAMPLES: usize = 10;
 
 /// The samples' positional noise as [`estimate`] measured it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct SampleNoise {
     /// The finer depth of the cells the samples were grouped by.
     pub(crate) depth: u32,
-    /// The cells at that depth with enough samples to count.
+    /// The cells at that depth that counted.
     pub(crate) cells: usize,
-    /// The noise σ, in the unit cube's units: 0 for samples that lie on a smooth surface, and
+    /// The noise σ, in the unit cube's units: 0 for samples that lie on a smooth surface, where
+    /// the residual grows with the cells (detail, or a shape the cells do not resolve), and
     /// when too few cells hold enough samples to tell.
     pub(crate) sigma: f64,
 }
@@ -54,10 +56,10 @@ pub(crate) fn estimate(positions: &[DVec3], areas: &[f64], max_depth: u32) -> Sa
     let depth = (-cell_width.log2())
         .round()
         .clamp(2.0, max_depth.max(2) as f64) as u32;
-    let mut fine = thickness_by_cell(positions, depth);
-    let mut coarse = thickness_by_cell(positions, depth - 1);
+    let mut fine = residual_by_cell(positions, depth);
+    let mut coarse = residual_by_cell(positions, depth - 1);
     let cells = fine.len();
-    let (Some(t1), Some(t2)) = (median(&mut fine), median(&mut coarse)) else {
+    let (Some(r1), Some(r2)) = (median(&mut fine), median(&mut coarse)) else {
         return SampleNoise {
             depth,
             cells,
@@ -67,7 +69,7 @@ pub(crate) fn estimate(positions: &[DVec3], areas: &[f64], max_depth: u32) -> Sa
     SampleNoise {
         depth,
         cells,
-        sigma: ((16.0 * t1 * t1 - t2 * t2) / 15.0).max(0.0).sqrt(),
+        sigma: (2.0 * r1 * r1 - r2 * r2).max(0.0).sqrt(),
     }
 }
 
@@ -82,9 +84,9 @@ fn median(values: &mut [f64]) -> Option<f64> {
     Some(value)
 }
 
-/// The thickness of every cell of `depth` holding at least [`MIN_SAMPLES`] samples, in
-/// parallel over pieces cut between cells (the same values at any thread count).
-fn thickness_by_cell(positions: &[DVec3], depth: u32) -> Vec<f64> {
+/// The quadric residual of every cell of `depth` whose samples fix one, in parallel over pieces
+/// cut between cells (the same values at any thread count).
+fn residual_by_cell(positions: &[DVec3], depth: u32) -> Vec<f64> {
     let inv_h = (depth as f64).exp2();
     let cell = |s: usize| cell_of(positions[s], inv_h);
     let cuts = cuts_between_cells(positions, depth, 1 << 14);
@@ -98,30 +100,97 @@ fn thickness_by_cell(positions: &[DVec3], depth: u32) -> Vec<f64> {
                 while s < piece[1] && cell(s) == here {
                     s += 1;
                 }
-                if s - start >= MIN_SAMPLES {
-                    out.push(plane_thickness(&positions[start..s]));
-                }
+                out.extend(quadric_residual(&positions[start..s]));
             }
             out.into_iter()
         })
         .collect()
 }
 
-/// The RMS distance of `points` from their least-squares plane.
-fn plane_thickness(points: &[DVec3]) -> f64 {
-    let n = points.len() as f64;
-    let mean = points.iter().copied().sum::<DVec3>() / n;
+/// The RMS residual of `points` from their least-squares quadric height field over their plane
+/// (w = a + b·u + c·v + d·u² + e·u·v + f·v² in the frame of their covariance's eigenvectors),
+/// unbiased (squares over n − 6); `None` for fewer than [`MIN_SAMPLES`] points or points that
+/// cannot fix a quadric (all on one or two lines, as across the scan lines of a range scan).
+fn quadric_residual(points: &[DVec3]) -> Option<f64> {
+    let n = points.len();
+    if n < MIN_SAMPLES {
+        return None;
+    }
+    let mean = points.iter().copied().sum::<DVec3>() / n as f64;
     let mut covariance = [[0.0; 3]; 3];
     for p in points {
         let d = (*p - mean).to_array();
         for (i, row) in covariance.iter_mut().enumerate() {
             for (j, entry) in row.iter_mut().enumerate() {
-                *entry += d[i] * d[j] / n;
+                *entry += d[i] * d[j] / n as f64;
             }
         }
     }
-    let (values, _) = jacobi_eigen(covariance);
-    values[0].max(0.0).sqrt()
+    // The plane's axes (the two largest eigenvectors) scaled to the points' extent along them,
+    // for a well-conditioned system; the height along the normal.
+    let (_, [normal, a, b]) = jacobi_eigen(covariance);
+    let extent = points
+        .iter()
+        .map(|p| (*p - mean).dot(a).abs().max((*p - mean).dot(b).abs()))
+        .fold(0.0, f64::max);
+    if extent <= 0.0 {
+        return None;
+    }
+    let terms = |p: &DVec3| {
+        let d = *p - mean;
+        let (u, v) = (d.dot(b) / extent, d.dot(a) / extent);
+        ([1.0, u, v, u * u, u * v, v * v], d.dot(normal))
+    };
+    let mut gram = [[0.0; 6]; 6];
+    let mut rhs = [0.0; 6];
+    for p in points {
+        let (phi, w) = terms(p);
+        for i in 0..6 {
+            rhs[i] += phi[i] * w;
+            for j in 0..6 {
+                gram[i][j] += phi[i] * phi[j];
+            }
+        }
+    }
+    let coefficients = cholesky_solve(gram, rhs)?;
+    let squares: f64 = points
+        .iter()
+        .map(|p| {
+            let (phi, w) = terms(p);
+            let fit: f64 = phi.iter().zip(&coefficients).map(|(f, c)| f * c).sum();
+            (w - fit) * (w - fit)
+        })
+        .sum();
+    Some((squares / (n - 6) as f64).sqrt())
+}
+
+/// x with `gram`·x = `rhs` for a symmetric positive definite `gram`, by Cholesky; `None` when a
+/// pivot falls below 1e-9 of the largest diagonal entry (the points do not fix the terms).
+fn cholesky_solve(gram: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<[f64; 6]> {
+    let largest = (0..6).map(|i| gram[i][i]).fold(0.0, f64::max);
+    let mut l = [[0.0; 6]; 6];
+    for i in 0..6 {
+        for j in 0..=i {
+            let sum = gram[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
+            if i == j {
+                if sum <= 1e-9 * largest {
+                    return None;
+                }
+                l[i][i] = sum.sqrt();
+            } else {
+                l[i][j] = sum / l[j][j];
+            }
+        }
+    }
+    let mut y = [0.0; 6];
+    for i in 0..6 {
+        y[i] = (rhs[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
+    }
+    let mut x = [0.0; 6];
+    for i in (0..6).rev() {
+        x[i] = (y[i] - (i + 1..6).map(|k| l[k][i] * x[k]).sum::<f64>()) / l[i][i];
+    }
+    Some(x)
 }
 
 #[cfg(test)]
@@ -171,13 +240,8 @@ mod tests {
         let (points, areas) = sphere(100_000, 0.45, 0.0);
         let noise = estimate(&points, &areas, 10);
         assert!(noise.cells > 1000, "{noise:?}");
-        // The plane fits alone read the sphere's sag; the two depths take it out.
-        let sag = thickness_by_cell(&points, noise.depth);
-        assert!(sag.iter().any(|&t| t > 1e-6));
-        assert!(
-            noise.sigma < 0.1 * median(&mut sag.clone()).unwrap(),
-            "{noise:?}"
-        );
+        // A plane through a cell's samples would leave the sphere's sag, about 1e-4 here.
+        assert!(noise.sigma < 1e-7, "{noise:?}");
     }
 
     #[test]
@@ -185,13 +249,36 @@ mod tests {
         for sigma in [2e-4, 1e-3] {
             let (points, areas) = sphere(100_000, 0.45, sigma);
             let noise = estimate(&points, &areas, 10);
-            // A plane through 16 samples takes some of their scatter (3 of 16 degrees of
-            // freedom), and the median of a thickness lies below its RMS.
             assert!(
-                noise.sigma > 0.6 * sigma && noise.sigma < 1.1 * sigma,
+                noise.sigma > 0.7 * sigma && noise.sigma < 1.1 * sigma,
                 "σ {sigma}: {noise:?}"
             );
         }
+    }
+
+    #[test]
+    fn detail_as_wide_as_the_cells_is_shape_not_noise() {
+        // A plane rippled with a wavelength of four fine cells (depth 7: cells of 1/128), its
+        // amplitude 1e-3: a quadric follows a quarter of a ripple in a fine cell closely (a
+        // residual of 6.6e-6, which alone would read as noise) and half a ripple in a coarse
+        // cell less so: the residual grows with the cells, and is shape, not noise.
+        let n = 400;
+        let wave = 4.0 / 128.0;
+        let mut points = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                let (x, y) = (
+                    0.2 + 0.6 * i as f64 / n as f64,
+                    0.2 + 0.6 * j as f64 / n as f64,
+                );
+                let ripple = 1e-3 * (std::f64::consts::TAU * x / wave).sin();
+                points.push(DVec3::new(x, y, 0.5 + ripple));
+            }
+        }
+        let area = 0.36 / (n * n) as f64;
+        let noise = estimate(&sorted(points), &vec![area; n * n], 10);
+        assert_eq!(noise.depth, 7, "{noise:?}");
+        assert!(noise.sigma < 1e-6, "{noise:?}");
     }
 
     #[test]

@@ -137,8 +137,9 @@ struct Args {
     /// Let the screening follow the samples' noise: estimate how far the samples scatter
     /// across the surface (σ, printed with --verbose) and scale the pull by 2^d no finer than
     /// the depth whose cells are 10 σ wide, so that a high --depth no longer pulls the surface
-    /// onto the noise; exact samples keep 2^--depth. Not with --out-of-core. PoissonRecon:
-    /// none.
+    /// onto the noise; exact samples keep 2^--depth. Not for very sparse clouds (a few
+    /// thousand points), where it can take shape for noise. Not with --out-of-core.
+    /// PoissonRecon: none.
     #[arg(long)]
     screening_follows_noise: bool,
 

@@ -112,8 +112,8 @@ def test_screening_follows_the_samples_noise(ball: tuple[np.ndarray, np.ndarray]
     plain = psr.reconstruct(noisy, normals, depth=8)
     assert plain.sample_noise is None and plain.screening_depth == 8.0
     follows = psr.reconstruct(noisy, normals, depth=8, screening_follows_noise=True)
-    # sigma 0.01 per coordinate reads about 0.007 (a plane through 16 samples takes some)
-    assert follows.sample_noise == pytest.approx(0.007, rel=0.3)
+    # sigma 0.01 per coordinate reads about 0.009 (the median of the cells' residuals)
+    assert follows.sample_noise == pytest.approx(0.009, rel=0.25)
     assert follows.screening_depth < 6.0
     exact = psr.reconstruct(*ball, depth=6, screening_follows_noise=True)
     assert exact.sample_noise == pytest.approx(0.0, abs=1e-3) and exact.screening_depth == 6.0
