@@ -347,8 +347,8 @@ pub unsafe extern "C" fn psr_reconstructor_get_point_weight(
 /// high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
 /// (psr_mesh_screening_depth says which d was used). Not for very sparse clouds (a few
 /// thousand points), where it can take shape for noise. Default false. Not with
-/// psr_reconstruct_out_of_core (PSR_STATUS_INVALID_PARAMETER there). No PoissonRecon, Open3D or
-/// PCL equivalent.
+/// psr_reconstructor_solve_file_out_of_core (PSR_STATUS_INVALID_PARAMETER there). No
+/// PoissonRecon, Open3D or PCL equivalent.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_vertex_normals.
 ///
