@@ -19,7 +19,7 @@
 //! the cells' residuals lies below their RMS).
 
 use crate::grid::{cell_of, cuts_between_cells};
-use crate::normals::jacobi_eigen;
+use crate::normals::{jacobi_eigen, scatter};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -116,19 +116,10 @@ fn quadric_residual(points: &[DVec3]) -> Option<f64> {
     if n < MIN_SAMPLES {
         return None;
     }
-    let mean = points.iter().copied().sum::<DVec3>() / n as f64;
-    let mut covariance = [[0.0; 3]; 3];
-    for p in points {
-        let d = (*p - mean).to_array();
-        for (i, row) in covariance.iter_mut().enumerate() {
-            for (j, entry) in row.iter_mut().enumerate() {
-                *entry += d[i] * d[j] / n as f64;
-            }
-        }
-    }
     // The plane's axes (the two largest eigenvectors) scaled to the points' extent along them,
     // for a well-conditioned system; the height along the normal.
-    let (_, [normal, a, b]) = jacobi_eigen(covariance);
+    let (mean, scatter_matrix) = scatter(points);
+    let (_, [normal, a, b]) = jacobi_eigen(scatter_matrix);
     let extent = points
         .iter()
         .map(|p| (*p - mean).dot(a).abs().max((*p - mean).dot(b).abs()))

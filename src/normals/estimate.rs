@@ -106,18 +106,7 @@ fn fit_plane(
     // Relative to the point itself: the covariance about the mean is the same, with less
     // cancellation far from the origin.
     sheets::offsets_around(i, positions, neighbors, rel);
-    let count = rel.len() as f64;
-    let mean = rel.iter().fold(DVec3::ZERO, |s, &p| s + p) / count;
-    let mut c = [[0.0f64; 3]; 3];
-    for p in rel.iter() {
-        let d = *p - mean;
-        for (a, row) in c.iter_mut().enumerate() {
-            for (b, entry) in row.iter_mut().enumerate().skip(a) {
-                *entry += d[a] * d[b];
-            }
-        }
-    }
-    (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
+    let (_, c) = scatter(rel);
     let (values, vectors) = jacobi_eigen(c);
     let defined = values[2] > 0.0 && values[1] > PLANE_RATIO * values[2];
     if !defined {
@@ -207,6 +196,23 @@ pub(super) fn fill_undefined(
         }
         pending.retain(|&i| !fits[i].defined);
     }
+}
+
+/// The mean of `points` and their scatter matrix about it, Σ (p − mean)(p − mean)ᵀ (the
+/// covariance times their count): the plane fits' input, here and in the noise estimate.
+pub(crate) fn scatter(points: &[DVec3]) -> (DVec3, [[f64; 3]; 3]) {
+    let mean = points.iter().fold(DVec3::ZERO, |s, &p| s + p) / points.len() as f64;
+    let mut c = [[0.0f64; 3]; 3];
+    for p in points {
+        let d = *p - mean;
+        for (a, row) in c.iter_mut().enumerate() {
+            for (b, entry) in row.iter_mut().enumerate().skip(a) {
+                *entry += d[a] * d[b];
+            }
+        }
+    }
+    (c[1][0], c[2][0], c[2][1]) = (c[0][1], c[0][2], c[1][2]);
+    (mean, c)
 }
 
 /// Eigenvalues (ascending) and unit eigenvectors of the symmetric matrix `a`, by cyclic Jacobi

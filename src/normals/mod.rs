@@ -29,7 +29,7 @@ mod neighbors;
 mod orient;
 mod sheets;
 
-pub(crate) use estimate::jacobi_eigen;
+pub(crate) use estimate::{jacobi_eigen, scatter};
 
 use crate::error::{Error, Result};
 use crate::{Progress, Stage, Workers};
