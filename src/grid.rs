@@ -8,6 +8,7 @@
 use glam::DVec3;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::ops::Range;
 
 /// Coordinates are stored shifted by this much so that halo nodes just outside the cube are
 /// representable as unsigned.
@@ -101,6 +102,28 @@ pub fn cell_of(p: DVec3, inv_h: f64) -> [i32; 3] {
     [t.x as i32, t.y as i32, t.z as i32]
 }
 
+/// The runs of consecutive `positions` in one cell of `depth`, in order: each cell with the
+/// range of its points. For points in Morton order at a depth ≥ `depth` each cell has one run.
+pub(crate) fn cell_runs(
+    positions: &[DVec3],
+    depth: u32,
+) -> impl Iterator<Item = ([i32; 3], Range<usize>)> + '_ {
+    let inv_h = (depth as f64).exp2();
+    let mut start = 0;
+    std::iter::from_fn(move || {
+        let first = positions.get(start)?;
+        let cell = cell_of(*first, inv_h);
+        let run = start
+            ..start
+                + positions[start..]
+                    .iter()
+                    .position(|p| cell_of(*p, inv_h) != cell)
+                    .unwrap_or(positions.len() - start);
+        start = run.end;
+        Some((cell, run))
+    })
+}
+
 /// Where to cut `positions` (in Morton order at a depth ≥ `depth`, so that each cell's points
 /// are consecutive) into pieces of about `per_piece` points without splitting a cell of
 /// `depth`: the pieces' bounds, from 0 to the count (a fixed count apart, so the same pieces at
@@ -147,5 +170,29 @@ mod tests {
     #[test]
     fn cells_floor_towards_negative_infinity() {
         assert_eq!(cell_of(DVec3::new(0.5, 0.0, -0.01), 4.0), [2, 0, -1]);
+    }
+
+    #[test]
+    fn cell_runs_cover_the_points_in_order_one_run_per_change_of_cell() {
+        // Depth 1 (cells of width 1/2): a run of two, one of one, then the first cell again
+        // (not consecutive, so its own run), and a last point alone.
+        let points = [
+            DVec3::new(0.1, 0.1, 0.1),
+            DVec3::new(0.4, 0.2, 0.3),
+            DVec3::new(0.6, 0.1, 0.1),
+            DVec3::new(0.2, 0.2, 0.2),
+            DVec3::new(0.9, 0.9, 0.9),
+        ];
+        let runs: Vec<_> = cell_runs(&points, 1).collect();
+        assert_eq!(
+            runs,
+            [
+                ([0, 0, 0], 0..2),
+                ([1, 0, 0], 2..3),
+                ([0, 0, 0], 3..4),
+                ([1, 1, 1], 4..5),
+            ]
+        );
+        assert_eq!(cell_runs(&[], 3).count(), 0);
     }
 }

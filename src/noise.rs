@@ -18,7 +18,7 @@
 //! of a sphere, a torus and a box read 0; Gaussian noise reads 0.7–0.9 of its σ (the median of
 //! the cells' residuals lies below their RMS).
 
-use crate::grid::{cell_of, cuts_between_cells};
+use crate::grid::{cell_runs, cuts_between_cells};
 use crate::normals::{jacobi_eigen, scatter};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -87,22 +87,11 @@ fn median(values: &mut [f64]) -> Option<f64> {
 /// The quadric residual of every cell of `depth` whose samples fix one, in parallel over pieces
 /// cut between cells (the same values at any thread count).
 fn residual_by_cell(positions: &[DVec3], depth: u32) -> Vec<f64> {
-    let inv_h = (depth as f64).exp2();
-    let cell = |s: usize| cell_of(positions[s], inv_h);
     let cuts = cuts_between_cells(positions, depth, 1 << 14);
     cuts.par_windows(2)
         .flat_map_iter(|piece| {
-            let mut out = Vec::new();
-            let mut s = piece[0];
-            while s < piece[1] {
-                let start = s;
-                let here = cell(s);
-                while s < piece[1] && cell(s) == here {
-                    s += 1;
-                }
-                out.extend(quadric_residual(&positions[start..s]));
-            }
-            out.into_iter()
+            let piece = &positions[piece[0]..piece[1]];
+            cell_runs(piece, depth).filter_map(|(_, run)| quadric_residual(&piece[run]))
         })
         .collect()
 }
@@ -187,7 +176,7 @@ fn cholesky_solve(gram: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<[f64; 6]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::morton_nested;
+    use crate::grid::{cell_of, morton_nested};
 
     /// `points` (in the unit cube) in Morton order at depth 16.
     fn sorted(mut points: Vec<DVec3>) -> Vec<DVec3> {

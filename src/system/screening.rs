@@ -4,7 +4,7 @@
 
 use super::bricks::{CoreBricks, WINDOW};
 use crate::bspline::Degree;
-use crate::grid::{cell_of, cuts_between_cells, morton_nested};
+use crate::grid::{cell_runs, cuts_between_cells, morton_nested};
 use crate::octree::{brick_local, Level, NEAR, NONE};
 use crate::parallel::stop_requested;
 use glam::DVec3;
@@ -230,11 +230,8 @@ fn for_each_group(
     proxy_depth: u32,
     mut f: impl FnMut([i32; 3], DVec3, f64),
 ) {
-    let inv_proxy_h = (proxy_depth as f64).exp2();
-    let mut s = 0;
     let mut previous_group = None;
-    while s < positions.len() {
-        let group = cell_of(positions[s], inv_proxy_h);
+    for (group, run) in cell_runs(positions, proxy_depth) {
         // Each group's samples must be consecutive (Morton order at a depth ≥ the proxy
         // depth), or a cell would get several proxies with part of its weight each.
         let key = morton_nested(group.map(|v| v.max(0) as u32));
@@ -242,10 +239,9 @@ fn for_each_group(
         previous_group = Some(key);
         let mut sum_w = 0.0;
         let mut sum_p = DVec3::ZERO;
-        while s < positions.len() && cell_of(positions[s], inv_proxy_h) == group {
+        for s in run {
             sum_w += weights[s];
             sum_p += positions[s] * weights[s];
-            s += 1;
         }
         f(group, sum_p, sum_w);
     }
