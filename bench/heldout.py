@@ -41,6 +41,7 @@ def main() -> int:
     parser.add_argument("--depth", type=int, default=10)
     parser.add_argument("--variants", default="psr,follow,pw0,o3d")
     parser.add_argument("--fraction", type=float, default=0.1, help="the share held out")
+    parser.add_argument("--seed", type=int, default=7, help="picks the points held out")
     parser.add_argument("--psr", default=os.path.join(HERE, "..", "target", "release", "psr"))
     args = parser.parse_args()
 
@@ -53,7 +54,7 @@ def main() -> int:
     if len(points) == 0 or len(normals) != len(points):
         print(f"heldout: {args.cloud} has no points with normals", file=sys.stderr)
         return 1
-    held = np.random.default_rng(7).random(len(points)) < args.fraction
+    held = np.random.default_rng(args.seed).random(len(points)) < args.fraction
     train = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[~held]))
     train.normals = o3d.utility.Vector3dVector(normals[~held])
     work = os.path.join(HERE, "runs", "heldout")
