@@ -65,6 +65,7 @@ fn run_unstructured(u: &mut Unstructured<'_>) -> Result<()> {
     // findings (fuzz/regressions/) still decode to the same cloud and parameters.
     let budgets = [None, Some(0), Some(1 << 16), Some(1 << 22), Some(1 << 30)];
     let params = params.with_max_memory(*u.choose(&budgets).unwrap_or(&None));
+    let params = params.with_screening_follows_noise(u.arbitrary().unwrap_or(false));
     // A complete grid at depth 7 (full depth ≥ 7: 2.1 M unknowns) is legitimate work of seconds
     // (6.7 s on one thread), past a fuzz run's time per input under AddressSanitizer: full
     // grids stop at depth 6 here (deep and full trees are the extreme-input tests' business).
@@ -80,6 +81,20 @@ fn run_unstructured(u: &mut Unstructured<'_>) -> Result<()> {
             mesh.densities.len(),
             mesh.positions.len(),
             "one density per vertex"
+        );
+        let stats = &mesh.stats;
+        if let Some(noise) = stats.sample_noise {
+            assert!(
+                params.screening_follows_noise && noise.is_finite() && noise >= 0.0,
+                "sample noise {noise} (estimated: {})",
+                params.screening_follows_noise
+            );
+        }
+        assert!(
+            stats.screening_depth.is_finite() && stats.screening_depth <= params.depth as f64,
+            "screening depth {} for depth {}",
+            stats.screening_depth,
+            params.depth
         );
         let boundary = assert_oriented_manifold(mesh.positions.len(), &mesh.triangles, "mesh");
         let cube = BoundingCube::of(&positions, params.scale, mesh.stats.depth);
