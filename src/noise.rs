@@ -116,15 +116,19 @@ fn quadric_residual(points: &[DVec3]) -> Option<f64> {
     if extent <= 0.0 {
         return None;
     }
-    let terms = |p: &DVec3| {
-        let d = *p - mean;
-        let (u, v) = (d.dot(b) / extent, d.dot(a) / extent);
-        ([1.0, u, v, u * u, u * v, v * v], d.dot(normal))
-    };
+    // Each point's quadric terms and height, once: the normal equations and the residual
+    // both read them.
+    let rows: Vec<([f64; 6], f64)> = points
+        .iter()
+        .map(|p| {
+            let d = *p - mean;
+            let (u, v) = (d.dot(b) / extent, d.dot(a) / extent);
+            ([1.0, u, v, u * u, u * v, v * v], d.dot(normal))
+        })
+        .collect();
     let mut gram = [[0.0; 6]; 6];
     let mut rhs = [0.0; 6];
-    for p in points {
-        let (phi, w) = terms(p);
+    for (phi, w) in &rows {
         for i in 0..6 {
             rhs[i] += phi[i] * w;
             for j in 0..6 {
@@ -133,10 +137,9 @@ fn quadric_residual(points: &[DVec3]) -> Option<f64> {
         }
     }
     let coefficients = cholesky_solve(gram, rhs)?;
-    let squares: f64 = points
+    let squares: f64 = rows
         .iter()
-        .map(|p| {
-            let (phi, w) = terms(p);
+        .map(|(phi, w)| {
             let fit: f64 = phi.iter().zip(&coefficients).map(|(f, c)| f * c).sum();
             (w - fit) * (w - fit)
         })
