@@ -126,8 +126,8 @@ impl ImplicitFunction {
     /// ∇χ at a point in input coordinates, per input unit (the unit cube's gradient divided by
     /// the cube's size); NaN if a coordinate is NaN or infinite. Outside the bounding cube, the
     /// gradient at the nearest point of the cube with the components zeroed along the axes on
-    /// which the point lies outside (the gradient of χ continued constantly). It points inward:
-    /// the mesh's outward normal is −∇χ/|∇χ|.
+    /// which the point lies outside (the gradient of χ continued constantly). It points outward
+    /// (χ − γ grows from inside to outside): the mesh's outward normal is ∇χ/|∇χ|.
     pub fn gradient(&self, p: [f64; 3]) -> [f64; 3] {
         match self.unit(p) {
             Some((q, outside)) => {
