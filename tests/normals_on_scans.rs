@@ -85,8 +85,10 @@
 //!   points); at k = 8 it is +0.64 points but the distance ratio 1.29. Plain smaller
 //!   neighbourhoods come closest (k = 6: distance ratio 1.17, flipped +1.74 points; k = 8:
 //!   1.20, +2.01), and the oni's lines disagree with the file's everywhere at k = 20 (25 % of
-//!   them more than 25° off), so an adaptive k that follows the curvature against the spacing
-//!   is the remaining lead for the estimation. The criterion is asserted for the oni in an ignored test,
+//!   them more than 25° off). (iii) An adaptive k, each point's plane from the prefix of its
+//!   neighbours (6 to 20 of them) with the least λ₀/Σλ: lines off 363 → 210, but the mouth
+//!   stays flipped (+2.07 points, distance ratio 1.70): propagation across the lip still reads
+//!   "same side". The criterion is asserted for the oni in an ignored test,
 //!   `oni_estimated_normals_keep_the_mouth_open`, that fails until that is solved; the default
 //!   test checks that the mesh is a closed manifold and prints the figures.
 //! * Bunny and kitten: no flipped regions (+0.0007 and −0.0002 points); distance ratios 0.99
