@@ -5,7 +5,7 @@
 
 use crate::attributes;
 use crate::components;
-use crate::density::{self, DensityField};
+use crate::density::{self, DensityField, NormalSums};
 use crate::evaluate::Indicator;
 use crate::extract;
 use crate::implicit::ImplicitFunction;
@@ -222,7 +222,8 @@ pub(crate) fn run(
     })?;
     clock.done(Stage::Points)?;
 
-    // 2. Density: each sample's area and depth(s) (before the octree: they decide its nodes);
+    // 2. Density: each sample's area and depth(s) (before the octree: they decide its nodes;
+    // read finer where the normals under the density's kernel bend, `density::BENT_SPREAD`);
     // and when the screening is to follow the samples' noise, how far they scatter across the
     // surface (its 2^d scale then stops at the depth whose cells are 10 σ wide;
     // `system::screening_depth`).
@@ -230,14 +231,22 @@ pub(crate) fn run(
     let (field, mut sample_density, noise) = clock.watch(Stage::Density, pool, |watch| {
         let field =
             DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
+        let normal_sums = NormalSums::splat(
+            &samples.positions,
+            Some(&samples.confidence),
+            &samples.normals,
+            kernel_depth,
+        );
         watch.step(1, 2, 0.0, 1.0)?;
         let sample_density = density::estimate(
             &field,
+            Some(&normal_sums),
             &samples.positions,
             params.depth,
             params.samples_per_node as f64,
             watch,
         )?;
+        drop(normal_sums);
         let noise = params
             .screening_follows_noise
             .then(|| noise::estimate(&samples.positions, &sample_density.area, params.depth));

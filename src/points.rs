@@ -348,6 +348,18 @@ impl PointSet {
     }
 }
 
+/// `n` scaled to unit length (in f64, rounded to f32), or `None` when it has no length to
+/// scale (zero, or too small to trust: at most 1e-20) or is not finite.
+pub(crate) fn unit_normal(n: [f32; 3]) -> Option<[f32; 3]> {
+    let n64 = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+    let len = n64.length();
+    if !len.is_finite() || len <= 1e-20 {
+        return None;
+    }
+    let u = n64 / len;
+    Some([u.x as f32, u.y as f32, u.z as f32])
+}
+
 /// Checks one batch and returns its normals normalised.
 /// Positions are `f32` or `f64`; an `f64` coordinate must also be finite once rounded to `f32`
 /// (within its range), since the set keeps that rounding too.
@@ -364,13 +376,7 @@ fn validate_batch<T: Copy + Into<f64>>(
         if !n.iter().all(|c| c.is_finite()) {
             return Err(Error::NonFiniteNormal { index });
         }
-        let n64 = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-        let len = n64.length();
-        if len.is_nan() || len <= 1e-20 {
-            return Err(Error::ZeroNormal { index });
-        }
-        let u = n64 / len;
-        unit.push([u.x as f32, u.y as f32, u.z as f32]);
+        unit.push(unit_normal(*n).ok_or(Error::ZeroNormal { index })?);
         if let Some(w) = weights {
             if !(w[index].is_finite() && w[index] >= 0.0) {
                 return Err(Error::InvalidWeight { index });

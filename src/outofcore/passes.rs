@@ -19,19 +19,19 @@ use super::slabs::SlabLayout;
 use super::team::{agreed, agreed_with, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::density::{
-    estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, SampleDensity,
+    estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, NormalSums, SampleDensity,
 };
 use crate::evaluate::Indicator;
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
-use crate::points::{PointSet, Samples};
+use crate::points::{unit_normal, PointSet, Samples};
 use crate::solve::{cascade, Depths, ProxyGroup, Solved, System};
 use crate::system::{
     coarser_divergences, depth_weight, finest_right_hand_side, proxy_depth, right_hand_sides,
     sample_groups, sample_weights_from_totals, FieldCarry,
 };
 use crate::{Params, Result};
-use glam::DVec3;
+use glam::{DVec3, DVec4};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -206,6 +206,7 @@ impl SolvedSlabs {
             layout: &self.layout,
             files: &self.files,
             field: &self.field,
+            normals: None,
             pool,
             watch: Watch::new(),
         }
@@ -323,6 +324,9 @@ struct Run<'a> {
     layout: &'a SlabLayout,
     files: &'a SlabFiles,
     field: &'a DensityField,
+    /// The samples' normals summed at the kernel depth, while the slabs are prepared (pass A;
+    /// `None` after it, when every slab has been).
+    normals: Option<&'a NormalSums>,
     pool: &'a rayon::ThreadPool,
     watch: Watch,
 }
@@ -399,9 +403,15 @@ impl Run<'_> {
             .pool
             .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
         drop(set);
+        let normals = self.normals.ok_or_else(|| {
+            crate::Error::Internal(format!(
+                "slab {k} prepared after the density's normal sums were dropped"
+            ))
+        })?;
         let density = self.pool.install(|| {
             estimate(
                 self.field,
+                Some(normals),
                 &samples.positions,
                 params.depth,
                 params.samples_per_node as f64,
@@ -614,21 +624,22 @@ fn padding_for(asked: u32, wall_depth: u32, kernel_depth: u32) -> u32 {
     asked.max(reach)
 }
 
-/// Slab k's part of the density's kernel counts at `kernel_depth`: the nodes whose centre lies
-/// in its columns, with their counts summed over `unit` (its points and padding, in the unit
-/// cube, in input order) weighed by `confidence`. With a padding of [`padding_for`], these are
-/// the counts of the whole input bit for bit: every point splatting onto such a node is among
-/// the slab's, and it adds in the input's order.
+/// The nodes of the density's kernel depth that slab k owns (their centres in its columns),
+/// each with its count and its sum of the points' unit `normals` ([`NormalSums`]), summed
+/// over `unit` (the slab's points and padding, in the unit cube, in input order) weighed by
+/// `confidence`. With a padding of [`padding_for`], these are the whole input's bit for bit:
+/// every point splatting onto such a node is among the slab's, and it adds in the input's
+/// order.
 fn own_kernel_nodes(
     unit: &[DVec3],
     confidence: &[f64],
+    normals: &[[f32; 3]],
     layout: &SlabLayout,
     k: usize,
     kernel_depth: u32,
-) -> Vec<(u64, f64)> {
-    let mut counts = KernelCounts::new(kernel_depth);
-    counts.add(unit, Some(confidence));
-    counts.sorted_nodes_where(|x| layout.slab_of_column(layout.column_of(x)) == k)
+) -> Vec<(u64, DVec4)> {
+    let sums = NormalSums::splat(unit, Some(confidence), normals, kernel_depth);
+    sums.sorted_nodes_where(|x| layout.slab_of_column(layout.column_of(x)) == k)
 }
 
 /// The slabs' files: each slab's binned points (one file per part of the input, in part order)
@@ -759,6 +770,7 @@ fn cut(
     // is in its columns) over its points and padding in input order: each node's sum is then
     // the single process's, whatever the parts and the members.
     let mut kernel_counts = KernelCounts::new(kernel_depth);
+    let mut normal_sums = NormalSums::new(kernel_depth);
     rounds(
         team,
         slabs,
@@ -772,18 +784,33 @@ fn cut(
                 .map(|r| scan.map.to_unit_f64(r.position))
                 .collect();
             let confidence: Vec<f64> = records.iter().map(|r| r.confidence as f64).collect();
+            // As the point set makes them (a normal it would refuse adds nothing here; the
+            // slab's preparation refuses it).
+            let normals: Vec<[f32; 3]> = records
+                .iter()
+                .map(|r| unit_normal(r.normal).unwrap_or([0.0; 3]))
+                .collect();
             drop(records);
-            let nodes = own_kernel_nodes(&unit, &confidence, &layout, k, kernel_depth);
+            let sums = own_kernel_nodes(&unit, &confidence, &normals, &layout, k, kernel_depth);
             let mut p = Packer::default();
-            p.u64s(&nodes.iter().map(|n| n.0).collect::<Vec<_>>());
-            p.f64s(&nodes.iter().map(|n| n.1).collect::<Vec<_>>());
+            p.u64s(&sums.iter().map(|n| n.0).collect::<Vec<_>>());
+            p.f64s(&sums.iter().flat_map(|n| n.1.to_array()).collect::<Vec<_>>());
             Ok(p.bytes)
         },
         |_, bytes| {
+            // Each node's count and normal sum; the counts are the field's.
             let mut u = Unpacker::new(bytes);
             let keys = u.u64s()?;
-            let values = u.f64s()?;
-            kernel_counts.insert(keys.into_iter().zip(values));
+            let sums = u.f64s()?;
+            if sums.len() != 4 * keys.len() {
+                return Err(crate::Error::Internal(
+                    "a slab's normal sums do not match their nodes".into(),
+                )
+                .into());
+            }
+            let sums: Vec<DVec4> = sums.chunks_exact(4).map(DVec4::from_slice).collect();
+            kernel_counts.insert(keys.iter().zip(&sums).map(|(&key, sum)| (key, sum.x)));
+            normal_sums.insert(keys.into_iter().zip(sums));
             Ok(())
         },
     )?;
@@ -794,6 +821,7 @@ fn cut(
         layout: &layout,
         files: &files,
         field: &field,
+        normals: Some(&normal_sums),
         pool,
         watch: Watch::new(),
     };
@@ -964,6 +992,7 @@ pub(crate) fn solve_slabs(
         layout: &layout,
         files: &files,
         field: &field,
+        normals: None,
         pool,
         watch: Watch::new(),
     };
@@ -1299,7 +1328,7 @@ mod tests {
     use super::{
         grade_padding, own_kernel_nodes, pack_sparse, padding_for, read_prepared, slabs_within,
         surface_by_column, unpack_sparse, write_prepared, DensityField, DepthSample, KernelCounts,
-        SampleDensity, Samples, SlabLayout,
+        NormalSums, SampleDensity, Samples, SlabLayout,
     };
     use crate::Params;
     use glam::DVec3;
@@ -1414,6 +1443,10 @@ mod tests {
             .map(|p| p + DVec3::new(0.05 * (p.y * 40.0).sin(), 0.0, 0.0))
             .collect();
         let confidence: Vec<f64> = (0..points.len()).map(|i| 0.5 + (i % 7) as f64).collect();
+        let normals: Vec<[f32; 3]> = points
+            .iter()
+            .map(|p| (*p - DVec3::splat(0.5)).normalize().as_vec3().to_array())
+            .collect();
         let wall_depth = 6;
         let field_of_slabs = |kernel_depth: u32, padding: u32| {
             let columns = SlabLayout::balanced(&vec![0; 1 << wall_depth], wall_depth, 1, 0);
@@ -1424,35 +1457,50 @@ mod tests {
             let layout = SlabLayout::balanced(&counts, wall_depth, 5, padding);
             assert_eq!(layout.len(), 5);
             let mut merged = KernelCounts::new(kernel_depth);
+            let mut merged_sums = NormalSums::new(kernel_depth);
             for k in 0..layout.len() {
-                let (unit, weights): (Vec<DVec3>, Vec<f64>) = points
-                    .iter()
-                    .zip(&confidence)
-                    .filter(|(p, _)| layout.slabs_reading(layout.column_of(p.x)).contains(&k))
-                    .map(|(p, c)| (*p, *c))
-                    .unzip();
-                merged.insert(own_kernel_nodes(&unit, &weights, &layout, k, kernel_depth));
+                let read: Vec<usize> = (0..points.len())
+                    .filter(|&i| {
+                        layout
+                            .slabs_reading(layout.column_of(points[i].x))
+                            .contains(&k)
+                    })
+                    .collect();
+                let unit: Vec<DVec3> = read.iter().map(|&i| points[i]).collect();
+                let weights: Vec<f64> = read.iter().map(|&i| confidence[i]).collect();
+                let slab_normals: Vec<[f32; 3]> = read.iter().map(|&i| normals[i]).collect();
+                let nodes =
+                    own_kernel_nodes(&unit, &weights, &slab_normals, &layout, k, kernel_depth);
+                merged.insert(nodes.iter().map(|&(key, sum)| (key, sum.x)));
+                merged_sums.insert(nodes);
             }
-            merged.into_field()
+            (merged.into_field(), merged_sums)
         };
         let probes: Vec<DVec3> = points.iter().step_by(97).copied().collect();
-        let same = |a: &DensityField, b: &DensityField| {
-            (0..=a.depth).all(|d| {
-                probes
-                    .iter()
-                    .all(|&q| a.evaluate_at(d, q).to_bits() == b.evaluate_at(d, q).to_bits())
-            }) && a.kernel_node_x().count() == b.kernel_node_x().count()
-        };
+        let same =
+            |(a, a_sums): &(DensityField, NormalSums), b: &DensityField, b_sums: &NormalSums| {
+                (0..=a.depth).all(|d| {
+                    probes
+                        .iter()
+                        .all(|&q| a.evaluate_at(d, q).to_bits() == b.evaluate_at(d, q).to_bits())
+                }) && a.kernel_node_x().count() == b.kernel_node_x().count()
+                    && probes.iter().all(|&q| {
+                        let (x, y) = (a_sums.density_and_spread(q), b_sums.density_and_spread(q));
+                        x.0.to_bits() == y.0.to_bits() && x.1.to_bits() == y.1.to_bits()
+                    })
+            };
         for kernel_depth in [8, 6, 5, 2] {
             let whole = DensityField::splat(&points, Some(&confidence), kernel_depth);
+            let whole_sums = NormalSums::splat(&points, Some(&confidence), &normals, kernel_depth);
             let padding = padding_for(2, wall_depth, kernel_depth);
             assert!(
-                same(&field_of_slabs(kernel_depth, padding), &whole),
+                same(&field_of_slabs(kernel_depth, padding), &whole, &whole_sums),
                 "kernel depth {kernel_depth}, padding {padding}"
             );
         }
         let whole = DensityField::splat(&points, Some(&confidence), 2);
-        assert!(!same(&field_of_slabs(2, 2), &whole));
+        let whole_sums = NormalSums::splat(&points, Some(&confidence), &normals, 2);
+        assert!(!same(&field_of_slabs(2, 2), &whole, &whole_sums));
     }
 
     /// Proves the surface's measure counts every node of the kernel depth once, in the columns

@@ -3,7 +3,7 @@
 use super::base::{coarse_cores, BaseParts};
 use super::slabs::SlabLayout;
 use crate::bspline::Degree;
-use crate::density::{estimate, samples_by_depth, DensityField};
+use crate::density::{estimate, samples_by_depth, DensityField, NormalSums};
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
 use crate::solve::Solved;
@@ -59,7 +59,7 @@ fn the_core_sets_of_the_cloud_are_the_union_of_its_slabs() {
     let positions = cloud();
     let watch = Watch::new();
     let field = DensityField::splat(&positions, None, 7);
-    let density = estimate(&field, &positions, 9, 1.5, &watch).expect("not cancelled");
+    let density = estimate(&field, None, &positions, 9, 1.5, &watch).expect("not cancelled");
     let confidence = vec![1.0; positions.len()];
     let unlimited = |_: &[u64]| Ok(());
     for boundary in [Boundary::Free, Boundary::Neumann, Boundary::Dirichlet] {
@@ -170,8 +170,21 @@ fn bumpy_sphere(params: &crate::Params) -> Cloud {
     let samples = Samples::in_morton_order(&points, &map, params.depth).expect("fits");
     let watch = Watch::new();
     let field = DensityField::splat(&samples.positions, Some(&samples.confidence), 6);
-    let mut density =
-        estimate(&field, &samples.positions, params.depth, 1.5, &watch).expect("not cancelled");
+    let normals = NormalSums::splat(
+        &samples.positions,
+        Some(&samples.confidence),
+        &samples.normals,
+        6,
+    );
+    let mut density = estimate(
+        &field,
+        Some(&normals),
+        &samples.positions,
+        params.depth,
+        1.5,
+        &watch,
+    )
+    .expect("not cancelled");
     let at_depth = samples_by_depth(
         &mut density,
         &samples.confidence,
@@ -444,7 +457,7 @@ fn a_slabs_tree_with_its_padding_is_the_whole_tree_over_its_columns() {
     let positions = cloud();
     let watch = Watch::new();
     let field = DensityField::splat(&positions, None, 7);
-    let mut density = estimate(&field, &positions, 9, 1.5, &watch).expect("not cancelled");
+    let mut density = estimate(&field, None, &positions, 9, 1.5, &watch).expect("not cancelled");
     let confidence = vec![1.0; positions.len()];
     let unlimited = |_: &[u64]| Ok(());
     let boundary = Boundary::Neumann;
