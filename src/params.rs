@@ -134,7 +134,9 @@ pub struct Params {
     /// compares the density estimate W itself, which a surface with n samples per node area
     /// reads as about 0.6·n, where PoissonRecon divides that factor out, so the same value puts
     /// psr's samples about a third of a depth coarser (what keeps exact samples of sharp shapes
-    /// free of bumps; measured in `docs/benchmarks.md`).
+    /// free of bumps; measured in `docs/benchmarks.md`), except where the surface bends under
+    /// the density's kernel, where psr reads it as PoissonRecon does, up to the next whole
+    /// depth.
     pub samples_per_node: f32,
     /// The bounding cube is the points' bounding box enlarged by this factor. Default 1.1, range
     /// [1, 100]. PoissonRecon `--scale`, Open3D `scale`, PCL `setScale`.

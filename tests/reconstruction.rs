@@ -207,7 +207,9 @@ const SPHERE_DEPTH8_CHAMFER_BOUND: f64 = 3.0e-5;
 /// sample spacing: measured then, Chamfer (sum of the means, input units) 1.58e-4, 2.10e-4 and
 /// 2.46e-4 at depths 8, 10, 11 against 5.49e-4, 3.00e-4, 1.89e-4 unscreened (worse than
 /// unscreened at depth 11). Reading the density at coarser depths until a node holds the target
-/// count (`density::estimate`) measures 1.58e-4, 1.07e-4, 9.5e-5 at depths 8, 10, 11.
+/// count (`density::estimate`) measures 1.58e-4, 1.07e-4, 9.5e-5 at depths 8, 10, 11, and
+/// reading it as PoissonRecon does where the normals bend under the kernel (its edges;
+/// `density::BENT_SPREAD`) 1.47e-4, 1.06e-4, 9.5e-5 (`bench/bumps.py`'s cube).
 #[test]
 fn faceted_solid_does_not_get_bumps_as_depth_grows_past_its_sampling() {
     let half = [0.8; 3];

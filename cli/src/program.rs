@@ -115,7 +115,8 @@ struct Args {
 
     /// Target number of samples per octree node (1..=1e6); higher is smoother for noisy data.
     /// PoissonRecon: --samplesPerNode (psr's count reads about 0.6 of PoissonRecon's, so the
-    /// same value is about a third of a depth coarser).
+    /// same value is about a third of a depth coarser, except where the surface bends under
+    /// the density's kernel: there psr reads it as PoissonRecon does).
     #[arg(long, alias = "samplesPerNode", value_name = "N", default_value_t = Params::default().samples_per_node)]
     samples_per_node: f32,
 

@@ -226,7 +226,8 @@ pub unsafe extern "C" fn psr_reconstructor_get_kernel_depth(
 /// Sets the target number of samples per octree node: sparser samples are splatted at coarser
 /// depths, which smooths noisy input. Default 1.5, range 1 to 1e6.
 /// PoissonRecon --samplesPerNode, PCL setSamplesPerNode (psr's count reads about 0.6 of
-/// PoissonRecon's, so the same value is about a third of a depth coarser).
+/// PoissonRecon's, so the same value is about a third of a depth coarser, except where the
+/// surface bends under the density's kernel: there psr reads it as PoissonRecon does).
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth (NaN and infinities
 /// give PSR_STATUS_INVALID_PARAMETER).
