@@ -393,7 +393,9 @@ impl KernelCounts {
 /// same order) and N(q) = Σ_o N_o B_o(q). |N(q)| ≤ W(q), equal where every sample near q faces
 /// the same way, and 1 − |N|/W measures how far the normals under the kernel turn
 /// ([`BENT_SPREAD`]). Needed only while the samples' depths are read ([`estimate`]), then
-/// dropped. Gathered in parts like [`KernelCounts`], for the out-of-core path.
+/// dropped: a transient of the density stage, outside the memory accounting, which measured
+/// well below the later stages' peak (docs/benchmarks.md). Gathered in parts like
+/// [`KernelCounts`], for the out-of-core path.
 pub(crate) struct NormalSums {
     depth: u32,
     sums: Bricks<DVec4>,
