@@ -85,6 +85,12 @@ impl DensityField {
         self.levels.iter().map(BrickCounts::slots).sum()
     }
 
+    /// The node slots of the kernel depth's bricks alone (those of [`NormalSums`] over the same
+    /// samples).
+    pub(crate) fn kernel_slots(&self) -> usize {
+        self.levels[self.depth as usize].slots()
+    }
+
     /// The x index of every node of the kernel depth's counts (one entry a node, in no
     /// particular order): where the samples' surface lies across x, at the kernel depth's
     /// resolution (the out-of-core path's slab accounting measures each slab's share of the
@@ -393,8 +399,8 @@ impl KernelCounts {
 /// same order) and N(q) = Σ_o N_o B_o(q). |N(q)| ≤ W(q), equal where every sample near q faces
 /// the same way, and 1 − |N|/W measures how far the normals under the kernel turn
 /// ([`BENT_SPREAD`]). Needed only while the samples' depths are read ([`estimate`]), then
-/// dropped: a transient of the density stage, outside the memory accounting, which measured
-/// well below the later stages' peak (docs/benchmarks.md). Gathered in parts like
+/// dropped: a transient of the density stage, checked against the memory budget once the
+/// field's slots are known (`memory::Footprint::reading_density`). Gathered in parts like
 /// [`KernelCounts`], for the out-of-core path.
 pub(crate) struct NormalSums {
     depth: u32,

@@ -231,6 +231,16 @@ pub(crate) fn run(
     let (field, mut sample_density, noise) = clock.watch(Stage::Density, pool, |watch| {
         let field =
             DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
+        budget.check(
+            "the density field and the samples' normals summed beside it",
+            Footprint::reading_density(
+                point_count,
+                attribute_width,
+                field.slots() as u64,
+                field.kernel_slots() as u64,
+            )
+            .peak(),
+        )?;
         let normal_sums = NormalSums::splat(
             &samples.positions,
             Some(&samples.confidence),
