@@ -540,12 +540,12 @@ pub fn quantiles(values: &[f64]) -> Vec<f32> {
 /// s faces one way, 1 − sin θ / θ for normals spread evenly over an arc of ±θ, so 0.02 is a
 /// bend of about ±20° under the kernel (its B-spline weights fall off within about a node of
 /// the sample). Measured (docs/benchmarks.md, issue 16, 2026-12-05), with 0.01, 0.02, 0.05
-/// and 0.1: the smaller, the closer the sparse shared clouds come to their held-out points at
-/// depths 6–7 and the exact cube to its truth, with no change to the meshes of exact or noisy
-/// spheres and tori (their normals turn less than that under the kernel at depths 8–12) and
-/// none that matters to the bunny's or the Buddha's; with no threshold at all (every sample
-/// read finer) the noisy sphere and torus lose 2–6 % at depth 8, so the bend, not the count,
-/// decides.
+/// and 0.1: 0.02 and 0.01 bring the sparse shared clouds closest to their held-out points at
+/// depths 6–7 and the exact cube to its truth, 0.05 and 0.1 less; at 0.02 the exact spheres
+/// and tori keep every figure at depths 8–12 and the noisy ones move by less than 0.1 % (their
+/// normals turn less than that under the kernel), the bunny and the Buddha by as little; with
+/// no threshold at all (every sample read finer) the noisy sphere and torus lose 2–6 % at
+/// depth 8, so the bend, not the count, decides.
 pub(crate) const BENT_SPREAD: f64 = 0.02;
 
 /// Evaluates W at every sample and derives its area and depth.
@@ -570,8 +570,10 @@ pub(crate) const BENT_SPREAD: f64 = 0.02;
 /// Where the surface bends under the kernel, the coarser splat's sag across the bend is the
 /// larger error; where it is flat, the finer splat only follows the chance fluctuations of
 /// the samples (the bumps of issue 16). Measured: the exact cube's distance to its truth and
-/// its normals improve at depths 8–11, the oni and the kitten at depths 6–9 come closer to
-/// their held-out points than Open3D, the bunny's and the Buddha's trees are unchanged.
+/// its normals improve at depths 8–11; the kitten at depths 6–9 comes closer to its held-out
+/// points than Open3D, and the oni on one draw of the held-out points at depths 6–9, within
+/// 6 % of it on two others at depths 6–7 (it was 18–35 % behind); the bunny's and the
+/// Buddha's trees are unchanged.
 pub fn estimate(
     field: &DensityField,
     normals: Option<&NormalSums>,
