@@ -939,8 +939,8 @@ psr_status psr_reconstructor_get_point_weight(const psr_reconstructor *r, float 
  * the samples scatter across the surface (sigma, psr_mesh_sample_noise) and scales the
  * screening weight by 2^d no finer than the depth whose cells are 10 sigma wide, so that a
  * high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
- * (psr_mesh_screening_depth says which d was used). Not for very sparse clouds (a few
- * thousand points), where it can take shape for noise. Default false. Not with
+ * (psr_mesh_screening_depth says which d was used); so do clouds too sparse for the
+ * estimate to resolve the surface (it reads no noise there). Default false. Not with
  * psr_reconstructor_solve_file_out_of_core (PSR_STATUS_INVALID_PARAMETER there). No
  * PoissonRecon, Open3D or PCL equivalent.
  *

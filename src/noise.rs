@@ -17,6 +17,17 @@
 //! the shape's part at least doubles. Measured (`docs/benchmarks.md`, issue 16): exact samples
 //! of a sphere, a torus and a box read 0; Gaussian noise reads 0.7–0.9 of its σ (the median of
 //! the cells' residuals lies below their RMS).
+//!
+//! That reading needs cells that resolve the surface, so that what the quadric leaves is noise
+//! and the shape's part grows from one width to the next. Where the samples are so sparse that
+//! a cell of [`SAMPLES_PER_CELL`] of them spans a bend of the shape (CGAL's oni: 1,435 points,
+//! cells an eighth of the cube wide), the quadric leaves shape at both widths, that part no
+//! longer grows, and 2·r₁² − r₂² reads it as noise. What tells the two apart is whether the
+//! quadric's residual has structure: in each wider cell a cubic (four more terms) is fitted
+//! too, and F = (what the cubic explains more, per term) / (what it leaves, per degree of
+//! freedom) is about 1 where the residual is noise (an F(4, n − 10) deviate) and large where it
+//! is shape. When the wider cells' median F exceeds [`SHAPE_F`], the residuals are taken for
+//! shape and the estimate is 0 (the screening is left at 2^D).
 
 use crate::grid::{cell_runs, cuts_between_cells};
 use crate::normals::{jacobi_eigen, scatter};
@@ -31,6 +42,18 @@ pub(crate) const SAMPLES_PER_CELL: f64 = 16.0;
 /// six coefficients).
 pub(crate) const MIN_SAMPLES: usize = 10;
 
+/// The wider cells' median F (see the module documentation) above which their quadrics'
+/// residuals are shape, not noise: about the 95th percentile of F(4, 50), so that a cell of
+/// about 60 samples whose residual is noise exceeds it once in twenty and the median of such
+/// cells lies far below it (an F(4, ν) deviate's median is about 0.84). Measured (issue 16,
+/// docs/benchmarks.md): 0.87–1.01 on spheres and tori with Gaussian noise of σ 0.001–0.01,
+/// 0.93 and 0.83 on the bunny's and the Buddha's laser scans; 3.8 on the lion, 11 on the oni,
+/// 31 on the kitten.
+pub(crate) const SHAPE_F: f64 = 2.6;
+
+/// The terms of the cubic height field fitted beside the quadric in the wider cells.
+const CUBIC_TERMS: usize = 10;
+
 /// The samples' positional noise as [`estimate`] measured it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct SampleNoise {
@@ -38,9 +61,12 @@ pub(crate) struct SampleNoise {
     pub(crate) depth: u32,
     /// The cells at that depth that counted.
     pub(crate) cells: usize,
+    /// The median, over the cells of the next coarser depth, of how much more of the heights a
+    /// cubic explains than noise would let it (F); above [`SHAPE_F`] the estimate is 0.
+    pub(crate) shape_f: f64,
     /// The noise σ, in the unit cube's units: 0 for samples that lie on a smooth surface, where
-    /// the residual grows with the cells (detail, or a shape the cells do not resolve), and
-    /// when too few cells hold enough samples to tell.
+    /// the residual grows with the cells (detail), where most cells span bends of the shape
+    /// (too few samples to resolve it), and when too few cells hold enough samples to tell.
     pub(crate) sigma: f64,
 }
 
@@ -56,20 +82,31 @@ pub(crate) fn estimate(positions: &[DVec3], areas: &[f64], max_depth: u32) -> Sa
     let depth = (-cell_width.log2())
         .round()
         .clamp(2.0, max_depth.max(2) as f64) as u32;
-    let mut fine = residual_by_cell(positions, depth);
-    let mut coarse = residual_by_cell(positions, depth - 1);
+    let fine = fit_by_cell(positions, depth, false);
+    let coarse = fit_by_cell(positions, depth - 1, true);
     let cells = fine.len();
-    let (Some(r1), Some(r2)) = (median(&mut fine), median(&mut coarse)) else {
+    let mut cubic_f: Vec<f64> = coarse.iter().filter_map(|fit| fit.cubic_f).collect();
+    let mut fine: Vec<f64> = fine.iter().map(|fit| fit.residual).collect();
+    let mut coarse: Vec<f64> = coarse.iter().map(|fit| fit.residual).collect();
+    let (Some(r1), Some(r2), Some(shape_f)) =
+        (median(&mut fine), median(&mut coarse), median(&mut cubic_f))
+    else {
         return SampleNoise {
             depth,
             cells,
-            sigma: 0.0,
+            ..SampleNoise::default()
         };
+    };
+    let sigma = if shape_f <= SHAPE_F {
+        (2.0 * r1 * r1 - r2 * r2).max(0.0).sqrt()
+    } else {
+        0.0
     };
     SampleNoise {
         depth,
         cells,
-        sigma: (2.0 * r1 * r1 - r2 * r2).max(0.0).sqrt(),
+        shape_f,
+        sigma,
     }
 }
 
@@ -84,23 +121,35 @@ fn median(values: &mut [f64]) -> Option<f64> {
     Some(value)
 }
 
-/// The quadric residual of every cell of `depth` whose samples fix one, in parallel over pieces
-/// cut between cells (the same values at any thread count).
-fn residual_by_cell(positions: &[DVec3], depth: u32) -> Vec<f64> {
+/// A cell's quadric ([`quadric_fit`]).
+#[derive(Debug, Clone, Copy)]
+struct QuadricFit {
+    /// The samples' RMS distance from it, unbiased for its six coefficients.
+    residual: f64,
+    /// How much more of the heights a cubic explains than noise would let it (the F statistic
+    /// of the cubic's four more terms); `None` when not asked for or for too few samples.
+    cubic_f: Option<f64>,
+}
+
+/// The quadric of every cell of `depth` whose samples fix one, and with `cubic` its F against
+/// a cubic, in parallel over pieces cut between cells (the same values at any thread count).
+fn fit_by_cell(positions: &[DVec3], depth: u32, cubic: bool) -> Vec<QuadricFit> {
     let cuts = cuts_between_cells(positions, depth, 1 << 14);
     cuts.par_windows(2)
         .flat_map_iter(|piece| {
             let piece = &positions[piece[0]..piece[1]];
-            cell_runs(piece, depth).filter_map(|(_, run)| quadric_residual(&piece[run]))
+            cell_runs(piece, depth).filter_map(|(_, run)| quadric_fit(&piece[run], cubic))
         })
         .collect()
 }
 
-/// The RMS residual of `points` from their least-squares quadric height field over their plane
-/// (w = a + b·u + c·v + d·u² + e·u·v + f·v² in the frame of their covariance's eigenvectors),
-/// unbiased (squares over n − 6); `None` for fewer than [`MIN_SAMPLES`] points or points that
-/// cannot fix a quadric (all on one or two lines, as across the scan lines of a range scan).
-fn quadric_residual(points: &[DVec3]) -> Option<f64> {
+/// The least-squares quadric height field of `points` over their plane (w = a + b·u + c·v +
+/// d·u² + e·u·v + f·v² in the frame of their covariance's eigenvectors): the RMS residual,
+/// unbiased (squares over n − 6), and with `cubic` the F of a cubic's four more terms when
+/// there are more than 14 points and they fix a cubic; `None` for fewer than [`MIN_SAMPLES`]
+/// points or points that cannot fix a quadric (all on one or two lines, as across the scan
+/// lines of a range scan).
+fn quadric_fit(points: &[DVec3], cubic: bool) -> Option<QuadricFit> {
     let n = points.len();
     if n < MIN_SAMPLES {
         return None;
@@ -116,43 +165,80 @@ fn quadric_residual(points: &[DVec3]) -> Option<f64> {
     if extent <= 0.0 {
         return None;
     }
-    // Each point's quadric terms and height, once: the normal equations and the residual
-    // both read them.
-    let rows: Vec<([f64; 6], f64)> = points
+    // Each point's cubic terms (the quadric's six first) and height, once: both fits read them.
+    let rows: Vec<([f64; CUBIC_TERMS], f64)> = points
         .iter()
         .map(|p| {
             let d = *p - mean;
             let (u, v) = (d.dot(b) / extent, d.dot(a) / extent);
-            ([1.0, u, v, u * u, u * v, v * v], d.dot(normal))
+            let terms = [
+                1.0,
+                u,
+                v,
+                u * u,
+                u * v,
+                v * v,
+                u * u * u,
+                u * u * v,
+                u * v * v,
+                v * v * v,
+            ];
+            (terms, d.dot(normal))
         })
         .collect();
-    let mut gram = [[0.0; 6]; 6];
-    let mut rhs = [0.0; 6];
-    for (phi, w) in &rows {
-        for i in 0..6 {
+    let quadric: Vec<([f64; 6], f64)> = rows
+        .iter()
+        .map(|(terms, w)| (std::array::from_fn(|i| terms[i]), *w))
+        .collect();
+    let quadric_squares = least_squares(&quadric)?;
+    let cubic_f = (cubic && n > CUBIC_TERMS + 4)
+        .then(|| least_squares(&rows))
+        .flatten()
+        .map(|cubic_squares| {
+            let explained = (quadric_squares - cubic_squares).max(0.0) / (CUBIC_TERMS - 6) as f64;
+            let left = cubic_squares / (n - CUBIC_TERMS) as f64;
+            match (explained > 0.0, left > 0.0) {
+                (_, true) => explained / left,
+                (true, false) => f64::INFINITY,
+                (false, false) => 0.0,
+            }
+        });
+    Some(QuadricFit {
+        residual: (quadric_squares / (n - 6) as f64).sqrt(),
+        cubic_f,
+    })
+}
+
+/// The least-squares fit of the heights by the terms of `rows`: the sum of the squared
+/// residuals; `None` when the points do not fix the terms.
+fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<f64> {
+    let mut gram = [[0.0; K]; K];
+    let mut rhs = [0.0; K];
+    for (phi, w) in rows {
+        for i in 0..K {
             rhs[i] += phi[i] * w;
-            for j in 0..6 {
+            for j in 0..K {
                 gram[i][j] += phi[i] * phi[j];
             }
         }
     }
     let coefficients = cholesky_solve(gram, rhs)?;
-    let squares: f64 = rows
-        .iter()
-        .map(|(phi, w)| {
-            let fit: f64 = phi.iter().zip(&coefficients).map(|(f, c)| f * c).sum();
-            (w - fit) * (w - fit)
-        })
-        .sum();
-    Some((squares / (n - 6) as f64).sqrt())
+    Some(
+        rows.iter()
+            .map(|(phi, w)| {
+                let fit: f64 = phi.iter().zip(&coefficients).map(|(f, c)| f * c).sum();
+                (w - fit) * (w - fit)
+            })
+            .sum(),
+    )
 }
 
 /// x with `gram`·x = `rhs` for a symmetric positive definite `gram`, by Cholesky; `None` when a
 /// pivot falls below 1e-9 of the largest diagonal entry (the points do not fix the terms).
-fn cholesky_solve(gram: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<[f64; 6]> {
-    let largest = (0..6).map(|i| gram[i][i]).fold(0.0, f64::max);
-    let mut l = [[0.0; 6]; 6];
-    for i in 0..6 {
+fn cholesky_solve<const K: usize>(gram: [[f64; K]; K], rhs: [f64; K]) -> Option<[f64; K]> {
+    let largest = (0..K).map(|i| gram[i][i]).fold(0.0, f64::max);
+    let mut l = [[0.0; K]; K];
+    for i in 0..K {
         for j in 0..=i {
             let sum = gram[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
             if i == j {
@@ -165,13 +251,13 @@ fn cholesky_solve(gram: [[f64; 6]; 6], rhs: [f64; 6]) -> Option<[f64; 6]> {
             }
         }
     }
-    let mut y = [0.0; 6];
-    for i in 0..6 {
+    let mut y = [0.0; K];
+    for i in 0..K {
         y[i] = (rhs[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
     }
-    let mut x = [0.0; 6];
-    for i in (0..6).rev() {
-        x[i] = (y[i] - (i + 1..6).map(|k| l[k][i] * x[k]).sum::<f64>()) / l[i][i];
+    let mut x = [0.0; K];
+    for i in (0..K).rev() {
+        x[i] = (y[i] - (i + 1..K).map(|k| l[k][i] * x[k]).sum::<f64>()) / l[i][i];
     }
     Some(x)
 }
@@ -262,6 +348,33 @@ mod tests {
         let noise = estimate(&sorted(points), &vec![area; n * n], 10);
         assert_eq!(noise.depth, 7, "{noise:?}");
         assert!(noise.sigma < 1e-6, "{noise:?}");
+    }
+
+    #[test]
+    fn a_cubic_tells_noise_from_shape() {
+        // Noise: what the quadric leaves is an F(4, n − 10) deviate's worth for the cubic, a
+        // median about 0.84 (cells of about 60 samples).
+        let (points, areas) = sphere(100_000, 0.45, 1e-3);
+        let noise = estimate(&points, &areas, 10);
+        assert!(noise.shape_f > 0.5 && noise.shape_f < 1.5, "{noise:?}");
+        assert!(noise.sigma > 0.0, "{noise:?}");
+        // Shape: 1,500 exact samples of a sphere rippled by 4 % of its radius, a cell of 16
+        // of them spanning about half a ripple; the cubic follows much of what the quadric
+        // leaves.
+        let mut normal = Normal(11);
+        let points: Vec<DVec3> = (0..1_500)
+            .map(|_| {
+                let d = DVec3::new(normal.next(), normal.next(), normal.next()).normalize();
+                let ripple = 1.0 + 0.04 * (8.0 * d.x).sin() * (8.0 * d.y).sin() * (8.0 * d.z).cos();
+                DVec3::splat(0.5) + d * 0.4 * ripple
+            })
+            .collect();
+        let area = 4.0 * std::f64::consts::PI * 0.16 / 1_500.0;
+        let noise = estimate(&sorted(points), &vec![area; 1_500], 8);
+        assert!(
+            noise.shape_f > 2.0 * SHAPE_F && noise.sigma == 0.0,
+            "{noise:?}"
+        );
     }
 
     #[test]

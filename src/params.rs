@@ -158,10 +158,11 @@ pub struct Params {
     /// longer pulls the surface onto the noise. Exact samples keep 2^depth. On noisy clouds it
     /// keeps the surface as close to the truth at depth 11 as at 8 (the default's distance
     /// grows by 60 %), and on the shared laser scans the surface comes 1–8 % closer to samples
-    /// held out of the reconstruction (docs/benchmarks.md, issue 16). Not for very sparse
-    /// clouds (the 1,435-point oni: 52 % farther), where cells holding enough samples to tell
-    /// are too coarse to tell shape from noise. Default `false` (the scale of SPSR and
-    /// PoissonRecon); not yet available out of core. No PoissonRecon, Open3D or PCL
+    /// held out of the reconstruction (docs/benchmarks.md, issue 16). Clouds so sparse that
+    /// the cells holding enough samples to measure are too coarse to resolve the surface (the
+    /// 1,435-point oni) read no noise, since what the cells' quadrics leave there has shape a
+    /// cubic explains, and keep 2^depth. Default `false` (the scale of SPSR and PoissonRecon);
+    /// not yet available out of core. No PoissonRecon, Open3D or PCL
     /// equivalent.
     pub screening_follows_noise: bool,
     /// Degree of the B-spline node functions: 2 (default; support 3 cells, continuous ∇χ) or 1

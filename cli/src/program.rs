@@ -138,8 +138,8 @@ struct Args {
     /// Let the screening follow the samples' noise: estimate how far the samples scatter
     /// across the surface (σ, printed with --verbose) and scale the pull by 2^d no finer than
     /// the depth whose cells are 10 σ wide, so that a high --depth no longer pulls the surface
-    /// onto the noise; exact samples keep 2^--depth. Not for very sparse clouds (a few
-    /// thousand points), where it can take shape for noise. Not with --out-of-core.
+    /// onto the noise; exact samples keep 2^--depth, and so do clouds too sparse for the
+    /// estimate to resolve the surface (it reads no noise there). Not with --out-of-core.
     /// PoissonRecon: none.
     #[arg(long)]
     screening_follows_noise: bool,

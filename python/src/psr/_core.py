@@ -480,8 +480,9 @@ class Reconstructor:
         "Whether the screening follows the samples' noise (default False): psr estimates their "
         "scatter sigma across the surface (Mesh.sample_noise) and scales the screening by 2^d "
         "no finer than the depth whose cells are 10 sigma wide, so that a high depth no longer "
-        "pulls the surface onto the noise; exact samples keep 2^depth. Not for very sparse "
-        "clouds (a few thousand points), where it can take shape for noise. Not out of core.",
+        "pulls the surface onto the noise; exact samples keep 2^depth, and so do clouds too "
+        "sparse for the estimate to resolve the surface (it reads no noise there). Not out of "
+        "core.",
     )
     normal_neighbors = _Param[int](
         ctypes.c_uint32,
