@@ -108,7 +108,11 @@ fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
 /// for its tree: the base's depths (0..=`base_depth`, shared by every slab's tree) predicted
 /// for the whole cloud and the finer depths for the slab's points and its part of the surface
 /// ([`crate::memory::nodes_of_measured_surface`]): up to the wall depth over its padding,
-/// finer over its graded padding's band at each depth.
+/// finer over its graded padding's band at each depth. Every member also holds `shared` bytes
+/// throughout (the whole cloud's density field), and `normal_sums` bytes beside them while
+/// pass A prepares the slabs (the whole cloud's normals summed at the kernel depth, dropped
+/// before any slab's tree exists): a slab needs the larger of its solve's footprint and its
+/// points' with those sums.
 #[allow(clippy::too_many_arguments)]
 fn slabs_within(
     budget: u64,
@@ -119,6 +123,7 @@ fn slabs_within(
     base_depth: u32,
     params: &Params,
     shared: u64,
+    normal_sums: u64,
 ) -> std::result::Result<usize, u64> {
     let nodes = |points: u64, surface: f64| {
         crate::memory::nodes_of_measured_surface(
@@ -149,9 +154,11 @@ fn slabs_within(
             let (band_points, band_surface) = within(first..end);
             tree[d as usize] = nodes(band_points, band_surface)[d as usize];
         }
-        crate::memory::Footprint::with_nodes(points, 0, &tree, 0)
+        let solving = crate::memory::Footprint::with_nodes(points, 0, &tree, 0).peak();
+        let preparing = crate::memory::Footprint::with_nodes(points, 0, &[], 0)
             .peak()
-            .saturating_add(shared)
+            .saturating_add(normal_sums);
+        solving.max(preparing).saturating_add(shared)
     };
     let mut least = u64::MAX;
     let mut previous_len = 0;
@@ -722,6 +729,7 @@ fn cut(
             );
             let structure = structure.into_field();
             let shared = crate::memory::density_bytes(structure.slots() as u64);
+            let normal_sums = crate::memory::normal_sum_bytes(structure.kernel_slots() as u64);
             let surface = surface_by_column(&structure, wall_depth);
             drop(structure);
             let layout_of =
@@ -735,6 +743,7 @@ fn cut(
                 base_depth,
                 params,
                 shared,
+                normal_sums,
             )
             .map_err(|enough| crate::Error::OutOfMemory {
                 what: "the largest slab a cut of the cloud can make, with its padding",
@@ -1546,7 +1555,7 @@ mod tests {
             surface[c] = 1.8e6 / filled.len() as f64;
         }
         let layout_of = |slabs| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
-        let fewest = |budget: u64, surface: &[f64]| {
+        let fewest_with_sums = |budget: u64, surface: &[f64], normal_sums: u64| {
             slabs_within(
                 budget,
                 &counts,
@@ -1556,8 +1565,10 @@ mod tests {
                 base_depth,
                 &params,
                 0,
+                normal_sums,
             )
         };
+        let fewest = |budget: u64, surface: &[f64]| fewest_with_sums(budget, surface, 0);
         let least = fewest(0, &surface).expect_err("nothing fits no memory");
         let mut previous = 0;
         for gib in [16u64, 8, 4, 3] {
@@ -1573,6 +1584,15 @@ mod tests {
         // The same points over four times the surface: more nodes, so more slabs.
         let rougher: Vec<f64> = surface.iter().map(|s| 4.0 * s).collect();
         assert!(fewest(6 << 30, &rougher).unwrap() > fewest(6 << 30, &surface).unwrap());
+        // The normals' sums held through pass A: beside a slab's points they bind no more
+        // slabs than the solve does while they are small, and when they outweigh any slab's
+        // solve no cut fits a budget below them.
+        assert_eq!(
+            fewest_with_sums(4 << 30, &surface, 64 << 20),
+            fewest(4 << 30, &surface)
+        );
+        let enough = fewest_with_sums(8 << 30, &surface, 10 << 30).expect_err("sums over budget");
+        assert!(enough > 10 << 30, "the most slabs need {enough} bytes");
     }
 
     /// Proves the graded padding: past the wall depth no splat lies beyond its depth's band,
