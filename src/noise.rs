@@ -65,8 +65,9 @@ pub(crate) struct SampleNoise {
     /// cubic explains than noise would let it (F); above [`SHAPE_F`] the estimate is 0.
     pub(crate) shape_f: f64,
     /// The noise σ, in the unit cube's units: 0 for samples that lie on a smooth surface, where
-    /// the residual grows with the cells (detail), where most cells span bends of the shape
-    /// (too few samples to resolve it), and when too few cells hold enough samples to tell.
+    /// the residual grows with the cells (detail), where what the quadrics leave is shape a
+    /// cubic explains (samples too sparse for the cells to resolve the surface), and when too
+    /// few cells hold enough samples to tell.
     pub(crate) sigma: f64,
 }
 
