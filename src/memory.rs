@@ -134,7 +134,7 @@ impl Footprint {
         Footprint {
             tree: density_slots
                 .saturating_mul(PER_DENSITY_SLOT)
-                .saturating_add(normal_sum_bytes(kernel_slots)),
+                .saturating_add(kernel_slots.saturating_mul(PER_NORMAL_SUM_SLOT)),
             stage: 0,
             ..Footprint::with_nodes(points, attribute_width, &[], 0)
         }
@@ -164,12 +164,6 @@ impl Footprint {
 /// [`DensityField::slots`]: crate::density::DensityField
 pub(crate) fn density_bytes(slots: u64) -> u64 {
     slots.saturating_mul(PER_DENSITY_SLOT)
-}
-
-/// The bytes of the samples' normals summed over `kernel_slots` node slots of the kernel depth
-/// (`density::NormalSums`; see [`Footprint::reading_density`]).
-pub(crate) fn normal_sum_bytes(kernel_slots: u64) -> u64 {
-    kernel_slots.saturating_mul(PER_NORMAL_SUM_SLOT)
 }
 
 /// The density field's node slots for `points` points at `kernel_depth`, predicted: its

@@ -109,10 +109,10 @@ fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
 /// for the whole cloud and the finer depths for the slab's points and its part of the surface
 /// ([`crate::memory::nodes_of_measured_surface`]): up to the wall depth over its padding,
 /// finer over its graded padding's band at each depth. Every member also holds `shared` bytes
-/// throughout (the whole cloud's density field), and `normal_sums` bytes beside them while
-/// pass A prepares the slabs (the whole cloud's normals summed at the kernel depth, dropped
-/// before any slab's tree exists): a slab needs the larger of its solve's footprint and its
-/// points' with those sums.
+/// throughout (the whole cloud's density field), and beside them, while pass A prepares the
+/// slabs, the whole cloud's normals summed over the `kernel_slots` slots of the kernel depth
+/// (dropped before any slab's tree exists): a slab needs the larger of its solve's footprint
+/// and its points' with those sums (`Footprint::reading_density` without the field).
 #[allow(clippy::too_many_arguments)]
 fn slabs_within(
     budget: u64,
@@ -123,7 +123,7 @@ fn slabs_within(
     base_depth: u32,
     params: &Params,
     shared: u64,
-    normal_sums: u64,
+    kernel_slots: u64,
 ) -> std::result::Result<usize, u64> {
     let nodes = |points: u64, surface: f64| {
         crate::memory::nodes_of_measured_surface(
@@ -155,9 +155,8 @@ fn slabs_within(
             tree[d as usize] = nodes(band_points, band_surface)[d as usize];
         }
         let solving = crate::memory::Footprint::with_nodes(points, 0, &tree, 0).peak();
-        let preparing = crate::memory::Footprint::with_nodes(points, 0, &[], 0)
-            .peak()
-            .saturating_add(normal_sums);
+        let preparing =
+            crate::memory::Footprint::reading_density(points, 0, 0, kernel_slots).peak();
         solving.max(preparing).saturating_add(shared)
     };
     let mut least = u64::MAX;
@@ -729,7 +728,7 @@ fn cut(
             );
             let structure = structure.into_field();
             let shared = crate::memory::density_bytes(structure.slots() as u64);
-            let normal_sums = crate::memory::normal_sum_bytes(structure.kernel_slots() as u64);
+            let kernel_slots = structure.kernel_slots() as u64;
             let surface = surface_by_column(&structure, wall_depth);
             drop(structure);
             let layout_of =
@@ -743,7 +742,7 @@ fn cut(
                 base_depth,
                 params,
                 shared,
-                normal_sums,
+                kernel_slots,
             )
             .map_err(|enough| crate::Error::OutOfMemory {
                 what: "the largest slab a cut of the cloud can make, with its padding",
@@ -1555,7 +1554,7 @@ mod tests {
             surface[c] = 1.8e6 / filled.len() as f64;
         }
         let layout_of = |slabs| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
-        let fewest_with_sums = |budget: u64, surface: &[f64], normal_sums: u64| {
+        let fewest_with_sums = |budget: u64, surface: &[f64], kernel_slots: u64| {
             slabs_within(
                 budget,
                 &counts,
@@ -1565,7 +1564,7 @@ mod tests {
                 base_depth,
                 &params,
                 0,
-                normal_sums,
+                kernel_slots,
             )
         };
         let fewest = |budget: u64, surface: &[f64]| fewest_with_sums(budget, surface, 0);
@@ -1588,10 +1587,11 @@ mod tests {
         // slabs than the solve does while they are small, and when they outweigh any slab's
         // solve no cut fits a budget below them.
         assert_eq!(
-            fewest_with_sums(4 << 30, &surface, 64 << 20),
+            fewest_with_sums(4 << 30, &surface, (64 << 20) / 33),
             fewest(4 << 30, &surface)
         );
-        let enough = fewest_with_sums(8 << 30, &surface, 10 << 30).expect_err("sums over budget");
+        let enough =
+            fewest_with_sums(8 << 30, &surface, (10 << 30) / 33 + 1).expect_err("sums over budget");
         assert!(enough > 10 << 30, "the most slabs need {enough} bytes");
     }
 
