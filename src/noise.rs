@@ -187,13 +187,9 @@ fn quadric_fit(points: &[DVec3], cubic: bool) -> Option<QuadricFit> {
             (terms, d.dot(normal))
         })
         .collect();
-    let quadric: Vec<([f64; 6], f64)> = rows
-        .iter()
-        .map(|(terms, w)| (std::array::from_fn(|i| terms[i]), *w))
-        .collect();
-    let quadric_squares = least_squares(&quadric)?;
+    let quadric_squares = least_squares::<6>(&rows)?;
     let cubic_f = (cubic && n > CUBIC_TERMS + 4)
-        .then(|| least_squares(&rows))
+        .then(|| least_squares::<CUBIC_TERMS>(&rows))
         .flatten()
         .map(|cubic_squares| {
             let explained = (quadric_squares - cubic_squares).max(0.0) / (CUBIC_TERMS - 6) as f64;
@@ -210,9 +206,10 @@ fn quadric_fit(points: &[DVec3], cubic: bool) -> Option<QuadricFit> {
     })
 }
 
-/// The least-squares fit of the heights by the terms of `rows`: the sum of the squared
-/// residuals; `None` when the points do not fix the terms.
-fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<f64> {
+/// The least-squares fit of the heights by the first `K` terms of `rows` (the quadric's six or
+/// all the cubic's ten): the sum of the squared residuals; `None` when the points do not fix
+/// the terms.
+fn least_squares<const K: usize>(rows: &[([f64; CUBIC_TERMS], f64)]) -> Option<f64> {
     let mut gram = [[0.0; K]; K];
     let mut rhs = [0.0; K];
     for (phi, w) in rows {
@@ -227,7 +224,7 @@ fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<f64> {
     Some(
         rows.iter()
             .map(|(phi, w)| {
-                let fit: f64 = phi.iter().zip(&coefficients).map(|(f, c)| f * c).sum();
+                let fit: f64 = phi[..K].iter().zip(&coefficients).map(|(f, c)| f * c).sum();
                 (w - fit) * (w - fit)
             })
             .sum(),
