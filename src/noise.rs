@@ -74,24 +74,134 @@ pub(crate) struct SampleNoise {
 /// The noise of `positions` (unit cube, Morton order at a depth ≥ `max_depth`), grouped at the
 /// depth that `areas` (each sample's share of the surface, as the density estimate gives it)
 /// say holds [`SAMPLES_PER_CELL`] a cell, at most `max_depth`.
+///
+/// In three steps that add up across pieces of the cloud (the out-of-core path runs them slab
+/// by slab, `outofcore/noise.rs`): the areas counted by the depth they give
+/// ([`AreaDepths`]), the cells fitted at that depth and the next coarser ([`CellFits`]), and
+/// σ from the fits' medians ([`from_medians`]).
 pub(crate) fn estimate(positions: &[DVec3], areas: &[f64], max_depth: u32) -> SampleNoise {
-    let mut positive: Vec<f64> = areas.iter().copied().filter(|&a| a > 0.0).collect();
-    let Some(median_area) = median(&mut positive) else {
+    let mut depths = AreaDepths::new(max_depth);
+    depths.count(areas.iter().copied());
+    let Some(depth) = depths.median_depth() else {
         return SampleNoise::default();
     };
-    let cell_width = (SAMPLES_PER_CELL * median_area).sqrt();
-    let depth = (-cell_width.log2())
+    let mut fits = CellFits::at(depth, positions, &|_, _| true);
+    from_medians(
+        depth,
+        fits.fine.len(),
+        median(&mut fits.fine),
+        median(&mut fits.coarse),
+        median(&mut fits.cubic_f),
+    )
+}
+
+/// The depth whose cells hold about [`SAMPLES_PER_CELL`] samples of area `area`: their width
+/// √(16·area) rounded to the nearest depth, within 2..=max(`max_depth`, 2). Never larger for a
+/// larger area, so the depth of the median area is the median of the areas' depths.
+fn depth_of_area(area: f64, max_depth: u32) -> u32 {
+    let cell_width = (SAMPLES_PER_CELL * area).sqrt();
+    (-cell_width.log2())
         .round()
-        .clamp(2.0, max_depth.max(2) as f64) as u32;
-    let fine = fit_by_cell(positions, depth, false);
-    let coarse = fit_by_cell(positions, depth - 1, true);
-    let cells = fine.len();
-    let mut cubic_f: Vec<f64> = coarse.iter().filter_map(|fit| fit.cubic_f).collect();
-    let mut fine: Vec<f64> = fine.iter().map(|fit| fit.residual).collect();
-    let mut coarse: Vec<f64> = coarse.iter().map(|fit| fit.residual).collect();
-    let (Some(r1), Some(r2), Some(shape_f)) =
-        (median(&mut fine), median(&mut coarse), median(&mut cubic_f))
-    else {
+        .clamp(2.0, max_depth.max(2) as f64) as u32
+}
+
+/// The samples' positive areas counted by the depth each gives ([`depth_of_area`]): what the
+/// estimate's depth is read from, added up over any split of the samples.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) struct AreaDepths {
+    max_depth: u32,
+    /// How many areas give each depth, 0..=max(max_depth, 2).
+    pub(crate) counts: Vec<u64>,
+}
+
+impl AreaDepths {
+    /// No areas counted yet, for depths up to `max_depth`.
+    pub(crate) fn new(max_depth: u32) -> Self {
+        AreaDepths {
+            max_depth,
+            counts: vec![0; max_depth.max(2) as usize + 1],
+        }
+    }
+
+    /// Counts `areas` (those not positive are not counted: a sample no surface was read for).
+    pub(crate) fn count(&mut self, areas: impl Iterator<Item = f64>) {
+        for area in areas.filter(|&a| a > 0.0) {
+            self.counts[depth_of_area(area, self.max_depth) as usize] += 1;
+        }
+    }
+
+    /// Adds `counts` counted elsewhere (by another piece of the cloud, for the same depth).
+    pub(crate) fn add(&mut self, counts: &[u64]) {
+        for (total, count) in self.counts.iter_mut().zip(counts) {
+            *total += count;
+        }
+    }
+
+    /// The depth of the median area (the upper of the two middle ones, as [`median`] takes
+    /// it): with the areas in increasing order their depths do not increase, so it is the
+    /// depth at that place counted from the finest; `None` when nothing was counted.
+    pub(crate) fn median_depth(&self) -> Option<u32> {
+        let total: u64 = self.counts.iter().sum();
+        let place = total / 2;
+        let mut passed = 0;
+        for (depth, &count) in self.counts.iter().enumerate().rev() {
+            passed += count;
+            if passed > place {
+                return Some(depth as u32);
+            }
+        }
+        None
+    }
+}
+
+/// What the cells at the estimate's two depths say: every fitted cell's residual at the finer
+/// depth and at the coarser, and the coarser cells' F ([`QuadricFit`]), each list in the
+/// samples' order; lists of pieces of the cloud are concatenated, since only their medians
+/// are read.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct CellFits {
+    pub(crate) fine: Vec<f64>,
+    pub(crate) coarse: Vec<f64>,
+    pub(crate) cubic_f: Vec<f64>,
+}
+
+impl CellFits {
+    /// The fits of the cells of `depth` and `depth` − 1 that `owns` (a cell's depth and
+    /// coordinates) takes, over `positions` (unit cube, Morton order at a finer depth).
+    pub(crate) fn at(
+        depth: u32,
+        positions: &[DVec3],
+        owns: &(impl Fn(u32, [i32; 3]) -> bool + Sync),
+    ) -> Self {
+        let fine = fit_by_cell(positions, depth, false, owns);
+        let coarse = fit_by_cell(positions, depth - 1, true, owns);
+        CellFits {
+            fine: fine.iter().map(|fit| fit.residual).collect(),
+            coarse: coarse.iter().map(|fit| fit.residual).collect(),
+            cubic_f: coarse.iter().filter_map(|fit| fit.cubic_f).collect(),
+        }
+    }
+
+    /// Appends `other`'s fits.
+    pub(crate) fn extend(&mut self, other: CellFits) {
+        self.fine.extend(other.fine);
+        self.coarse.extend(other.coarse);
+        self.cubic_f.extend(other.cubic_f);
+    }
+}
+
+/// The estimate at `depth` from the medians of the finer cells' residuals (r₁, over `cells`
+/// cells), the coarser cells' (r₂) and their F: σ = √(2·r₁² − r₂²) (at least 0), or 0 when
+/// the median F says the residuals are shape ([`SHAPE_F`]); 0 with no F when a median is
+/// missing (no cell held enough samples).
+pub(crate) fn from_medians(
+    depth: u32,
+    cells: usize,
+    r1: Option<f64>,
+    r2: Option<f64>,
+    shape_f: Option<f64>,
+) -> SampleNoise {
+    let (Some(r1), Some(r2), Some(shape_f)) = (r1, r2, shape_f) else {
         return SampleNoise {
             depth,
             cells,
@@ -113,7 +223,7 @@ pub(crate) fn estimate(positions: &[DVec3], areas: &[f64], max_depth: u32) -> Sa
 
 /// The median of `values` (the upper of the two middle ones for an even count), reordering
 /// them; `None` when there are none.
-fn median(values: &mut [f64]) -> Option<f64> {
+pub(crate) fn median(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
@@ -132,14 +242,22 @@ struct QuadricFit {
     cubic_f: Option<f64>,
 }
 
-/// The quadric of every cell of `depth` whose samples fix one, and with `cubic` its F against
-/// a cubic, in parallel over pieces cut between cells (the same values at any thread count).
-fn fit_by_cell(positions: &[DVec3], depth: u32, cubic: bool) -> Vec<QuadricFit> {
+/// The quadric of every cell of `depth` that `owns` takes and whose samples fix one, and with
+/// `cubic` its F against a cubic, in parallel over pieces cut between cells (the same values
+/// at any thread count).
+fn fit_by_cell(
+    positions: &[DVec3],
+    depth: u32,
+    cubic: bool,
+    owns: &(impl Fn(u32, [i32; 3]) -> bool + Sync),
+) -> Vec<QuadricFit> {
     let cuts = cuts_between_cells(positions, depth, 1 << 14);
     cuts.par_windows(2)
         .flat_map_iter(|piece| {
             let piece = &positions[piece[0]..piece[1]];
-            cell_runs(piece, depth).filter_map(|(_, run)| quadric_fit(&piece[run], cubic))
+            cell_runs(piece, depth)
+                .filter(|(cell, _)| owns(depth, *cell))
+                .filter_map(|(_, run)| quadric_fit(&piece[run], cubic))
         })
         .collect()
 }
