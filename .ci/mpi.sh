@@ -4,7 +4,8 @@
 #   1. tools: Open MPI (libopenmpi-dev, openmpi-bin) and libclang-dev (the mpi crate's bindings
 #      are generated from mpi.h), installed when missing;
 #   2. clippy on psr-cli with the feature, warnings as errors;
-#   3. cli/tests/mpi.rs: mpirun with 1 to 4 ranks on a sphere, the bunny and the Happy Buddha
+#   3. cli/tests/mpi.rs: mpirun with 1 to 4 ranks on a sphere, the bunny (also with the screening
+#      following its noise) and the Happy Buddha
 #      (the mesh of psr --out-of-core with the same slabs, bit for bit), a rank stopped and a rank
 #      killed (the job ends, no hang). More ranks than this machine's cores (--oversubscribe),
 #      root allowed (--allow-run-as-root); one test at a time, since each runs up to 4 ranks.

@@ -940,9 +940,9 @@ psr_status psr_reconstructor_get_point_weight(const psr_reconstructor *r, float 
  * screening weight by 2^d no finer than the depth whose cells are 10 sigma wide, so that a
  * high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
  * (psr_mesh_screening_depth says which d was used); so do clouds too sparse for the
- * estimate to resolve the surface (it reads no noise there). Default false. Not with
- * psr_reconstructor_solve_file_out_of_core (PSR_STATUS_INVALID_PARAMETER there). No
- * PoissonRecon, Open3D or PCL equivalent.
+ * estimate to resolve the surface (it reads no noise there). Default false. Out of core
+ * (psr_reconstructor_solve_file_out_of_core) the slabs estimate the same sigma from their
+ * parts. No PoissonRecon, Open3D or PCL equivalent.
  *
  * r must not be NULL. Returns the statuses of psr_reconstructor_set_vertex_normals.
  *

@@ -161,9 +161,9 @@ pub struct Params {
     /// held out of the reconstruction (docs/benchmarks.md, issue 16). Clouds so sparse that
     /// the cells holding enough samples to measure are too coarse to resolve the surface (the
     /// 1,435-point oni) read no noise, since what the cells' quadrics leave there has shape a
-    /// cubic explains, and keep 2^depth. Default `false` (the scale of SPSR and PoissonRecon);
-    /// not yet available out of core. No PoissonRecon, Open3D or PCL
-    /// equivalent.
+    /// cubic explains, and keep 2^depth. Out of core ([`crate::reconstruct_out_of_core`], and
+    /// across MPI ranks) the slabs estimate the same σ from their parts. Default `false` (the
+    /// scale of SPSR and PoissonRecon). No PoissonRecon, Open3D or PCL equivalent.
     pub screening_follows_noise: bool,
     /// Degree of the B-spline node functions: 2 (default; support 3 cells, continuous ∇χ) or 1
     /// (piecewise-linear hats on the cell corners, support 2 cells: 3-wide stencils instead of

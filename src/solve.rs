@@ -39,7 +39,7 @@ pub(crate) struct System<'a> {
     /// at [`proxy_depth`] of d, as [`crate::system::sample_groups`] makes them). The
     /// out-of-core base's, merged from its slabs' (`crate::outofcore::base::merge_groups`).
     pub(crate) proxy_groups: Option<&'a [Vec<ProxyGroup>]>,
-    /// The screening term's weight α_d ([`crate::system::depth_weight`]).
+    /// The screening term's weight α_d ([`crate::system::weight_at_depth`]).
     pub(crate) screening: f64,
     /// Which depths to solve: all of them ([`Depths::All`]) as the in-memory pipeline does, or
     /// a base or the depths above one (the out-of-core path, `crate::outofcore`).

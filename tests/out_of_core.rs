@@ -1,8 +1,10 @@
 //! Reconstruction out of core (issue 20): the mesh written slab by slab against the in-memory
 //! mesh of the same points and parameters, its seams, the temporary files, the budget.
 
-use psr::{ply, OutOfCore, OutOfCoreError, Params, PointSet};
-use psr_test_support::{data_or_skip, one_sided_mesh_distance, sample_sphere, MeshTopology};
+use psr::{ply, OutOfCore, OutOfCoreError, OutOfCoreReport, Params, PointSet, Stats};
+use psr_test_support::{
+    data_or_skip, jitter_positions, one_sided_mesh_distance, sample_sphere, MeshTopology,
+};
 use std::path::{Path, PathBuf};
 
 /// A fresh, empty directory for one test's files (removed at the end of the test).
@@ -57,8 +59,14 @@ fn write_cloud(path: &Path, positions: &[[f32; 3]], normals: &[[f32; 3]]) {
 /// vertex and closer to it on average than the in-memory mesh lies to its converged solution
 /// (the finer depths are solved per slab: their solver stops at its tolerance on another
 /// system, so the difference is of the solver's own order, everywhere, not only at walls).
-fn compare_with_in_memory(test: &str, input: &Path, params: &Params, slabs: usize) {
-    compare_with_in_memory_weighted(test, input, params, slabs, false);
+/// The out-of-core report and the in-memory mesh's statistics come back.
+fn compare_with_in_memory(
+    test: &str,
+    input: &Path,
+    params: &Params,
+    slabs: usize,
+) -> (OutOfCoreReport, Stats) {
+    compare_with_in_memory_weighted(test, input, params, slabs, false)
 }
 
 /// As [`compare_with_in_memory`], the points weighed by their `confidence` property on both
@@ -69,7 +77,7 @@ fn compare_with_in_memory_weighted(
     params: &Params,
     slabs: usize,
     confidence: bool,
-) {
+) -> (OutOfCoreReport, Stats) {
     let dir = TestDir::new(&format!("{test}-run"));
     let cloud = ply::read_points(input).expect("readable");
     let mut points = PointSet::new();
@@ -152,6 +160,7 @@ fn compare_with_in_memory_weighted(
         ours.max < 0.25 * cell && ours.mean < solver.mean,
         "{test}: out of core {ours:?}, solver {solver:?}, cell {cell}"
     );
+    (report, in_memory.stats)
 }
 
 /// Proves the out-of-core mesh of a synthetic sphere cut into many thin slabs is the in-memory
@@ -188,6 +197,82 @@ fn a_weighted_sphere_out_of_core_is_the_weighted_in_memory_mesh() {
     ply::write_point_cloud(&input, &cloud, ply::PlyFormat::BinaryLittleEndian).expect("written");
     let params = Params::default().with_depth(8).with_threads(2);
     compare_with_in_memory_weighted("weighted-sphere", &input, &params, 5, true);
+}
+
+/// Proves the same with the screening following the samples' noise, on a sphere jittered by
+/// 0.004 of its radius: the slabs' estimate of the noise is the in-memory one bit for bit (the
+/// cells' fits of every slab's own cells, their medians across the slabs), so the screening is
+/// scaled alike, and the mesh is the in-memory one to within the solver's error.
+#[test]
+fn a_noisy_sphere_following_its_noise_out_of_core_is_the_in_memory_mesh() {
+    let dir = TestDir::new("noisy-sphere");
+    let (positions, normals) = sample_sphere(60_000, 1.0, [0.0; 3], 17);
+    let input = dir.path("noisy-sphere.ply");
+    write_cloud(&input, &jitter_positions(&positions, 0.004, 23), &normals);
+    let params = Params::default()
+        .with_depth(9)
+        .with_threads(2)
+        .with_screening_follows_noise(true);
+    for slabs in [2, 5] {
+        let (report, stats) = compare_with_in_memory("noisy-sphere", &input, &params, slabs);
+        let sigma = stats.sample_noise.expect("the in-memory estimate");
+        assert!(sigma > 0.002 && sigma < 0.005, "σ {sigma}");
+        assert_eq!(
+            report.sample_noise.map(f64::to_bits),
+            Some(sigma.to_bits()),
+            "{slabs} slabs: σ {:?} against {sigma}",
+            report.sample_noise
+        );
+        assert_eq!(report.noise_cells_beyond_padding, 0);
+        assert_eq!(
+            report.screening_depth.to_bits(),
+            stats.screening_depth.to_bits()
+        );
+        assert!(report.screening_depth < 9.0, "{}", report.screening_depth);
+    }
+}
+
+/// Proves the slabs estimate the bunny's noise (laser scans, holes, a base) as the in-memory
+/// path does, bit for bit, in three slabs.
+#[test]
+fn the_bunny_noise_out_of_core_is_the_in_memory_estimate() {
+    let test = "the_bunny_noise_out_of_core_is_the_in_memory_estimate";
+    let Some(input) = data_or_skip("bunny_scans.ply", test) else {
+        return;
+    };
+    let dir = TestDir::new("bunny-noise");
+    let params = Params::default()
+        .with_depth(9)
+        .with_threads(2)
+        .with_screening_follows_noise(true);
+    let cloud = ply::read_points(&input).expect("readable");
+    let mut points = PointSet::new();
+    points
+        .extend(&cloud.positions, &cloud.normals)
+        .expect("valid");
+    let in_memory = psr::reconstruct(&points, &params).expect("in memory");
+    let sigma = in_memory
+        .stats
+        .sample_noise
+        .expect("the in-memory estimate");
+    assert!(sigma > 0.0, "the bunny's scans read noise");
+    std::fs::create_dir(dir.path("tmp")).expect("a temporary parent");
+    let report = psr::reconstruct_out_of_core(
+        &input,
+        &dir.path("mesh.ply"),
+        &params,
+        &OutOfCore::default()
+            .with_slabs(Some(3))
+            .with_temp_dir(Some(dir.path("tmp"))),
+    )
+    .expect("out of core");
+    assert_eq!(report.slabs, 3);
+    assert_eq!(
+        report.sample_noise.map(f64::to_bits),
+        Some(sigma.to_bits()),
+        "σ {:?} against {sigma}",
+        report.sample_noise
+    );
 }
 
 /// Proves the same on the bunny's scans (holes, a base, sparse parts) in three slabs.
@@ -322,25 +407,6 @@ fn cancels_and_bad_points_leave_no_temporary_files() {
             OutOfCoreError::Reconstruction(psr::Error::InvalidParameter { name: "depth", .. })
         ),
         "{shallow:?}"
-    );
-    assert!(dir.entries("tmp").is_empty());
-    // The screening that follows the noise is in memory only: refused by name, not ignored.
-    let follows = psr::reconstruct_out_of_core(
-        &input,
-        &dir.path("mesh.ply"),
-        &params.clone().with_screening_follows_noise(true),
-        &options,
-    )
-    .expect_err("screening_follows_noise out of core");
-    assert!(
-        matches!(
-            follows,
-            OutOfCoreError::Reconstruction(psr::Error::InvalidParameter {
-                name: "screening_follows_noise",
-                ..
-            })
-        ),
-        "{follows:?}"
     );
     assert!(dir.entries("tmp").is_empty());
     let missing = psr::reconstruct_out_of_core(

@@ -153,6 +153,15 @@ fn same_mesh_for_every_team_with(
                 "{test}: member {rank} of {members}"
             );
             assert_eq!(theirs.isovalue.to_bits(), report.isovalue.to_bits());
+            assert_eq!(
+                theirs.sample_noise.map(f64::to_bits),
+                report.sample_noise.map(f64::to_bits),
+                "{test}: member {rank} of {members}"
+            );
+            assert_eq!(
+                theirs.screening_depth.to_bits(),
+                report.screening_depth.to_bits()
+            );
         }
         let written = std::fs::read(&output).expect("written by rank 0");
         assert!(
@@ -180,6 +189,31 @@ fn a_team_writes_the_mesh_of_one_process_bit_for_bit() {
     let input = sphere_file(&dir, 30_000, 11);
     let params = Params::default().with_depth(8).with_threads(1);
     same_mesh_for_every_team("sphere", &input, &params, 5);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves the same with the screening following the samples' noise (a sphere jittered by 0.004
+/// of its radius): the members fit their slabs' cells and find the medians together, so every
+/// member reads one process's σ and writes its mesh.
+#[test]
+fn a_team_following_the_noise_writes_the_mesh_of_one_process() {
+    let dir = test_dir("noisy-input");
+    let input = sphere_file_with(&dir, "noisy.ply", 30_000, 14, |positions| {
+        *positions = psr_test_support::jitter_positions(positions, 0.004, 15);
+    });
+    let params = Params::default()
+        .with_depth(8)
+        .with_threads(1)
+        .with_screening_follows_noise(true);
+    let report = same_mesh_for_every_team_with(
+        "noisy",
+        &input,
+        &params,
+        OutOfCore::default().with_slabs(Some(5)),
+    );
+    let sigma = report.sample_noise.expect("an estimate");
+    assert!(sigma > 0.002 && sigma < 0.005, "σ {sigma}");
+    assert!(report.screening_depth < 8.0);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

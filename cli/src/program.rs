@@ -139,8 +139,8 @@ struct Args {
     /// across the surface (σ, printed with --verbose) and scale the pull by 2^d no finer than
     /// the depth whose cells are 10 σ wide, so that a high --depth no longer pulls the surface
     /// onto the noise; exact samples keep 2^--depth, and so do clouds too sparse for the
-    /// estimate to resolve the surface (it reads no noise there). Not with --out-of-core.
-    /// PoissonRecon: none.
+    /// estimate to resolve the surface (it reads no noise there). With --out-of-core the same σ
+    /// is estimated slab by slab. PoissonRecon: none.
     #[arg(long)]
     screening_follows_noise: bool,
 
@@ -1033,7 +1033,6 @@ fn run_out_of_core(
             "--normals estimate|reorient",
         ),
         (args.vertex_normals, "--vertex-normals"),
-        (args.screening_follows_noise, "--screening-follows-noise"),
         (args.estimate_memory, "--estimate-memory"),
         (args.ascii, "--ascii"),
         (args.no_density, "--no-density"),
@@ -1122,8 +1121,32 @@ fn run_out_of_core(
                 .map(|kib| format!(", peak {} MiB", kib / 1024))
                 .unwrap_or_default()
         );
+        if args.verbose {
+            eprintln!(
+                "{}",
+                screening_line(report.screening_depth, report.sample_noise)
+            );
+            if report.noise_cells_beyond_padding > 0 {
+                eprintln!(
+                    "psr: {} cells of the noise estimate were wider than their slab's padding \
+                     (fitted over the samples within it)",
+                    report.noise_cells_beyond_padding
+                );
+            }
+        }
     }
     Ok(())
+}
+
+/// The --verbose line on the screening's scale, and the noise that set it when it followed it.
+fn screening_line(screening_depth: f64, sample_noise: Option<f64>) -> String {
+    format!(
+        "psr: screening weight scaled by 2^{screening_depth:.2}{}",
+        match sample_noise {
+            Some(sigma) => format!(" (the samples' noise: {sigma:.4e} in input units)"),
+            None => String::new(),
+        }
+    )
 }
 
 /// Set by [`stop_on_interrupt`]'s handler.
@@ -1481,14 +1504,8 @@ fn print_details(mesh: &Mesh) {
         stats.halo_nodes_per_depth,
         stats.density_slots
     ));
-    out.push_str(&format!(
-        "psr: screening weight scaled by 2^{:.2}{}\n",
-        stats.screening_depth,
-        match stats.sample_noise {
-            Some(sigma) => format!(" (the samples' noise: {sigma:.4e} in input units)"),
-            None => String::new(),
-        }
-    ));
+    out.push_str(&screening_line(stats.screening_depth, stats.sample_noise));
+    out.push('\n');
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
     out.push_str(&format!(
         "\npsr: {} unsupported components left out ({} triangles; --min-component-samples)",

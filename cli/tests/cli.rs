@@ -1426,7 +1426,8 @@ fn sphere_cloud(path: &Path, n: usize) {
 }
 
 /// Proves `--out-of-core` writes a closed mesh and says how many slabs it made, leaves its
-/// temporary directory empty, and refuses the options it does not take, naming them.
+/// temporary directory empty, follows the noise when asked (saying so with --verbose), and
+/// refuses the options it does not take, naming them.
 #[test]
 fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
     let dir = scratch("ooc");
@@ -1454,6 +1455,31 @@ fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
     // Closed: every edge in two triangles, so 3F = 2E, and a sphere: V − E + F = 2.
     assert_eq!(positions.len() * 2, triangles.len() + 4);
     assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
+    // The sphere's samples are exact: the noise read is 0 and the screening keeps 2^8.
+    let follows = psr_on(
+        &input,
+        &output,
+        &[
+            "--depth",
+            "8",
+            "--out-of-core",
+            "--slabs",
+            "3",
+            "--temp-dir",
+            tmp.to_str().unwrap(),
+            "--screening-follows-noise",
+            "--verbose",
+        ],
+    );
+    assert_eq!(follows.status.code(), Some(0), "{}", stderr(&follows));
+    assert!(
+        stderr(&follows).contains(
+            "screening weight scaled by 2^8.00 (the samples' noise: 0.0000e0 in input units)"
+        ),
+        "{}",
+        stderr(&follows)
+    );
+    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
     let refused = psr_on(
         &input,
         &dir.join("mesh.obj"),
@@ -1463,15 +1489,12 @@ fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
             "--out-of-core",
             "--vertex-normals",
             "--no-density",
-            "--screening-follows-noise",
         ],
     );
     assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
     let message = stderr(&refused);
     assert!(
-        message.contains("--vertex-normals")
-            && message.contains("--no-density")
-            && message.contains("--screening-follows-noise"),
+        message.contains("--vertex-normals") && message.contains("--no-density"),
         "{message}"
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -81,9 +81,21 @@ fn leftovers(dir: &Path) -> Vec<PathBuf> {
 
 /// The mesh of `psr --out-of-core` against `psr-mpi`'s with 1 to 4 ranks, same slabs.
 fn same_mesh_from_one_to_four_ranks(name: &str, input: &Path, depth: u32, slabs: usize) {
+    same_mesh_from_one_to_four_ranks_with(name, input, depth, slabs, &[]);
+}
+
+/// As [`same_mesh_from_one_to_four_ranks`], both programs given the options `extra` too.
+fn same_mesh_from_one_to_four_ranks_with(
+    name: &str,
+    input: &Path,
+    depth: u32,
+    slabs: usize,
+    extra: &[&str],
+) {
     let dir = scratch(name);
     let alone = dir.join("alone.ply");
     let mut args = run_args(input, &alone, &dir, depth, slabs);
+    args.extend(extra.iter().map(|a| a.to_string()));
     args.push("--out-of-core".into());
     let status = Command::new(PSR).args(&args).status().expect("psr runs");
     assert!(status.success(), "{name}: psr --out-of-core");
@@ -94,6 +106,7 @@ fn same_mesh_from_one_to_four_ranks(name: &str, input: &Path, depth: u32, slabs:
         // At two ranks, --verbose too: every rank then reports its stages (and the mesh is
         // the same).
         let mut args = run_args(input, &output, &dir, depth, slabs);
+        args.extend(extra.iter().map(|a| a.to_string()));
         let verbose = ranks == 2;
         if verbose {
             args.push("--verbose".into());
@@ -116,6 +129,13 @@ fn same_mesh_from_one_to_four_ranks(name: &str, input: &Path, depth: u32, slabs:
         }
         // Rank 0 reports, once.
         assert_eq!(stderr.matches(" slabs: ").count(), 1, "{name}: {stderr}");
+        if verbose && extra.contains(&"--screening-follows-noise") {
+            assert_eq!(
+                stderr.matches("(the samples' noise: ").count(),
+                1,
+                "{name}: {stderr}"
+            );
+        }
         assert!(
             std::fs::read(&output).unwrap() == expected,
             "{name}: {ranks} ranks wrote another mesh than psr --out-of-core"
@@ -151,6 +171,22 @@ fn the_bunny_from_one_to_four_ranks_is_one_process_mesh() {
     let test = "the_bunny_from_one_to_four_ranks_is_one_process_mesh";
     if let Some(input) = data_or_skip("bunny_scans.ply", test) {
         same_mesh_from_one_to_four_ranks("bunny", &input, 9, 4);
+    }
+}
+
+/// Proves the same on the bunny's scans with the screening following their noise: the ranks fit
+/// their slabs' cells and meet for the medians, and rank 0 reports the noise it read.
+#[test]
+fn the_bunny_following_its_noise_from_one_to_four_ranks_is_one_process_mesh() {
+    let test = "the_bunny_following_its_noise_from_one_to_four_ranks_is_one_process_mesh";
+    if let Some(input) = data_or_skip("bunny_scans.ply", test) {
+        same_mesh_from_one_to_four_ranks_with(
+            "bunny-noise",
+            &input,
+            9,
+            4,
+            &["--screening-follows-noise"],
+        );
     }
 }
 

@@ -19,6 +19,7 @@
 
 pub(crate) mod assemble;
 pub(crate) mod base;
+pub(crate) mod noise;
 pub(crate) mod passes;
 pub(crate) mod run;
 pub(crate) mod scan;

@@ -10,6 +10,7 @@
 //! neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
+use super::noise::SlabNoise;
 use super::scan::{
     bin_part, binned_file, columns_of_part, scan_of_parts, scan_part, ColumnsOfPart, Input, Scan,
     ScannedPart,
@@ -22,13 +23,14 @@ use crate::density::{
     estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, NormalSums, SampleDensity,
 };
 use crate::evaluate::Indicator;
+use crate::noise::{AreaDepths, SampleNoise};
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
 use crate::points::{unit_normal, PointSet, Samples};
 use crate::solve::{cascade, Depths, ProxyGroup, Solved, System};
 use crate::system::{
-    coarser_divergences, depth_weight, finest_right_hand_side, proxy_depth, right_hand_sides,
-    sample_groups, sample_weights_from_totals, FieldCarry,
+    coarser_divergences, finest_right_hand_side, proxy_depth, right_hand_sides, sample_groups,
+    sample_weights_from_totals, weight_at_depth, FieldCarry,
 };
 use crate::{Params, Result};
 use glam::{DVec3, DVec4};
@@ -197,6 +199,13 @@ pub(crate) struct SolvedSlabs {
     /// The finest depth any sample reaches: every slab's tree has it.
     pub(crate) finest: u32,
     pub(crate) isovalue: f64,
+    /// The samples' noise, when the screening follows it (`outofcore/noise.rs`).
+    pub(crate) noise: Option<SampleNoise>,
+    /// Cells of the noise estimate wider than their slab's padding reaches (fitted over the
+    /// samples within it; 0 unless the median sample is far coarser than the walls).
+    pub(crate) noise_cells_beyond_padding: u64,
+    /// The depth whose 2^d scaled the screening (`system::screening_depth`).
+    pub(crate) screening_depth: f64,
 }
 
 impl SolvedSlabs {
@@ -213,6 +222,7 @@ impl SolvedSlabs {
             files: &self.files,
             field: &self.field,
             normals: None,
+            screening_depth: self.screening_depth,
             pool,
             watch: Watch::new(),
         }
@@ -333,6 +343,9 @@ struct Run<'a> {
     /// The samples' normals summed at the kernel depth, while the slabs are prepared (pass A;
     /// `None` after it, when every slab has been).
     normals: Option<&'a NormalSums>,
+    /// The depth whose 2^d scales the screening (`system::screening_depth`): the requested
+    /// depth until the noise, when the screening follows it, is estimated after pass B.
+    screening_depth: f64,
     pool: &'a rayon::ThreadPool,
     watch: Watch,
 }
@@ -497,7 +510,7 @@ impl Run<'_> {
                 positions,
                 screening_weights,
                 proxy_groups,
-                screening: depth_weight(self.params.point_weight, self.params.depth),
+                screening: weight_at_depth(self.params.point_weight, self.screening_depth),
                 depths,
             },
             self.params,
@@ -576,6 +589,9 @@ struct Cut {
     /// Σ area × confidence and Σ confidence over all the samples (the screening weights').
     total_area: f64,
     total_confidence: f64,
+    /// With [`Params::screening_follows_noise`], the samples' areas counted by the depth each
+    /// gives the noise estimate (`outofcore/noise.rs`).
+    area_depths: Option<AreaDepths>,
 }
 
 /// Nodes of each depth finer than the walls that a slab's padding keeps on each side of its
@@ -830,6 +846,7 @@ fn cut(
         files: &files,
         field: &field,
         normals: Some(&normal_sums),
+        screening_depth: params.depth as f64,
         pool,
         watch: Watch::new(),
     };
@@ -837,6 +854,8 @@ fn cut(
     let mut own_cores: Vec<Vec<Vec<u64>>> = Vec::with_capacity(slabs);
     let mut finest = 0u32;
     let (mut total_area, mut total_confidence) = (0.0f64, 0.0f64);
+    let following_noise = params.screening_follows_noise;
+    let mut area_depths = following_noise.then(|| AreaDepths::new(params.depth));
     rounds(
         team,
         slabs,
@@ -854,10 +873,21 @@ fn cut(
             }
             let mut cores = run.cores(&slab, &slab.own_at_depth())?;
             cores.truncate(base_depth as usize + 1);
+            let mut own_area_depths = AreaDepths::new(params.depth);
+            if following_noise {
+                own_area_depths.count(
+                    slab.area
+                        .iter()
+                        .zip(&slab.owned)
+                        .filter(|(_, owned)| **owned)
+                        .map(|(area, _)| *area),
+                );
+            }
             let mut p = Packer::default();
             p.u64(slab.at_depth.len() as u64 - 1);
             p.f64(area);
             p.f64(confidence);
+            p.u64s(&own_area_depths.counts);
             p.u64(cores.len() as u64);
             for keys in &cores {
                 p.u64s(keys);
@@ -869,6 +899,10 @@ fn cut(
             finest = finest.max(u.u64()? as u32);
             total_area += u.f64()?;
             total_confidence += u.f64()?;
+            let counts = u.u64s()?;
+            if let Some(area_depths) = &mut area_depths {
+                area_depths.add(&counts);
+            }
             let depths = u.u64()?;
             own_cores.push(
                 (0..depths)
@@ -887,6 +921,7 @@ fn cut(
         finest,
         total_area,
         total_confidence,
+        area_depths,
     })
 }
 
@@ -993,14 +1028,16 @@ pub(crate) fn solve_slabs(
         finest,
         total_area,
         total_confidence,
+        area_depths,
     } = cut;
-    let run = Run {
+    let mut run = Run {
         params: &params,
         scan: &scan,
         layout: &layout,
         files: &files,
         field: &field,
         normals: None,
+        screening_depth: params.depth as f64,
         pool,
         watch: Watch::new(),
     };
@@ -1009,7 +1046,11 @@ pub(crate) fn solve_slabs(
     let base_cores = coarse_cores(own_cores.iter().map(|c| c.as_slice()), base_depth);
     drop(own_cores);
 
-    // Pass B: each slab's own ρ and V up to B and its own screening groups, summed.
+    // Pass B: each slab's own ρ and V up to B and its own screening groups, summed; and when
+    // the screening is to follow the samples' noise, the fits of the estimate's cells each
+    // slab owns, kept by the member that fits them for the medians after the pass.
+    let noise_depth = area_depths.and_then(|depths| depths.median_depth());
+    let mut slab_noise = SlabNoise::default();
     let mut sums = BaseParts::default();
     let mut groups: Vec<Vec<Vec<ProxyGroup>>> = vec![Vec::new(); b + 1];
     rounds(
@@ -1048,6 +1089,11 @@ pub(crate) fn solve_slabs(
                 let cells = sample_groups(&positions, &weights, proxy_depth(d as u32, finest));
                 pack_groups(&mut p, &cells);
             }
+            if let Some(depth) = noise_depth {
+                pool.install(|| {
+                    slab_noise.fit_slab(&layout, k, depth, &slab.samples.positions);
+                });
+            }
             Ok(p.bytes)
         },
         |_, bytes| {
@@ -1066,6 +1112,15 @@ pub(crate) fn solve_slabs(
             Ok(())
         },
     )?;
+    // The noise's medians across the team, and the screening's depth from them (as in memory).
+    let noise = match (params.screening_follows_noise, noise_depth) {
+        (false, _) => None,
+        (true, None) => Some((SampleNoise::default(), 0)),
+        (true, Some(depth)) => Some(slab_noise.estimate(team, depth)?),
+    };
+    let screening_depth =
+        crate::system::screening_depth(params.depth, noise.map_or(0.0, |(noise, _)| noise.sigma));
+    run.screening_depth = screening_depth;
     // The base, solved by every member (it is small beside a slab).
     let solved_base = (|| {
         let groups: Vec<Vec<ProxyGroup>> = groups
@@ -1242,6 +1297,9 @@ pub(crate) fn solve_slabs(
         field,
         finest,
         isovalue,
+        noise: noise.map(|(noise, _)| noise),
+        noise_cells_beyond_padding: noise.map_or(0, |(_, beyond)| beyond),
+        screening_depth,
     })
 }
 

@@ -84,6 +84,16 @@ pub struct OutOfCoreReport {
     pub unsupported_components: usize,
     /// The isovalue.
     pub isovalue: f64,
+    /// The samples' positional noise σ in input units, estimated from every slab's samples
+    /// when [`Params::screening_follows_noise`] is set (the in-memory estimate's value,
+    /// [`crate::Stats::sample_noise`]); `None` otherwise.
+    pub sample_noise: Option<f64>,
+    /// Cells of that estimate wider than their slab's padding reaches, fitted over the samples
+    /// within it rather than all of theirs (0 unless the median sample is about three depths
+    /// coarser than the slabs' walls; then the σ may differ slightly from the in-memory one).
+    pub noise_cells_beyond_padding: u64,
+    /// The depth d whose 2^d scaled the screening weight, as [`crate::Stats::screening_depth`].
+    pub screening_depth: f64,
     /// The points carried colours or other channels, which this path does not carry onto the
     /// mesh (the in-memory path does).
     pub attributes_dropped: bool,
@@ -116,15 +126,6 @@ pub(crate) fn run(
             name: "vertex_normals",
             value: "true".into(),
             expected: "false: a reconstruction out of core writes no vertex normals",
-        }
-        .into());
-    }
-    if params.screening_follows_noise {
-        return Err(crate::Error::InvalidParameter {
-            name: "screening_follows_noise",
-            value: "true".into(),
-            expected: "false: out of core the screening keeps its 2^depth scale (the noise \
-                       estimate needs every sample's cell at once; not built yet)",
         }
         .into());
     }
@@ -225,6 +226,9 @@ pub(crate) fn run(
         triangles: assembled.triangles,
         unsupported_components: assembled.unsupported_components,
         isovalue: solved.isovalue,
+        sample_noise: solved.noise.map(|noise| noise.sigma * solved.scan.map.size),
+        noise_cells_beyond_padding: solved.noise_cells_beyond_padding,
+        screening_depth: solved.screening_depth,
         attributes_dropped: solved.scan.has_attributes,
         seconds: started.elapsed().as_secs_f64(),
     })

@@ -43,7 +43,7 @@ pub(crate) use rhs::{
     coarser_divergences, finest_right_hand_side, right_hand_sides, update_on_core,
 };
 pub(crate) use screening::{
-    depth_weight, proxy_depth, sample_groups, sample_weights, sample_weights_from_totals,
-    screening_depth, weight_at_depth, Proxies,
+    proxy_depth, sample_groups, sample_weights, sample_weights_from_totals, screening_depth,
+    weight_at_depth, Proxies,
 };
 pub(crate) use transfer::prolong;

@@ -31,16 +31,6 @@ pub(crate) fn sample_weights_from_totals(
         .collect()
 }
 
-/// The screening term's weight at every depth: α·2^D, D the requested depth — the finest
-/// depth's balance between the Laplacian and the screening term (SPSR), kept at coarser depths,
-/// where it is then relatively stronger. The cascade never revisits a coarse depth, so a coarse
-/// solution that ignores the samples would leave an offset the thin finer bands cannot take
-/// out. (When the tree stops short of D, keeping D's weight was measured to avoid a 76-vertex
-/// bubble beside the oni's horn that the finest used depth's weight produced.)
-pub(crate) fn depth_weight(point_weight: f32, requested_depth: u32) -> f64 {
-    weight_at_depth(point_weight, requested_depth as f64)
-}
-
 /// How many times the samples' noise σ the cells of the finest depth the screening is scaled
 /// to are wide ([`screening_depth`]). Set on noisy synthetic shapes against their true
 /// surfaces and on the shared laser scans by the distance to samples held out of the
@@ -64,7 +54,14 @@ pub(crate) fn screening_depth(requested_depth: u32, sigma: f64) -> f64 {
     }
 }
 
-/// The screening weight α·2^d for a fractional `depth` ([`screening_depth`]).
+/// The screening term's weight at every depth: α·2^d, d the requested depth D or, when the
+/// screening follows the samples' noise, the depth [`screening_depth`] stops at (fractional)
+/// — the finest depth's balance between the Laplacian and the screening term (SPSR), kept at
+/// coarser depths, where it is then relatively stronger. The cascade never revisits a coarse
+/// depth, so a coarse solution that ignores the samples would leave an offset the thin finer
+/// bands cannot take out. (When the tree stops short of D, keeping D's weight was measured to
+/// avoid a 76-vertex bubble beside the oni's horn that the finest used depth's weight
+/// produced.)
 pub(crate) fn weight_at_depth(point_weight: f32, depth: f64) -> f64 {
     point_weight as f64 * depth.exp2()
 }

@@ -481,8 +481,8 @@ class Reconstructor:
         "scatter sigma across the surface (Mesh.sample_noise) and scales the screening by 2^d "
         "no finer than the depth whose cells are 10 sigma wide, so that a high depth no longer "
         "pulls the surface onto the noise; exact samples keep 2^depth, and so do clouds too "
-        "sparse for the estimate to resolve the surface (it reads no noise there). Not out of "
-        "core.",
+        "sparse for the estimate to resolve the surface (it reads no noise there). Out of core "
+        "the slabs estimate the same sigma from their parts.",
     )
     normal_neighbors = _Param[int](
         ctypes.c_uint32,

@@ -1,0 +1,260 @@
+//! The samples' noise out of core ([`crate::Params::screening_follows_noise`]): the in-memory
+//! estimate (`crate::noise`) from the slabs' parts, the same σ bit for bit when the estimate's
+//! cells fit within a slab's padding.
+//!
+//! The estimate reads three things, each of which adds up over the slabs:
+//! - its depth, from the samples' areas counted by the depth each gives
+//!   ([`AreaDepths`]): pass A counts each slab's own samples as it prepares them;
+//! - the cells' fits at that depth and the next coarser ([`CellFits`]): pass B fits, in each
+//!   slab, the cells the slab owns ([`owner_of_cell`]: the slab of the cell's lowest column)
+//!   from its samples with their padding, which are in the in-memory path's Morton order, so a
+//!   cell's fit is the in-memory one whenever its columns lie within the padding;
+//! - the medians of the fits' residuals and F values, found across the team without gathering
+//!   the values ([`team_median`]), before the base is solved with the screening they give.
+//!
+//! A cell wider than the padding reaches (2^(W − d) columns of the wall depth W past 25: the
+//! estimate's cells hold about 16 samples, so only where the median sample is about three
+//! depths coarser than the walls) is fitted from the samples the owner holds, and counted
+//! ([`SlabNoise::cells_beyond_padding`]).
+
+use super::slabs::SlabLayout;
+use super::team::{gather, Packer, Team, Unpacker};
+use super::OutOfCoreError;
+use crate::noise::{from_medians, CellFits, SampleNoise};
+use glam::DVec3;
+
+/// A member's part of the estimate, gathered over the slabs it does in pass B.
+#[derive(Debug, Default)]
+pub(crate) struct SlabNoise {
+    /// The fits of the cells its slabs own.
+    pub(crate) fits: CellFits,
+    /// Cells among them whose columns reach past their slab's padding: fitted over the samples
+    /// within it.
+    pub(crate) cells_beyond_padding: u64,
+}
+
+/// The slab owning a cell of `depth` at `cell`: the slab of its lowest column of the wall
+/// depth.
+pub(crate) fn owner_of_cell(layout: &SlabLayout, depth: u32, cell: [i32; 3]) -> usize {
+    layout.slab_of_column(columns_of_cell(layout, depth, cell).start)
+}
+
+/// The columns of the wall depth a cell of `depth` at `cell` spans (clamped to the cube).
+fn columns_of_cell(layout: &SlabLayout, depth: u32, cell: [i32; 3]) -> std::ops::Range<u32> {
+    let w = layout.wall_depth;
+    let columns = 1i64 << w;
+    let x = i64::from(cell[0]);
+    let (first, end) = if depth <= w {
+        (x << (w - depth), (x + 1) << (w - depth))
+    } else {
+        (x >> (depth - w), (x >> (depth - w)) + 1)
+    };
+    first.clamp(0, columns - 1) as u32..end.clamp(1, columns) as u32
+}
+
+impl SlabNoise {
+    /// Adds the fits of the cells slab k owns at the estimate's `depth` and the next coarser,
+    /// from its samples with their padding (`positions`: unit cube, Morton order).
+    pub(crate) fn fit_slab(
+        &mut self,
+        layout: &SlabLayout,
+        k: usize,
+        depth: u32,
+        positions: &[DVec3],
+    ) {
+        let owns = |d: u32, cell: [i32; 3]| owner_of_cell(layout, d, cell) == k;
+        self.fits.extend(CellFits::at(depth, positions, &owns));
+        let padded = layout.padded(k);
+        let inv_h = ((depth - 1) as f64).exp2();
+        let mut previous = None;
+        for p in positions {
+            let cell = crate::grid::cell_of(*p, inv_h);
+            if previous == Some(cell) {
+                continue;
+            }
+            previous = Some(cell);
+            let columns = columns_of_cell(layout, depth - 1, cell);
+            if owns(depth - 1, cell) && (columns.start < padded.start || columns.end > padded.end) {
+                self.cells_beyond_padding += 1;
+            }
+        }
+    }
+
+    /// The estimate at `depth` from every member's part: the same as the in-memory
+    /// [`crate::noise::estimate`] over the whole cloud (see the module's documentation). A
+    /// collective step: every member calls it.
+    pub(crate) fn estimate(
+        self,
+        team: &dyn Team,
+        depth: u32,
+    ) -> Result<(SampleNoise, u64), OutOfCoreError> {
+        let mut p = Packer::default();
+        p.u64(self.fits.fine.len() as u64);
+        p.u64(self.cells_beyond_padding);
+        let all = gather(team, Ok(p.bytes))?;
+        let (mut cells, mut beyond) = (0u64, 0u64);
+        for bytes in &all {
+            let mut u = Unpacker::new(bytes);
+            cells += u.u64()?;
+            beyond += u.u64()?;
+        }
+        let r1 = team_median(team, &self.fits.fine)?;
+        let r2 = team_median(team, &self.fits.coarse)?;
+        let shape_f = team_median(team, &self.fits.cubic_f)?;
+        Ok((from_medians(depth, cells as usize, r1, r2, shape_f), beyond))
+    }
+}
+
+/// A key of `v` whose unsigned order is `f64::total_cmp`'s order of the values.
+fn ordered_key(v: f64) -> u64 {
+    let bits = v.to_bits();
+    if bits >> 63 == 1 {
+        !bits
+    } else {
+        bits | 1 << 63
+    }
+}
+
+/// How many of a key's leading bits name its bin in [`team_median`]'s first round: the sign,
+/// the exponent and 4 bits of the fraction, so a bin spans at most 1/16 of a doubling.
+const BIN_BITS: u32 = 16;
+
+/// The median (the upper of the two middle values, as `crate::noise::median` takes it) of the
+/// values every member of `team` holds, `None` when none holds any: every member counts its
+/// values by bins of their leading bits, the counts say which bin holds the median and its
+/// place there, and only the values of that bin are gathered. A collective step.
+pub(crate) fn team_median(team: &dyn Team, mine: &[f64]) -> Result<Option<f64>, OutOfCoreError> {
+    let bin_of = |v: f64| ordered_key(v) >> (64 - BIN_BITS);
+    let mut bins: Vec<u64> = mine.iter().map(|&v| bin_of(v)).collect();
+    bins.sort_unstable();
+    let mut p = Packer::default();
+    let pairs: Vec<u64> = bins
+        .chunk_by(|a, b| a == b)
+        .flat_map(|run| [run[0], run.len() as u64])
+        .collect();
+    p.u64s(&pairs);
+    drop(bins);
+    let mut totals = std::collections::BTreeMap::<u64, u64>::new();
+    for bytes in gather(team, Ok(p.bytes))? {
+        let mut u = Unpacker::new(&bytes);
+        for pair in u.u64s()?.chunks_exact(2) {
+            *totals.entry(pair[0]).or_default() += pair[1];
+        }
+    }
+    let total: u64 = totals.values().sum();
+    if total == 0 {
+        return Ok(None);
+    }
+    let mut place = total / 2;
+    let mut median_bin = 0;
+    for (&bin, &count) in &totals {
+        if place < count {
+            median_bin = bin;
+            break;
+        }
+        place -= count;
+    }
+    let in_bin: Vec<f64> = mine
+        .iter()
+        .copied()
+        .filter(|&v| bin_of(v) == median_bin)
+        .collect();
+    let mut p = Packer::default();
+    p.f64s(&in_bin);
+    let mut gathered = Vec::new();
+    for bytes in gather(team, Ok(p.bytes))? {
+        let mut u = Unpacker::new(&bytes);
+        gathered.extend(u.f64s()?);
+    }
+    gathered.sort_unstable_by(f64::total_cmp);
+    gathered
+        .get(place as usize)
+        .copied()
+        .map(Some)
+        .ok_or_else(|| {
+            OutOfCoreError::Reconstruction(crate::Error::Internal(format!(
+                "the members' median bin holds {} values, not the {} counted past its place",
+                gathered.len(),
+                place + 1
+            )))
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::outofcore::team::tests::Threads;
+    use crate::outofcore::team::Alone;
+
+    /// Proves the team's median is the in-memory median of all the members' values bit for
+    /// bit, for teams of 1 to 4 members, values split unevenly (one member with none), values
+    /// repeated, of both signs, zeros of either sign and infinities, and none at all.
+    #[test]
+    fn a_team_median_is_the_median_of_every_members_values() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut cases: Vec<Vec<f64>> = Vec::new();
+        for n in [1usize, 2, 3, 10, 1001, 20_000] {
+            cases.push(
+                (0..n)
+                    .map(|_| (next() % 10_000) as f64 * 1e-7 + 3e-4)
+                    .collect(),
+            );
+        }
+        cases.push(vec![0.5; 7]);
+        cases.push(vec![-1.0, 0.0, -0.0, f64::INFINITY, 2.0, 2.0, 1e-300, -5.0]);
+        cases.push(Vec::new());
+        for values in &cases {
+            let mut all = values.clone();
+            let expected = crate::noise::median(&mut all);
+            assert_eq!(
+                team_median(&Alone, values).unwrap().map(f64::to_bits),
+                expected.map(f64::to_bits)
+            );
+            for members in 2..=4usize {
+                // Member r holds the values at places ≡ r mod (members + 1), the last member
+                // also those ≡ members: uneven parts, and member 0 none for a single value.
+                let parts: Vec<Vec<f64>> = (0..members)
+                    .map(|r| {
+                        values
+                            .iter()
+                            .enumerate()
+                            .filter(|(i, _)| {
+                                let slot = i % (members + 1);
+                                slot == r || (r == members - 1 && slot == members)
+                            })
+                            .map(|(_, &v)| v)
+                            .collect()
+                    })
+                    .collect();
+                let team = Threads::new(members);
+                let medians: Vec<Option<u64>> = std::thread::scope(|s| {
+                    let handles: Vec<_> = (0..members)
+                        .map(|r| {
+                            let (team, part) = (&team, &parts[r]);
+                            s.spawn(move || {
+                                team_median(&team.member(r), part)
+                                    .unwrap()
+                                    .map(f64::to_bits)
+                            })
+                        })
+                        .collect();
+                    handles.into_iter().map(|h| h.join().unwrap()).collect()
+                });
+                for median in medians {
+                    assert_eq!(
+                        median,
+                        expected.map(f64::to_bits),
+                        "{members} members, {} values",
+                        values.len()
+                    );
+                }
+            }
+        }
+    }
+}
