@@ -144,26 +144,28 @@ pub struct Params {
     /// Screening weight α (Kazhdan & Hoppe 2013): how strongly the surface is pulled onto the
     /// samples. 0 gives the 2006 method. Default 4 (2 × the B-spline degree, PoissonRecon's rule);
     /// [`Params::with_degree`] sets it to 2 × the new degree, so set it after the degree to
-    /// override. Range [0, 1e6]. The pull is scaled by 2^depth (the depth asked for) at every
-    /// depth, so on noisy clouds (noise a sizeable fraction of a finest cell) a depth past what
-    /// the samples support pulls the surface onto the noise: there use a lower weight (0 was
-    /// the most accurate on the noisy shapes measured in docs/benchmarks.md), a lower depth, or
-    /// [`Params::screening_follows_noise`]. PoissonRecon `--pointWeight`, PCL `setPointWeight`,
-    /// Open3D's fixed 2 (with degree 1).
+    /// override. Range [0, 1e6]. The pull is scaled by 2^d at every depth: d the depth asked
+    /// for, or no finer than the samples' noise supports ([`Params::screening_follows_noise`],
+    /// on by default). PoissonRecon `--pointWeight`, PCL `setPointWeight`, Open3D's fixed 2
+    /// (with degree 1).
     pub point_weight: f32,
     /// Whether the screening follows the samples' positional noise: the samples' scatter
     /// across the surface is estimated from themselves (σ, reported in
     /// [`crate::Stats::sample_noise`]; 0 on exact samples of a smooth surface), and the pull's
     /// 2^depth scale stops at the depth whose cells are 10 σ wide, so that a finer depth no
-    /// longer pulls the surface onto the noise. Exact samples keep 2^depth. On noisy clouds it
-    /// keeps the surface as close to the truth at depth 11 as at 8 (the default's distance
-    /// grows by 60 %), and on the shared laser scans the surface comes 1–8 % closer to samples
-    /// held out of the reconstruction (docs/benchmarks.md, issue 16). Clouds so sparse that
-    /// the cells holding enough samples to measure are too coarse to resolve the surface (the
-    /// 1,435-point oni) read no noise, since what the cells' quadrics leave there has shape a
-    /// cubic explains, and keep 2^depth. Out of core ([`crate::reconstruct_out_of_core`], and
-    /// across MPI ranks) the slabs estimate the same σ from their parts. Default `false` (the
-    /// scale of SPSR and PoissonRecon). No PoissonRecon, Open3D or PCL equivalent.
+    /// longer pulls the surface onto the noise. Exact samples keep 2^depth, and so do clouds
+    /// so sparse that the cells holding enough samples to measure are too coarse to resolve
+    /// the surface (the 1,435-point oni: what the cells' quadrics leave there has shape a cubic
+    /// explains, and it reads no noise). Out of core ([`crate::reconstruct_out_of_core`], and
+    /// across MPI ranks) the slabs estimate the same σ from their parts.
+    ///
+    /// Default `true`. `false` keeps 2^depth at any noise, the scale of SPSR and PoissonRecon:
+    /// on noisy clouds the surface then follows the noise more with every depth past the
+    /// samples' (on noisy spheres 60 % farther from the truth at depth 11 than at 8; on the
+    /// bunny's scans 8 % farther from samples held out of the reconstruction at depth 12 than
+    /// at 9, where following the noise stays flat and closer than Open3D's), and lies closer
+    /// to the very points it was fitted to (docs/benchmarks.md, issue 16). No PoissonRecon,
+    /// Open3D or PCL equivalent.
     pub screening_follows_noise: bool,
     /// Degree of the B-spline node functions: 2 (default; support 3 cells, continuous ∇χ) or 1
     /// (piecewise-linear hats on the cell corners, support 2 cells: 3-wide stencils instead of
@@ -228,7 +230,7 @@ impl Default for Params {
             samples_per_node: 1.5,
             scale: 1.1,
             point_weight: 4.0,
-            screening_follows_noise: false,
+            screening_follows_noise: true,
             degree: 2,
             threads: 0,
             max_solver_iterations: 60,

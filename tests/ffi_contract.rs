@@ -3116,7 +3116,7 @@ fn vertex_normals_setting_round_trips() {
     }
 }
 
-/// Proves: the screening-follows-noise setting defaults to false and round-trips, NULL is
+/// Proves: the screening-follows-noise setting defaults to true and round-trips, NULL is
 /// refused, and the mesh reports what the reconstruction did: without it the screening depth is
 /// the depth and the noise NaN; with it, on a jittered sphere, the Rust API's figures.
 #[test]
@@ -3154,7 +3154,7 @@ fn screening_follows_noise_round_trips_and_the_mesh_reports_the_noise() {
                 psr_reconstructor_get_screening_follows_noise(r, &mut on),
                 status
             );
-            assert!(!on);
+            assert!(on);
             assert_eq!(
                 psr_reconstructor_get_screening_follows_noise(r, ptr::null_mut()),
                 psr_status::NullArgument

@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! psr --in cloud.ply --out mesh.ply [--depth 8 | --width W] [--full-depth 5] [--kernel-depth N]
-//!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--screening-follows-noise]
+//!     [--samples-per-node 1.5] [--scale 1.1] [--point-weight 4] [--screening-follows-noise true]
 //!     [--threads 0] [--iters 60]
 //!     [--tolerance 1e-2] [--boundary neumann|free|dirichlet] [--splatting bspline|trilinear]
 //!     [--vertices fitted|on-isosurface] [--normals auto|estimate|reorient] [--neighbors 20]
@@ -127,21 +127,28 @@ struct Args {
 
     /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples; 0 is the
     /// unscreened 2006 method. Default 2 × --degree (4 at psr's default degree 2, 2 at degree
-    /// 1). The pull is scaled by 2^--depth, so on noisy clouds (noise a sizeable fraction of a
-    /// finest cell) a depth past what the samples support pulls the surface onto the noise:
-    /// there use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
-    /// docs/benchmarks.md), a lower --depth, or --screening-follows-noise. PoissonRecon:
+    /// 1). The pull is scaled by 2^d: d the --depth, or no finer than the samples' noise
+    /// supports (--screening-follows-noise, on by default). PoissonRecon:
     /// --pointWeight (default 2 × the B-spline degree there too: 2 for its default --degree 1).
     #[arg(long, alias = "pointWeight", value_name = "W")]
     point_weight: Option<f32>,
 
-    /// Let the screening follow the samples' noise: estimate how far the samples scatter
-    /// across the surface (σ, printed with --verbose) and scale the pull by 2^d no finer than
-    /// the depth whose cells are 10 σ wide, so that a high --depth no longer pulls the surface
-    /// onto the noise; exact samples keep 2^--depth, and so do clouds too sparse for the
-    /// estimate to resolve the surface (it reads no noise there). With --out-of-core the same σ
-    /// is estimated slab by slab. PoissonRecon: none.
-    #[arg(long)]
+    /// Whether the screening follows the samples' noise: estimate how far the
+    /// samples scatter across the surface (σ, printed with --verbose) and scale the pull by
+    /// 2^d no finer than the depth whose cells are 10 σ wide, so that a high --depth does not
+    /// pull the surface onto the noise; exact samples keep 2^--depth, and so do clouds too
+    /// sparse for the estimate to resolve the surface (it reads no noise there). With
+    /// --out-of-core the same σ is estimated slab by slab. `--screening-follows-noise false`
+    /// keeps 2^--depth at any noise (PoissonRecon's scale: on noisy scans the surface then
+    /// follows the noise more with every depth past the samples'). PoissonRecon: none.
+    #[arg(
+        long,
+        value_name = "BOOL",
+        default_value_t = true,
+        num_args = 0..=1,
+        default_missing_value = "true",
+        action = clap::ArgAction::Set
+    )]
     screening_follows_noise: bool,
 
     /// Degree of the B-spline node functions: 2 (default; smooth gradient) or 1 (piecewise-linear,

@@ -62,7 +62,7 @@ CHANGED: dict[str, Any] = {
     "scale": 1.25,
     "degree": 1,
     "point_weight": 0.0,
-    "screening_follows_noise": True,
+    "screening_follows_noise": False,
     "threads": 2,
     "max_solver_iterations": 30,
     "solver_tolerance": 1e-4,
@@ -109,13 +109,13 @@ def test_screening_follows_the_samples_noise(ball: tuple[np.ndarray, np.ndarray]
     points, normals = sphere(20000)
     rng = np.random.default_rng(3)
     noisy = points + rng.normal(scale=0.01, size=points.shape)
-    plain = psr.reconstruct(noisy, normals, depth=8)
+    plain = psr.reconstruct(noisy, normals, depth=8, screening_follows_noise=False)
     assert plain.sample_noise is None and plain.screening_depth == 8.0
-    follows = psr.reconstruct(noisy, normals, depth=8, screening_follows_noise=True)
+    follows = psr.reconstruct(noisy, normals, depth=8)
     # sigma 0.01 per coordinate reads about 0.009 (the median of the cells' residuals)
     assert follows.sample_noise == pytest.approx(0.009, rel=0.25)
     assert follows.screening_depth < 6.0
-    exact = psr.reconstruct(*ball, depth=6, screening_follows_noise=True)
+    exact = psr.reconstruct(*ball, depth=6)
     assert exact.sample_noise == pytest.approx(0.0, abs=1e-3) and exact.screening_depth == 6.0
 
 

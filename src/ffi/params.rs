@@ -300,11 +300,9 @@ pub unsafe extern "C" fn psr_reconstructor_get_scale(
 /// Sets the screening weight alpha (Kazhdan & Hoppe 2013): how strongly the surface is pulled
 /// onto the samples; 0 gives the unscreened 2006 method. Default 4 (2 x the default degree 2;
 /// psr_reconstructor_set_degree sets it to 2 x the degree), range 0 to 1e6. The pull is
-/// scaled by 2^depth (the depth asked for), so on noisy clouds (noise a sizeable fraction of a
-/// finest cell) a depth past what the samples support pulls the surface onto the noise: there
-/// use a lower weight (0 was the most accurate on the noisy shapes measured in psr's
-/// docs/benchmarks.md), a lower depth, or psr_reconstructor_set_screening_follows_noise.
-/// PoissonRecon --pointWeight, PCL setPointWeight.
+/// scaled by 2^d: d the depth asked for, or no finer than the samples' noise supports
+/// (psr_reconstructor_set_screening_follows_noise, on by default). PoissonRecon
+/// --pointWeight, PCL setPointWeight.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.
 ///
@@ -347,9 +345,14 @@ pub unsafe extern "C" fn psr_reconstructor_get_point_weight(
 /// screening weight by 2^d no finer than the depth whose cells are 10 sigma wide, so that a
 /// high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
 /// (psr_mesh_screening_depth says which d was used); so do clouds too sparse for the
-/// estimate to resolve the surface (it reads no noise there). Default false. Out of core
+/// estimate to resolve the surface (it reads no noise there). Out of core
 /// (psr_reconstructor_solve_file_out_of_core) the slabs estimate the same sigma from their
-/// parts. No PoissonRecon, Open3D or PCL equivalent.
+/// parts. Default true (it was false before the 2026-12-06 build).
+/// false keeps 2^depth at any noise, the scale of SPSR and PoissonRecon: on noisy clouds the
+/// surface then follows the noise more with every depth past the samples' own (farther from
+/// the true surface and from samples held out of the reconstruction, closer to the points it
+/// was fitted to; psr's docs/benchmarks.md, issue 16). No PoissonRecon, Open3D or PCL
+/// equivalent.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_vertex_normals.
 ///

@@ -252,7 +252,7 @@ DEFAULTS: dict[str, Any] = {
     "scale": 1.1,
     "degree": 2,
     "point_weight": 4.0,
-    "screening_follows_noise": False,
+    "screening_follows_noise": True,
     "threads": 0,
     "max_solver_iterations": 60,
     "solver_tolerance": 1e-2,
@@ -418,9 +418,8 @@ class Reconstructor:
         _real,
         float,
         "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 2 x degree: 4). Scaled by "
-        "2^depth: on noisy clouds a depth past what the samples support pulls the surface onto "
-        "the noise; use a lower weight (0 on the noisy shapes of docs/benchmarks.md), a lower "
-        "depth, or screening_follows_noise.",
+        "2^d: d the depth, or no finer than the samples' noise supports "
+        "(screening_follows_noise, on by default).",
     )
     threads = _Param[int](
         ctypes.c_uint32, _u32, int, "Worker threads of a solve; 0 (default) is one per core."
@@ -477,12 +476,14 @@ class Reconstructor:
         ctypes.c_bool,
         _bool,
         bool,
-        "Whether the screening follows the samples' noise (default False): psr estimates their "
+        "Whether the screening follows the samples' noise (default True): psr estimates their "
         "scatter sigma across the surface (Mesh.sample_noise) and scales the screening by 2^d "
         "no finer than the depth whose cells are 10 sigma wide, so that a high depth no longer "
         "pulls the surface onto the noise; exact samples keep 2^depth, and so do clouds too "
         "sparse for the estimate to resolve the surface (it reads no noise there). Out of core "
-        "the slabs estimate the same sigma from their parts.",
+        "the slabs estimate the same sigma from their parts. False keeps 2^depth at any noise "
+        "(PoissonRecon's scale: on noisy scans the surface then follows the noise more with "
+        "every depth past the samples').",
     )
     normal_neighbors = _Param[int](
         ctypes.c_uint32,
@@ -509,7 +510,7 @@ class Reconstructor:
         scale: float = 1.1,
         degree: int = 2,
         point_weight: float | None = None,
-        screening_follows_noise: bool = False,
+        screening_follows_noise: bool = True,
         threads: int = 0,
         max_solver_iterations: int = 60,
         solver_tolerance: float = 1e-2,
@@ -1510,7 +1511,7 @@ def reconstruct(
     scale: float = 1.1,
     degree: int = 2,
     point_weight: float | None = None,
-    screening_follows_noise: bool = False,
+    screening_follows_noise: bool = True,
     threads: int = 0,
     max_solver_iterations: int = 60,
     solver_tolerance: float = 1e-2,
