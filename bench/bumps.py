@@ -9,8 +9,10 @@ agreement of the triangle normals with the true normals, and the number of compo
     python3 bench/bumps.py --shape torus --sampling scan:6:800:80   # 6 views, 800x80 rays each
     python3 bench/bumps.py --shape sphere --noise 0.005   # positions and normals perturbed
 
-Needs numpy and open3d (bench/requirements.txt) and target/release/psr. Variants: psr, pw0
-(psr --point-weight 0), follow (psr --screening-follows-noise), o3d, and
+Needs numpy and open3d (bench/requirements.txt) and target/release/psr. Variants: psr (the
+default, whose screening follows the samples' noise), pw0 (psr --point-weight 0), fixed (psr
+--screening-follows-noise false: 2^depth, PoissonRecon's scale), follow (psr
+--screening-follows-noise, the default before 2026-12-06), o3d, and
 X:NAME:VAR=VALUE+VAR2=VALUE2 (psr with environment variables, for experiments). Work files go to bench/runs/ (not committed)."""
 import argparse, json, os, subprocess, sys, time
 import numpy as np
@@ -211,6 +213,8 @@ def main():
                     extra = ["--point-weight", "0"]
                 elif var == "follow":
                     extra = a.psr_args.split() + ["--screening-follows-noise"]
+                elif var == "fixed":
+                    extra = a.psr_args.split() + ["--screening-follows-noise", "false"]
                 cmd = [a.psr, "--in", ply, "--out", out, "--depth", str(d), "--no-density"] + extra
                 r = subprocess.run(cmd, capture_output=True, text=True, env=env)
                 if r.returncode:

@@ -11,14 +11,16 @@ input points or to a reference mesh built from the same scans, this does not rew
 the noise.
 
     python3 bench/heldout.py --cloud ../shared/data/bunny_scans.ply --depth 10 \\
-        --variants psr,follow,pw0,o3d
+        --variants psr,fixed,pw0,o3d
     python3 bench/heldout.py --cloud ../shared/data/bunny_scans.ply --depths 8,9,10,11,12 \\
-        --variants psr,follow,pw0,o3d --plot docs/gallery/heldout_bunny.png
+        --variants psr,fixed,pw0,o3d --plot docs/gallery/heldout_bunny.png
 
 With --depths, every variant runs at every depth; --plot draws each variant's held-out mean
 against the depth (needs matplotlib).
 
-Variants: psr (the default), follow (--screening-follows-noise), pw0 (--point-weight 0), o3d
+Variants: psr (the default, whose screening follows the samples' noise), fixed
+(--screening-follows-noise false: the screening scaled by 2^depth, PoissonRecon's scale),
+follow (--screening-follows-noise, the default before 2026-12-06), pw0 (--point-weight 0), o3d
 (Open3D's Poisson, a build of PoissonRecon), and psr:ARGS (psr with the extra arguments ARGS,
 words split on '+', e.g. psr:--degree+1). Needs numpy and open3d (bench/requirements.txt) and
 target/release/psr (--psr). Work files go to bench/runs/heldout/ (not committed).
@@ -35,7 +37,12 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 # The psr variants by name: their extra arguments.
-NAMED = {"psr": [], "follow": ["--screening-follows-noise"], "pw0": ["--point-weight", "0"]}
+NAMED = {
+    "psr": [],
+    "fixed": ["--screening-follows-noise", "false"],
+    "follow": ["--screening-follows-noise"],
+    "pw0": ["--point-weight", "0"],
+}
 
 
 def main() -> int:
@@ -46,7 +53,7 @@ def main() -> int:
     parser.add_argument("--depth", type=int, default=10)
     parser.add_argument("--depths", help="comma-separated depths (instead of --depth)")
     parser.add_argument("--plot", help="a PNG of the held-out mean against the depth")
-    parser.add_argument("--variants", default="psr,follow,pw0,o3d")
+    parser.add_argument("--variants", default="psr,fixed,pw0,o3d")
     parser.add_argument("--fraction", type=float, default=0.1, help="the share held out")
     parser.add_argument("--seed", type=int, default=7, help="picks the points held out")
     parser.add_argument("--psr", default=os.path.join(HERE, "..", "target", "release", "psr"))
@@ -114,12 +121,13 @@ def main() -> int:
 
 LABELS = {
     "psr": "psr (default)",
+    "fixed": "psr --screening-follows-noise false",
     "follow": "psr --screening-follows-noise",
     "pw0": "psr --point-weight 0",
     "o3d": "Open3D (PoissonRecon)",
 }
 # One colour per named variant in every picture.
-COLORS = {"psr": "C0", "follow": "C1", "pw0": "C2", "o3d": "C3"}
+COLORS = {"psr": "C0", "follow": "C1", "pw0": "C2", "o3d": "C3", "fixed": "C4"}
 
 
 def plot(path, name, seed, fraction, depths, means):

@@ -166,6 +166,14 @@ pub(crate) fn density_bytes(slots: u64) -> u64 {
     slots.saturating_mul(PER_DENSITY_SLOT)
 }
 
+/// The most bytes the noise estimate's fits of `points` samples take ([`crate::noise`]'s
+/// `CellFits`: a residual per cell of its finer depth, a residual and an F per cell of the
+/// coarser, every fitted cell holding at least `noise::MIN_SAMPLES` samples): what each
+/// member of an out-of-core run keeps of its slabs' fits from pass B until the medians.
+pub(crate) fn noise_fit_bytes(points: u64) -> u64 {
+    points / crate::noise::MIN_SAMPLES as u64 * 3 * 8
+}
+
 /// The density field's node slots for `points` points at `kernel_depth`, predicted: its
 /// finest depth holds the nodes the samples' trilinear splats touch, at most the surface's or
 /// the points' count of core nodes ([`predicted_nodes`]'s rule without the saturation: the

@@ -186,6 +186,74 @@ mod tests {
     use crate::outofcore::team::tests::Threads;
     use crate::outofcore::team::Alone;
 
+    /// Proves the slabs' fits are the in-memory fits: every cell fitted once, by its owner,
+    /// from the samples of the slab's padded columns, so the medians are the same bits; and
+    /// that with a padding narrower than the coarser cells the cells reaching past it are
+    /// counted (each still fitted once, from the samples within the padding).
+    #[test]
+    fn the_slabs_fit_every_cell_once_as_in_memory() {
+        use crate::grid::{cell_of, morton_nested};
+        use crate::noise::median;
+        // A noisy sphere of 40,000 samples in Morton order at depth 16.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut positions: Vec<DVec3> = (0..40_000)
+            .map(|_| {
+                let z: f64 = 2.0 * uniform() - 1.0;
+                let phi = std::f64::consts::TAU * uniform();
+                let r = (1.0 - z * z).sqrt();
+                let jitter = 0.3 * (1.0 + 0.01 * (uniform() - 0.5));
+                DVec3::splat(0.5) + DVec3::new(r * phi.cos(), r * phi.sin(), z) * jitter
+            })
+            .collect();
+        positions.sort_by_key(|p| morton_nested(cell_of(*p, 65536.0).map(|v| v as u32)));
+        let depth = 5;
+        let mut whole = CellFits::at(depth, &positions, &|_, _| true);
+        let wall_depth = 6;
+        let mut counts = vec![0u64; 1 << wall_depth];
+        for p in &positions {
+            counts[(p.x * 64.0) as usize] += 1;
+        }
+        for (padding, beyond) in [(3u32, false), (1, true)] {
+            let layout = SlabLayout::balanced(&counts, wall_depth, 4, padding);
+            let mut noise = SlabNoise::default();
+            for k in 0..layout.len() {
+                let padded = layout.padded(k);
+                let within: Vec<DVec3> = positions
+                    .iter()
+                    .copied()
+                    .filter(|p| padded.contains(&layout.column_of(p.x)))
+                    .collect();
+                noise.fit_slab(&layout, k, depth, &within);
+            }
+            assert_eq!(noise.fits.fine.len(), whole.fine.len(), "padding {padding}");
+            assert_eq!(
+                noise.fits.coarse.len(),
+                whole.coarse.len(),
+                "padding {padding}"
+            );
+            assert_eq!(noise.cells_beyond_padding > 0, beyond, "padding {padding}");
+            if !beyond {
+                let mut fits = noise.fits;
+                for (ours, theirs) in [
+                    (&mut fits.fine, &mut whole.fine),
+                    (&mut fits.coarse, &mut whole.coarse),
+                    (&mut fits.cubic_f, &mut whole.cubic_f),
+                ] {
+                    assert_eq!(
+                        median(ours).map(f64::to_bits),
+                        median(theirs).map(f64::to_bits)
+                    );
+                }
+            }
+        }
+    }
+
     /// Proves the team's median is the in-memory median of all the members' values bit for
     /// bit, for teams of 1 to 4 members, values split unevenly (one member with none), values
     /// repeated, of both signs, zeros of either sign and infinities, and none at all.

@@ -111,7 +111,8 @@ fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
 /// for the whole cloud and the finer depths for the slab's points and its part of the surface
 /// ([`crate::memory::nodes_of_measured_surface`]): up to the wall depth over its padding,
 /// finer over its graded padding's band at each depth. Every member also holds `shared` bytes
-/// throughout (the whole cloud's density field), and beside them, while pass A prepares the
+/// throughout (the whole cloud's density field, and the noise estimate's fits when the
+/// screening follows the noise), and beside them, while pass A prepares the
 /// slabs, the whole cloud's normals summed over the `kernel_slots` slots of the kernel depth
 /// (dropped before any slab's tree exists): a slab needs the larger of its solve's footprint
 /// and its points' with those sums (`Footprint::reading_density` without the field).
@@ -743,7 +744,15 @@ fn cut(
                     .map(|key| (key, 0.0)),
             );
             let structure = structure.into_field();
-            let shared = crate::memory::density_bytes(structure.slots() as u64);
+            // Beside the field, every member holds the fits of the noise estimate's cells of its
+            // slabs from pass B on (counted as if one member fitted the whole cloud's).
+            let noise_fits = if params.screening_follows_noise {
+                crate::memory::noise_fit_bytes(scan.count)
+            } else {
+                0
+            };
+            let shared =
+                crate::memory::density_bytes(structure.slots() as u64).saturating_add(noise_fits);
             let kernel_slots = structure.kernel_slots() as u64;
             let surface = surface_by_column(&structure, wall_depth);
             drop(structure);
