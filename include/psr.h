@@ -934,10 +934,11 @@ psr_status psr_reconstructor_get_point_weight(const psr_reconstructor *r, float 
 
 /**
  * Sets whether the screening follows the samples' noise: the reconstruction estimates how far
- * the samples scatter across the surface (sigma, psr_mesh_sample_noise) and scales the
- * screening weight by 2^d no finer than the depth whose cells are 10 sigma wide, so that a
- * high depth no longer pulls the surface onto the noise; exact samples keep 2^depth
- * (psr_mesh_screening_depth says which d was used); so do clouds too sparse for the
+ * the samples scatter across the surface (sigma, psr_mesh_sample_noise) and pulls the depths
+ * finer than the one whose cells are 10 sigma wide (s, psr_mesh_screening_depth) with alpha
+ * 2^s instead of alpha 2^depth, so that a high depth does not pull the surface onto the
+ * noise (the coarser depths keep alpha 2^depth, which keeps small detached parts of a scan);
+ * exact samples keep 2^depth; so do clouds too sparse for the
  * estimate to resolve the surface (it reads no noise there). Out of core
  * (psr_reconstructor_solve_file_out_of_core) the slabs estimate the same sigma from their
  * parts. Default true (it was false before the 2026-12-06 build).
@@ -1826,9 +1827,11 @@ psr_status psr_mesh_depth(const psr_mesh *m, uint32_t *out);
 psr_status psr_mesh_finest_depth(const psr_mesh *m, uint32_t *out);
 
 /**
- * Writes to *out the depth d whose 2^d scaled the screening weight: psr_mesh_depth's, or less
- * (fractional) when the screening followed the samples' noise
- * (psr_reconstructor_set_screening_follows_noise). 0 for a mesh no reconstruction made.
+ * Writes to *out the noise's depth s of the screening weight: the depths finer than s were
+ * pulled with alpha 2^s instead of alpha 2^depth (those up to floor(s) keep alpha 2^depth).
+ * psr_mesh_depth's when the samples read no noise or the screening did not follow it
+ * (psr_reconstructor_set_screening_follows_noise); less (fractional) when the noise set it.
+ * 0 for a mesh no reconstruction made.
  *
  * m and out must not be NULL. Returns the statuses of psr_mesh_depth.
  *

@@ -77,9 +77,11 @@ pub struct Stats {
     /// 0 for exact samples of a smooth surface), when [`crate::Params::screening_follows_noise`]
     /// asked for it; `None` otherwise.
     pub sample_noise: Option<f64>,
-    /// The depth d whose 2^d scaled the screening weight ([`crate::Params::point_weight`]): the
-    /// depth D, or less when the screening followed the noise (the depth whose cells are 10 σ
-    /// wide, fractional). 0 for a mesh not made by a reconstruction.
+    /// The noise's depth s of the screening weight ([`crate::Params::point_weight`]): the depths
+    /// finer than s were pulled with α·2^s instead of α·2^D (those up to ⌊s⌋ keep α·2^D). The
+    /// depth D when the samples read no noise or the screening did not follow it; less when it
+    /// followed the noise (the depth whose cells are 10 σ wide, fractional). 0 for a mesh not
+    /// made by a reconstruction.
     pub screening_depth: f64,
 }
 

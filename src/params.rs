@@ -151,9 +151,11 @@ pub struct Params {
     pub point_weight: f32,
     /// Whether the screening follows the samples' positional noise: the samples' scatter
     /// across the surface is estimated from themselves (σ, reported in
-    /// [`crate::Stats::sample_noise`]; 0 on exact samples of a smooth surface), and the pull's
-    /// 2^depth scale stops at the depth whose cells are 10 σ wide, so that a finer depth no
-    /// longer pulls the surface onto the noise. Exact samples keep 2^depth, and so do clouds
+    /// [`crate::Stats::sample_noise`]; 0 on exact samples of a smooth surface), and the depths
+    /// finer than the one whose cells are 10 σ wide (s, [`crate::Stats::screening_depth`]) are
+    /// pulled with α·2^s instead of α·2^depth, so that a finer depth does not pull the surface
+    /// onto the noise (the coarser depths keep α·2^depth, which keeps small detached parts of
+    /// a scan on the surface). Exact samples keep 2^depth, and so do clouds
     /// so sparse that the cells holding enough samples to measure are too coarse to resolve
     /// the surface (the 1,435-point oni: what the cells' quadrics leave there has shape a cubic
     /// explains, and it reads no noise). Out of core ([`crate::reconstruct_out_of_core`], and

@@ -381,7 +381,11 @@ pub(crate) fn run(
         positions: &samples.positions,
         screening_weights: &screening_weights,
         proxy_groups: None,
-        screening: system::weight_at_depth(params.point_weight, screening_depth),
+        screening: system::ScreeningWeights::new(
+            params.point_weight,
+            params.depth,
+            screening_depth,
+        ),
         depths: Depths::All,
     };
     let (coefficients, solves) = clock.watch(Stage::Solve, pool, |watch| {

@@ -13,7 +13,9 @@ use crate::error::{Error, Result};
 use crate::memory::zeroed;
 use crate::octree::{Level, Octree};
 use crate::parallel::{scatter_by_chunk, CHUNK};
-use crate::system::{fill_mirrors, prolong, proxy_depth, update_on_core, DepthOperator, Proxies};
+use crate::system::{
+    fill_mirrors, prolong, proxy_depth, update_on_core, DepthOperator, Proxies, ScreeningWeights,
+};
 
 /// A cell of a proxy depth with its samples' Σ w·p and Σ w ([`crate::system::sample_groups`]).
 pub(crate) type ProxyGroup = ([i32; 3], DVec3, f64);
@@ -39,8 +41,8 @@ pub(crate) struct System<'a> {
     /// at [`proxy_depth`] of d, as [`crate::system::sample_groups`] makes them). The
     /// out-of-core base's, merged from its slabs' (`crate::outofcore::base::merge_groups`).
     pub(crate) proxy_groups: Option<&'a [Vec<ProxyGroup>]>,
-    /// The screening term's weight α_d ([`crate::system::weight_at_depth`]).
-    pub(crate) screening: f64,
+    /// The screening term's weight α_d at each depth.
+    pub(crate) screening: ScreeningWeights,
     /// Which depths to solve: all of them ([`Depths::All`]) as the in-memory pipeline does, or
     /// a base or the depths above one (the out-of-core path, `crate::outofcore`).
     pub(crate) depths: Depths,
@@ -125,7 +127,7 @@ pub(crate) fn cascade(
             ),
         });
         go_on()?;
-        let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening));
+        let mut op = pool.install(|| DepthOperator::new(level, &proxies, screening.at(d)));
         go_on()?;
         // This depth's rho is used here for the last time.
         let rho_here = std::mem::take(&mut rho[d]);

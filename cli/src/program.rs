@@ -134,9 +134,10 @@ struct Args {
     point_weight: Option<f32>,
 
     /// Whether the screening follows the samples' noise: estimate how far the
-    /// samples scatter across the surface (σ, printed with --verbose) and scale the pull by
-    /// 2^d no finer than the depth whose cells are 10 σ wide, so that a high --depth does not
-    /// pull the surface onto the noise; exact samples keep 2^--depth, and so do clouds too
+    /// samples scatter across the surface (σ, printed with --verbose) and pull the depths
+    /// finer than the one whose cells are 10 σ wide (s) with 2^s instead of 2^--depth, so
+    /// that a high --depth does not pull the surface onto the noise (the coarser depths keep
+    /// 2^--depth, which keeps small detached parts of a scan); exact samples keep 2^--depth, and so do clouds too
     /// sparse for the estimate to resolve the surface (it reads no noise there). With
     /// --out-of-core the same σ is estimated slab by slab. `--screening-follows-noise false`
     /// keeps 2^--depth at any noise (PoissonRecon's scale: on noisy scans the surface then
@@ -1131,7 +1132,7 @@ fn run_out_of_core(
         if args.verbose {
             eprintln!(
                 "{}",
-                screening_line(report.screening_depth, report.sample_noise)
+                screening_line(report.depth, report.screening_depth, report.sample_noise)
             );
             if report.noise_cells_beyond_padding > 0 {
                 eprintln!(
@@ -1145,15 +1146,22 @@ fn run_out_of_core(
     Ok(())
 }
 
-/// The --verbose line on the screening's scale, and the noise that set it when it followed it.
-fn screening_line(screening_depth: f64, sample_noise: Option<f64>) -> String {
-    format!(
-        "psr: screening weight scaled by 2^{screening_depth:.2}{}",
-        match sample_noise {
-            Some(sigma) => format!(" (the samples' noise: {sigma:.4e} in input units)"),
-            None => String::new(),
-        }
-    )
+/// The --verbose line on the screening's scale at the depths (2^depth, or 2^s finer than the
+/// noise's depth s), and the noise that set s when the screening followed it.
+fn screening_line(depth: u32, screening_depth: f64, sample_noise: Option<f64>) -> String {
+    let noise = match sample_noise {
+        Some(sigma) => format!(" (the samples' noise: {sigma:.4e} in input units)"),
+        None => String::new(),
+    };
+    if screening_depth < depth as f64 {
+        format!(
+            "psr: screening weight scaled by 2^{depth} up to depth {}, by 2^{screening_depth:.2} \
+             finer{noise}",
+            screening_depth.floor()
+        )
+    } else {
+        format!("psr: screening weight scaled by 2^{screening_depth:.2}{noise}")
+    }
 }
 
 /// Set by [`stop_on_interrupt`]'s handler.
@@ -1511,7 +1519,11 @@ fn print_details(mesh: &Mesh) {
         stats.halo_nodes_per_depth,
         stats.density_slots
     ));
-    out.push_str(&screening_line(stats.screening_depth, stats.sample_noise));
+    out.push_str(&screening_line(
+        stats.depth,
+        stats.screening_depth,
+        stats.sample_noise,
+    ));
     out.push('\n');
     out.push_str(&format!("psr: isovalue {}", stats.isovalue));
     out.push_str(&format!(

@@ -85,9 +85,11 @@ pub unsafe extern "C" fn psr_mesh_finest_depth(m: *const psr_mesh, out: *mut u32
     })
 }
 
-/// Writes to *out the depth d whose 2^d scaled the screening weight: psr_mesh_depth's, or less
-/// (fractional) when the screening followed the samples' noise
-/// (psr_reconstructor_set_screening_follows_noise). 0 for a mesh no reconstruction made.
+/// Writes to *out the noise's depth s of the screening weight: the depths finer than s were
+/// pulled with alpha 2^s instead of alpha 2^depth (those up to floor(s) keep alpha 2^depth).
+/// psr_mesh_depth's when the samples read no noise or the screening did not follow it
+/// (psr_reconstructor_set_screening_follows_noise); less (fractional) when the noise set it.
+/// 0 for a mesh no reconstruction made.
 ///
 /// m and out must not be NULL. Returns the statuses of psr_mesh_depth.
 ///

@@ -30,7 +30,7 @@ use crate::points::{unit_normal, PointSet, Samples};
 use crate::solve::{cascade, Depths, ProxyGroup, Solved, System};
 use crate::system::{
     coarser_divergences, finest_right_hand_side, proxy_depth, right_hand_sides, sample_groups,
-    sample_weights_from_totals, weight_at_depth, FieldCarry,
+    sample_weights_from_totals, FieldCarry, ScreeningWeights,
 };
 use crate::{Params, Result};
 use glam::{DVec3, DVec4};
@@ -511,7 +511,11 @@ impl Run<'_> {
                 positions,
                 screening_weights,
                 proxy_groups,
-                screening: weight_at_depth(self.params.point_weight, self.screening_depth),
+                screening: ScreeningWeights::new(
+                    self.params.point_weight,
+                    self.params.depth,
+                    self.screening_depth,
+                ),
                 depths,
             },
             self.params,

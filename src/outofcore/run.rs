@@ -92,7 +92,7 @@ pub struct OutOfCoreReport {
     /// within it rather than all of theirs (0 unless the median sample is about three depths
     /// coarser than the slabs' walls; then the σ may differ slightly from the in-memory one).
     pub noise_cells_beyond_padding: u64,
-    /// The depth d whose 2^d scaled the screening weight, as [`crate::Stats::screening_depth`].
+    /// The noise's depth of the screening weight, as [`crate::Stats::screening_depth`].
     pub screening_depth: f64,
     /// The points carried colours or other channels, which this path does not carry onto the
     /// mesh (the in-memory path does).

@@ -313,7 +313,11 @@ pub(super) fn bumpy_sphere_chi(
             positions: &parts.positions,
             screening_weights: &parts.screening_weights,
             proxy_groups: None,
-            screening: crate::system::weight_at_depth(params.point_weight, params.depth as f64),
+            screening: crate::system::ScreeningWeights::new(
+                params.point_weight,
+                params.depth,
+                params.depth as f64,
+            ),
             depths: Depths::All,
         },
         params,
@@ -387,8 +391,9 @@ fn a_cascade_cut_at_the_base_depth_gives_the_whole_cascades_coefficients() {
                     positions: &parts.positions,
                     screening_weights: &parts.screening_weights,
                     proxy_groups: None,
-                    screening: crate::system::weight_at_depth(
+                    screening: crate::system::ScreeningWeights::new(
                         params.point_weight,
+                        params.depth,
                         params.depth as f64,
                     ),
                     depths,
@@ -629,7 +634,11 @@ fn slabs_above_a_shared_base_against_the_in_memory_solve(fine_padding: u32) {
         .num_threads(2)
         .build()
         .expect("a pool");
-    let screening = crate::system::weight_at_depth(params.point_weight, params.depth as f64);
+    let screening = crate::system::ScreeningWeights::new(
+        params.point_weight,
+        params.depth,
+        params.depth as f64,
+    );
     let cloud = bumpy_sphere(&params);
     let weights = crate::system::sample_weights(&cloud.area, &cloud.samples.confidence);
     let degree = params.node_degree();

@@ -44,6 +44,6 @@ pub(crate) use rhs::{
 };
 pub(crate) use screening::{
     proxy_depth, sample_groups, sample_weights, sample_weights_from_totals, screening_depth,
-    weight_at_depth, Proxies,
+    Proxies, ScreeningWeights,
 };
 pub(crate) use transfer::prolong;

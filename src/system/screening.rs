@@ -40,11 +40,11 @@ pub(crate) fn sample_weights_from_totals(
 /// off the noisy shapes' distance to the truth at depths 10–11.
 pub(crate) const NOISE_CELLS: f64 = 10.0;
 
-/// The depth d whose 2^d scales the screening weight: the requested depth, or, when the
+/// The noise's depth s, which [`ScreeningWeights`] reads: the requested depth, or, when the
 /// samples scatter σ > 0 across the surface (unit cube units), no finer than the depth whose
-/// cells are [`NOISE_CELLS`] σ wide. The screening pulls χ onto the samples; past that depth
-/// the pull of each doubling of the weight goes into following the noise (measured: the
-/// distance to the true surface grows with depth at 2^D and stays flat at this cap).
+/// cells are [`NOISE_CELLS`] σ wide. The screening pulls χ onto the samples; at depths finer
+/// than that the full pull goes into following the noise (measured: the distance to the true
+/// surface grows with depth at 2^D and stays flat with the finer depths' pull at 2^s).
 pub(crate) fn screening_depth(requested_depth: u32, sigma: f64) -> f64 {
     let requested = requested_depth as f64;
     if sigma > 0.0 {
@@ -54,16 +54,54 @@ pub(crate) fn screening_depth(requested_depth: u32, sigma: f64) -> f64 {
     }
 }
 
-/// The screening term's weight at every depth: α·2^d, d the requested depth D or, when the
-/// screening follows the samples' noise, the depth [`screening_depth`] stops at (fractional)
-/// — the finest depth's balance between the Laplacian and the screening term (SPSR), kept at
-/// coarser depths, where it is then relatively stronger. The cascade never revisits a coarse
-/// depth, so a coarse solution that ignores the samples would leave an offset the thin finer
-/// bands cannot take out. (When the tree stops short of D, keeping D's weight was measured to
-/// avoid a 76-vertex bubble beside the oni's horn that the finest used depth's weight
-/// produced.)
-pub(crate) fn weight_at_depth(point_weight: f32, depth: f64) -> f64 {
-    point_weight as f64 * depth.exp2()
+/// The screening term's weight α_d at each depth d of the cascade.
+///
+/// α·2^D, D the requested depth — the finest depth's balance between the Laplacian and the
+/// screening term (SPSR), kept at coarser depths, where it is then relatively stronger. The
+/// cascade never revisits a coarse depth, so a coarse solution that ignores the samples would
+/// leave an offset the thin finer bands cannot take out. (When the tree stops short of D,
+/// keeping D's weight was measured to avoid a 76-vertex bubble beside the oni's horn that the
+/// finest used depth's weight produced.)
+///
+/// When the screening follows the samples' noise, the depths finer than the noise's depth s
+/// ([`screening_depth`]: their cells narrower than [`NOISE_CELLS`] σ) are pulled by α·2^s
+/// instead, the balance of a reconstruction at depth s: there the full pull would fit the
+/// surface to the noise. The depths up to ⌊s⌋ keep α·2^D: their cells are wide against the
+/// noise (the screening's proxies average it away), and their pull is what keeps a small
+/// detached part of the scan on the isosurface (measured, docs/benchmarks.md, issue 16: with
+/// α·2^s at every depth the Happy Buddha's 474-sample fragment dissolved at depth 11, and the
+/// Buddha's held-out distance was 0.3–0.7 % larger).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ScreeningWeights {
+    /// α·2^D.
+    full: f64,
+    /// α·2^s.
+    noise: f64,
+    /// ⌊s⌋: the finest depth pulled by `full`.
+    last_full: usize,
+}
+
+impl ScreeningWeights {
+    /// The weights for point weight α, requested depth D and the noise's depth s (D when the
+    /// samples read no noise or the screening does not follow it: then α·2^D at every depth).
+    pub(crate) fn new(point_weight: f32, requested_depth: u32, noise_depth: f64) -> Self {
+        let alpha = point_weight as f64;
+        let noise_depth = noise_depth.min(requested_depth as f64);
+        ScreeningWeights {
+            full: alpha * (requested_depth as f64).exp2(),
+            noise: alpha * noise_depth.exp2(),
+            last_full: noise_depth.floor().max(0.0) as usize,
+        }
+    }
+
+    /// α_d at depth `depth`.
+    pub(crate) fn at(&self, depth: usize) -> f64 {
+        if depth <= self.last_full {
+            self.full
+        } else {
+            self.noise
+        }
+    }
 }
 
 /// The depth at which the screening samples of depth d are grouped: two depths finer (16× less

@@ -741,3 +741,23 @@ fn the_carried_coarse_divergence_is_every_coarser_fields_divergence() {
         }
     }
 }
+
+/// Proves the screening's weights per depth: α·2^D at every depth when the samples read no
+/// noise (the noise's depth is D, or past it), and with a noise depth s < D, α·2^D up to ⌊s⌋
+/// and α·2^s at the finer depths.
+#[test]
+fn screening_weights_keep_the_full_pull_up_to_the_noise_depth() {
+    for s in [10.0, 12.5] {
+        let exact = ScreeningWeights::new(4.0, 10, s);
+        assert!((0..=10).all(|d| exact.at(d) == 4096.0), "{exact:?}");
+    }
+    // σ = 2^−7.5 / 10: the noise's depth is 7.5.
+    let noisy = ScreeningWeights::new(4.0, 10, screening_depth(10, 0.1 * 2f64.powf(-7.5)));
+    for d in 0..=7 {
+        assert_eq!(noisy.at(d), 4096.0, "depth {d}");
+    }
+    for d in 8..=10 {
+        let expected = 4.0 * 2f64.powf(7.5);
+        assert!((noisy.at(d) / expected - 1.0).abs() < 1e-12, "depth {d}");
+    }
+}

@@ -477,9 +477,9 @@ class Reconstructor:
         _bool,
         bool,
         "Whether the screening follows the samples' noise (default True): psr estimates their "
-        "scatter sigma across the surface (Mesh.sample_noise) and scales the screening by 2^d "
-        "no finer than the depth whose cells are 10 sigma wide, so that a high depth no longer "
-        "pulls the surface onto the noise; exact samples keep 2^depth, and so do clouds too "
+        "scatter sigma across the surface (Mesh.sample_noise) and pulls the depths finer than "
+        "the one whose cells are 10 sigma wide (Mesh.screening_depth, s) with alpha 2^s instead "
+        "of alpha 2^depth, so that a high depth does not pull the surface onto the noise; exact samples keep 2^depth, and so do clouds too "
         "sparse for the estimate to resolve the surface (it reads no noise there). Out of core "
         "the slabs estimate the same sigma from their parts. False keeps 2^depth at any noise "
         "(PoissonRecon's scale: on noisy scans the surface then follows the noise more with "
@@ -1227,8 +1227,10 @@ class Mesh:
 
     @property
     def screening_depth(self) -> float:
-        """The depth d whose 2^d scaled the screening weight: ``depth``, or less when the
-        screening followed the samples' noise (``screening_follows_noise``)."""
+        """The noise's depth s of the screening weight: the depths finer than s were pulled
+        with alpha 2^s instead of alpha 2^depth (those up to floor(s) keep alpha 2^depth).
+        ``depth`` when the samples read no noise or the screening did not follow it
+        (``screening_follows_noise``); less when the noise set it."""
         out = ctypes.c_double()
         _check(LIB.psr_mesh_screening_depth(self._live(), ctypes.byref(out)))
         return out.value
