@@ -287,14 +287,23 @@ fn the_bunny_out_of_core_is_the_in_memory_mesh() {
 }
 
 /// Proves the same on the Happy Buddha's scans at depth 10 in four slabs: the case that set
-/// the padding (with half of it the mesh gained a handle at a thin spot beside a wall).
+/// the padding (with half of it the mesh gained a handle at a thin spot beside a wall). Both
+/// paths solve to a relative residual of 1e-4: with the screening following the noise (the
+/// default) the solver's own error at the default 1e-2 decides a handle at a thin spot (the
+/// in-memory mesh then has one more than its converged solution, which the out-of-core mesh
+/// matches; vertices up to 2.2 cells apart), so the comparison would measure where the solver
+/// stopped rather than the slabs. At 1e-4 the out-of-core mesh is within 0.04 cell of the
+/// in-memory one.
 #[test]
 fn the_happy_buddha_out_of_core_is_the_in_memory_mesh() {
     let test = "the_happy_buddha_out_of_core_is_the_in_memory_mesh";
     let Some(input) = data_or_skip("happy_buddha_scans.ply", test) else {
         return;
     };
-    let params = Params::default().with_depth(10).with_threads(2);
+    let params = Params::default()
+        .with_depth(10)
+        .with_threads(2)
+        .with_solver_tolerance(1e-4);
     compare_with_in_memory("buddha", &input, &params, 4);
 }
 
