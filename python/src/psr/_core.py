@@ -479,8 +479,9 @@ class Reconstructor:
         "Whether the screening follows the samples' noise (default True): psr estimates their "
         "scatter sigma across the surface (Mesh.sample_noise) and pulls the depths finer than "
         "the one whose cells are 10 sigma wide (Mesh.screening_depth, s) with alpha 2^s instead "
-        "of alpha 2^depth, so that a high depth does not pull the surface onto the noise; exact samples keep 2^depth, and so do clouds too "
-        "sparse for the estimate to resolve the surface (it reads no noise there). Out of core "
+        "of alpha 2^depth, so that a high depth does not pull the surface onto the noise; "
+        "exact samples keep 2^depth, and so do clouds too sparse for the estimate to resolve "
+        "the surface (it reads no noise there). Out of core "
         "the slabs estimate the same sigma from their parts. False keeps 2^depth at any noise "
         "(PoissonRecon's scale: on noisy scans the surface then follows the noise more with "
         "every depth past the samples').",
