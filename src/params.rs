@@ -144,8 +144,8 @@ pub struct Params {
     /// Screening weight α (Kazhdan & Hoppe 2013): how strongly the surface is pulled onto the
     /// samples. 0 gives the 2006 method. Default 4 (2 × the B-spline degree, PoissonRecon's rule);
     /// [`Params::with_degree`] sets it to 2 × the new degree, so set it after the degree to
-    /// override. Range [0, 1e6]. The pull is scaled by 2^d at every depth: d the depth asked
-    /// for, or no finer than the samples' noise supports ([`Params::screening_follows_noise`],
+    /// override. Range [0, 1e6]. The pull is scaled by 2^depth, and at the depths finer than
+    /// the samples' noise supports by that depth's 2^s ([`Params::screening_follows_noise`],
     /// on by default). PoissonRecon `--pointWeight`, PCL `setPointWeight`, Open3D's fixed 2
     /// (with degree 1).
     pub point_weight: f32,

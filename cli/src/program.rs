@@ -127,18 +127,18 @@ struct Args {
 
     /// Screening weight (0..=1e6): how strongly the surface is pulled onto the samples; 0 is the
     /// unscreened 2006 method. Default 2 × --degree (4 at psr's default degree 2, 2 at degree
-    /// 1). The pull is scaled by 2^d: d the --depth, or no finer than the samples' noise
-    /// supports (--screening-follows-noise, on by default). PoissonRecon:
+    /// 1). The pull is scaled by 2^--depth, and at the depths finer than the samples' noise
+    /// supports by that depth's 2^s (--screening-follows-noise, on by default). PoissonRecon:
     /// --pointWeight (default 2 × the B-spline degree there too: 2 for its default --degree 1).
     #[arg(long, alias = "pointWeight", value_name = "W")]
     point_weight: Option<f32>,
 
-    /// Whether the screening follows the samples' noise: estimate how far the
-    /// samples scatter across the surface (σ, printed with --verbose) and pull the depths
-    /// finer than the one whose cells are 10 σ wide (s) with 2^s instead of 2^--depth, so
-    /// that a high --depth does not pull the surface onto the noise (the coarser depths keep
-    /// 2^--depth, which keeps small detached parts of a scan); exact samples keep 2^--depth, and so do clouds too
-    /// sparse for the estimate to resolve the surface (it reads no noise there). With
+    /// Whether the screening follows the samples' noise: estimate how far the samples scatter
+    /// across the surface (σ, printed with --verbose) and pull the depths finer than the one
+    /// whose cells are 10 σ wide (s) with 2^s instead of 2^--depth, so that a high --depth
+    /// does not pull the surface onto the noise (the coarser depths keep 2^--depth, which
+    /// keeps small detached parts of a scan); exact samples keep 2^--depth, and so do clouds
+    /// too sparse for the estimate to resolve the surface (it reads no noise there). With
     /// --out-of-core the same σ is estimated slab by slab. `--screening-follows-noise false`
     /// keeps 2^--depth at any noise (PoissonRecon's scale: on noisy scans the surface then
     /// follows the noise more with every depth past the samples'). PoissonRecon: none.

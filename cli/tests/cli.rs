@@ -1436,10 +1436,8 @@ fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
     let tmp = dir.join("tmp");
     std::fs::create_dir(&tmp).unwrap();
     let output = dir.join("mesh.ply");
-    let out = psr_on(
-        &input,
-        &output,
-        &[
+    let out_of_core = |extra: &[&str]| {
+        let mut args = vec![
             "--depth",
             "8",
             "--out-of-core",
@@ -1447,37 +1445,34 @@ fn out_of_core_writes_the_mesh_and_refuses_the_options_it_does_not_take() {
             "3",
             "--temp-dir",
             tmp.to_str().unwrap(),
-        ],
-    );
+            "--verbose",
+        ];
+        args.extend_from_slice(extra);
+        psr_on(&input, &output, &args)
+    };
+    // By default the screening follows the noise: the sphere's samples are exact, the noise
+    // read is 0 and the screening keeps 2^8.
+    let out = out_of_core(&[]);
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(stderr(&out).contains("3 slabs"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "screening weight scaled by 2^8.00 (the samples' noise: 0.0000e0 in input units)"
+        ),
+        "{}",
+        stderr(&out)
+    );
     let (positions, triangles) = psr::ply::read_mesh(&output).unwrap();
     // Closed: every edge in two triangles, so 3F = 2E, and a sphere: V − E + F = 2.
     assert_eq!(positions.len() * 2, triangles.len() + 4);
     assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
-    // The sphere's samples are exact: the noise read is 0 and the screening keeps 2^8.
-    let follows = psr_on(
-        &input,
-        &output,
-        &[
-            "--depth",
-            "8",
-            "--out-of-core",
-            "--slabs",
-            "3",
-            "--temp-dir",
-            tmp.to_str().unwrap(),
-            "--screening-follows-noise",
-            "--verbose",
-        ],
-    );
-    assert_eq!(follows.status.code(), Some(0), "{}", stderr(&follows));
+    // Not following it: no noise estimated.
+    let fixed = out_of_core(&["--screening-follows-noise", "false"]);
+    assert_eq!(fixed.status.code(), Some(0), "{}", stderr(&fixed));
     assert!(
-        stderr(&follows).contains(
-            "screening weight scaled by 2^8.00 (the samples' noise: 0.0000e0 in input units)"
-        ),
+        stderr(&fixed).contains("screening weight scaled by 2^8.00\n"),
         "{}",
-        stderr(&follows)
+        stderr(&fixed)
     );
     assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
     let refused = psr_on(

@@ -300,8 +300,8 @@ pub unsafe extern "C" fn psr_reconstructor_get_scale(
 /// Sets the screening weight alpha (Kazhdan & Hoppe 2013): how strongly the surface is pulled
 /// onto the samples; 0 gives the unscreened 2006 method. Default 4 (2 x the default degree 2;
 /// psr_reconstructor_set_degree sets it to 2 x the degree), range 0 to 1e6. The pull is
-/// scaled by 2^d: d the depth asked for, or no finer than the samples' noise supports
-/// (psr_reconstructor_set_screening_follows_noise, on by default). PoissonRecon
+/// scaled by 2^depth, and at the depths finer than the samples' noise supports by that
+/// depth's 2^s (psr_reconstructor_set_screening_follows_noise, on by default). PoissonRecon
 /// --pointWeight, PCL setPointWeight.
 ///
 /// r must not be NULL. Returns the statuses of psr_reconstructor_set_depth.

@@ -28,8 +28,9 @@ use glam::DVec3;
 pub(crate) struct SlabNoise {
     /// The fits of the cells its slabs own.
     pub(crate) fits: CellFits,
-    /// Cells among them whose columns reach past their slab's padding: fitted over the samples
-    /// within it.
+    /// Cells of the coarser depth among them whose columns reach past their slab's padding:
+    /// fitted over the samples within it. (A finer cell, half as wide, reaches past its
+    /// owner's padding only inside such a coarser cell.)
     pub(crate) cells_beyond_padding: u64,
 }
 

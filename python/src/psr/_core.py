@@ -418,8 +418,8 @@ class Reconstructor:
         _real,
         float,
         "Screening weight alpha, 0 (the 2006 method) to 1e6 (default 2 x degree: 4). Scaled by "
-        "2^d: d the depth, or no finer than the samples' noise supports "
-        "(screening_follows_noise, on by default).",
+        "2^depth, and at the depths finer than the samples' noise supports by that depth's "
+        "2^s (screening_follows_noise, on by default).",
     )
     threads = _Param[int](
         ctypes.c_uint32, _u32, int, "Worker threads of a solve; 0 (default) is one per core."
