@@ -70,7 +70,7 @@ pub(crate) fn screening_depth(requested_depth: u32, sigma: f64) -> f64 {
 /// noise (the screening's proxies average it away), and their pull is what keeps a small
 /// detached part of the scan on the isosurface (measured, docs/benchmarks.md, issue 16: with
 /// α·2^s at every depth the Happy Buddha's 474-sample fragment dissolved at depth 11, and the
-/// Buddha's held-out distance was 0.3–0.7 % larger).
+/// Buddha's held-out distance was 0.2–0.6 % larger at depths 9–11).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct ScreeningWeights {
     /// α·2^D.
