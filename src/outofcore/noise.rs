@@ -20,7 +20,7 @@
 use super::slabs::SlabLayout;
 use super::team::{gather, Packer, Team, Unpacker};
 use super::OutOfCoreError;
-use crate::noise::{from_medians, CellFits, SampleNoise};
+use crate::noise::{from_medians, CellFits, SampleNoise, MIN_SAMPLES};
 use glam::DVec3;
 
 /// A member's part of the estimate, gathered over the slabs it does in pass B.
@@ -28,8 +28,8 @@ use glam::DVec3;
 pub(crate) struct SlabNoise {
     /// The fits of the cells its slabs own.
     pub(crate) fits: CellFits,
-    /// Cells of the coarser depth among them whose columns reach past their slab's padding:
-    /// fitted over the samples within it. (A finer cell, half as wide, reaches past its
+    /// Cells of the coarser depth among them (those with at least [`MIN_SAMPLES`] samples)
+    /// whose columns reach past their slab's padding: fitted over the samples within it. (A finer cell, half as wide, reaches past its
     /// owner's padding only inside such a coarser cell.)
     pub(crate) cells_beyond_padding: u64,
 }
@@ -66,19 +66,13 @@ impl SlabNoise {
         let owns = |d: u32, cell: [i32; 3]| owner_of_cell(layout, d, cell) == k;
         self.fits.extend(CellFits::at(depth, positions, &owns));
         let padded = layout.padded(k);
-        let inv_h = ((depth - 1) as f64).exp2();
-        let mut previous = None;
-        for p in positions {
-            let cell = crate::grid::cell_of(*p, inv_h);
-            if previous == Some(cell) {
-                continue;
-            }
-            previous = Some(cell);
-            let columns = columns_of_cell(layout, depth - 1, cell);
-            if owns(depth - 1, cell) && (columns.start < padded.start || columns.end > padded.end) {
-                self.cells_beyond_padding += 1;
-            }
-        }
+        self.cells_beyond_padding += crate::grid::cell_runs(positions, depth - 1)
+            .filter(|(cell, run)| run.len() >= MIN_SAMPLES && owns(depth - 1, *cell))
+            .filter(|(cell, _)| {
+                let columns = columns_of_cell(layout, depth - 1, *cell);
+                columns.start < padded.start || columns.end > padded.end
+            })
+            .count() as u64;
     }
 
     /// The estimate at `depth` from every member's part: the same as the in-memory
