@@ -34,6 +34,15 @@ pub(crate) struct SlabNoise {
     pub(crate) cells_beyond_padding: u64,
 }
 
+/// The estimate every member reads from the team's parts ([`SlabNoise::estimate`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct TeamNoise {
+    /// The same as the in-memory estimate when every cell lies within its slab's padding.
+    pub(crate) noise: SampleNoise,
+    /// The team's [`SlabNoise::cells_beyond_padding`], summed.
+    pub(crate) cells_beyond_padding: u64,
+}
+
 /// The slab owning a cell of `depth` at `cell`: the slab of its lowest column of the wall
 /// depth.
 pub(crate) fn owner_of_cell(layout: &SlabLayout, depth: u32, cell: [i32; 3]) -> usize {
@@ -78,11 +87,7 @@ impl SlabNoise {
     /// The estimate at `depth` from every member's part: the same as the in-memory
     /// [`crate::noise::estimate`] over the whole cloud (see the module's documentation). A
     /// collective step: every member calls it.
-    pub(crate) fn estimate(
-        self,
-        team: &dyn Team,
-        depth: u32,
-    ) -> Result<(SampleNoise, u64), OutOfCoreError> {
+    pub(crate) fn estimate(self, team: &dyn Team, depth: u32) -> Result<TeamNoise, OutOfCoreError> {
         let mut p = Packer::default();
         p.u64(self.fits.fine.len() as u64);
         p.u64(self.cells_beyond_padding);
@@ -96,7 +101,10 @@ impl SlabNoise {
         let r1 = team_median(team, &self.fits.fine)?;
         let r2 = team_median(team, &self.fits.coarse)?;
         let shape_f = team_median(team, &self.fits.cubic_f)?;
-        Ok((from_medians(depth, cells as usize, r1, r2, shape_f), beyond))
+        Ok(TeamNoise {
+            noise: from_medians(depth, cells as usize, r1, r2, shape_f),
+            cells_beyond_padding: beyond,
+        })
     }
 }
 

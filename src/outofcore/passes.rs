@@ -10,7 +10,7 @@
 //! neighbours' near their walls, and the isovalue.
 
 use super::base::{coarse_cores, merge_groups, BaseParts};
-use super::noise::SlabNoise;
+use super::noise::{SlabNoise, TeamNoise};
 use super::scan::{
     bin_part, binned_file, columns_of_part, scan_of_parts, scan_part, ColumnsOfPart, Input, Scan,
     ScannedPart,
@@ -23,7 +23,7 @@ use crate::density::{
     estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, NormalSums, SampleDensity,
 };
 use crate::evaluate::Indicator;
-use crate::noise::{AreaDepths, SampleNoise};
+use crate::noise::AreaDepths;
 use crate::octree::{sample_cells, Octree};
 use crate::parallel::Watch;
 use crate::points::{unit_normal, PointSet, Samples};
@@ -201,12 +201,9 @@ pub(crate) struct SolvedSlabs {
     pub(crate) finest: u32,
     pub(crate) isovalue: f64,
     /// The samples' noise, when the screening follows it (`outofcore/noise.rs`).
-    pub(crate) noise: Option<SampleNoise>,
-    /// Cells of the noise estimate wider than their slab's padding reaches (fitted over the
-    /// samples within it; 0 unless the median sample is far coarser than the walls).
-    pub(crate) noise_cells_beyond_padding: u64,
-    /// The depth whose 2^d scaled the screening (`system::screening_depth`).
-    pub(crate) screening_depth: f64,
+    pub(crate) noise: Option<TeamNoise>,
+    /// The screening's weights per depth (from the noise when it is followed).
+    pub(crate) screening: ScreeningWeights,
 }
 
 impl SolvedSlabs {
@@ -223,7 +220,7 @@ impl SolvedSlabs {
             files: &self.files,
             field: &self.field,
             normals: None,
-            screening_depth: self.screening_depth,
+            screening: self.screening,
             pool,
             watch: Watch::new(),
         }
@@ -344,9 +341,9 @@ struct Run<'a> {
     /// The samples' normals summed at the kernel depth, while the slabs are prepared (pass A;
     /// `None` after it, when every slab has been).
     normals: Option<&'a NormalSums>,
-    /// The depth whose 2^d scales the screening (`system::screening_depth`): the requested
-    /// depth until the noise, when the screening follows it, is estimated after pass B.
-    screening_depth: f64,
+    /// The screening's weights per depth: α·2^D at every depth until the noise, when the
+    /// screening follows it, is estimated after pass B.
+    screening: ScreeningWeights,
     pool: &'a rayon::ThreadPool,
     watch: Watch,
 }
@@ -511,11 +508,7 @@ impl Run<'_> {
                 positions,
                 screening_weights,
                 proxy_groups,
-                screening: ScreeningWeights::new(
-                    self.params.point_weight,
-                    self.params.depth,
-                    self.screening_depth,
-                ),
+                screening: self.screening,
                 depths,
             },
             self.params,
@@ -859,7 +852,7 @@ fn cut(
         files: &files,
         field: &field,
         normals: Some(&normal_sums),
-        screening_depth: params.depth as f64,
+        screening: ScreeningWeights::new(params.point_weight, params.depth, params.depth as f64),
         pool,
         watch: Watch::new(),
     };
@@ -1050,7 +1043,7 @@ pub(crate) fn solve_slabs(
         files: &files,
         field: &field,
         normals: None,
-        screening_depth: params.depth as f64,
+        screening: ScreeningWeights::new(params.point_weight, params.depth, params.depth as f64),
         pool,
         watch: Watch::new(),
     };
@@ -1128,12 +1121,12 @@ pub(crate) fn solve_slabs(
     // The noise's medians across the team, and the screening's depth from them (as in memory).
     let noise = match (params.screening_follows_noise, noise_depth) {
         (false, _) => None,
-        (true, None) => Some((SampleNoise::default(), 0)),
+        (true, None) => Some(TeamNoise::default()),
         (true, Some(depth)) => Some(slab_noise.estimate(team, depth)?),
     };
     let screening_depth =
-        crate::system::screening_depth(params.depth, noise.map_or(0.0, |(noise, _)| noise.sigma));
-    run.screening_depth = screening_depth;
+        crate::system::screening_depth(params.depth, noise.map_or(0.0, |team| team.noise.sigma));
+    run.screening = ScreeningWeights::new(params.point_weight, params.depth, screening_depth);
     // The base, solved by every member (it is small beside a slab).
     let solved_base = (|| {
         let groups: Vec<Vec<ProxyGroup>> = groups
@@ -1300,6 +1293,7 @@ pub(crate) fn solve_slabs(
     } else {
         0.0
     };
+    let screening = run.screening;
     Ok(SolvedSlabs {
         scratch,
         scan,
@@ -1310,9 +1304,8 @@ pub(crate) fn solve_slabs(
         field,
         finest,
         isovalue,
-        noise: noise.map(|(noise, _)| noise),
-        noise_cells_beyond_padding: noise.map_or(0, |(_, beyond)| beyond),
-        screening_depth,
+        noise,
+        screening,
     })
 }
 

@@ -226,9 +226,11 @@ pub(crate) fn run(
         triangles: assembled.triangles,
         unsupported_components: assembled.unsupported_components,
         isovalue: solved.isovalue,
-        sample_noise: solved.noise.map(|noise| noise.sigma * solved.scan.map.size),
-        noise_cells_beyond_padding: solved.noise_cells_beyond_padding,
-        screening_depth: solved.screening_depth,
+        sample_noise: solved
+            .noise
+            .map(|team| team.noise.sigma * solved.scan.map.size),
+        noise_cells_beyond_padding: solved.noise.map_or(0, |team| team.cells_beyond_padding),
+        screening_depth: solved.screening.noise_depth,
         attributes_dropped: solved.scan.has_attributes,
         seconds: started.elapsed().as_secs_f64(),
     })

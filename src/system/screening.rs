@@ -79,6 +79,8 @@ pub(crate) struct ScreeningWeights {
     noise: f64,
     /// ⌊s⌋: the finest depth pulled by `full`.
     last_full: usize,
+    /// s itself (at most D), as [`crate::Stats::screening_depth`] reports it.
+    pub(crate) noise_depth: f64,
 }
 
 impl ScreeningWeights {
@@ -91,6 +93,7 @@ impl ScreeningWeights {
             full: alpha * (requested_depth as f64).exp2(),
             noise: alpha * noise_depth.exp2(),
             last_full: noise_depth.floor().max(0.0) as usize,
+            noise_depth,
         }
     }
 
