@@ -10,7 +10,7 @@
 //!   from its samples with their padding, which are in the in-memory path's Morton order, so a
 //!   cell's fit is the in-memory one whenever its columns lie within the padding;
 //! - the medians of the fits' residuals and F values, found across the team without gathering
-//!   the values ([`team_median`]), before the base is solved with the screening they give.
+//!   the values ([`team_medians`]), before the base is solved with the screening they give.
 //!
 //! A cell wider than the padding reaches (2^(W − d) columns of the wall depth W past 25: the
 //! estimate's cells hold about 16 samples, so only where the median sample is about three
@@ -86,24 +86,20 @@ impl SlabNoise {
 
     /// The estimate at `depth` from every member's part: the same as the in-memory
     /// [`crate::noise::estimate`] over the whole cloud (see the module's documentation). A
-    /// collective step: every member calls it.
+    /// collective step, every member calls it: two meetings of the team.
     pub(crate) fn estimate(self, team: &dyn Team, depth: u32) -> Result<TeamNoise, OutOfCoreError> {
-        let mut p = Packer::default();
-        p.u64(self.fits.fine.len() as u64);
-        p.u64(self.cells_beyond_padding);
-        let all = gather(team, Ok(p.bytes))?;
-        let (mut cells, mut beyond) = (0u64, 0u64);
-        for bytes in &all {
-            let mut u = Unpacker::new(bytes);
-            cells += u.u64()?;
-            beyond += u.u64()?;
-        }
-        let r1 = team_median(team, &self.fits.fine)?;
-        let r2 = team_median(team, &self.fits.coarse)?;
-        let shape_f = team_median(team, &self.fits.cubic_f)?;
+        let fits = &self.fits;
+        let team_medians = team_medians(
+            team,
+            &[&fits.fine, &fits.coarse, &fits.cubic_f],
+            &[self.cells_beyond_padding],
+        )?;
+        let [r1, r2, shape_f] = team_medians.medians[..] else {
+            unreachable!("three lists give three medians")
+        };
         Ok(TeamNoise {
-            noise: from_medians(depth, cells as usize, r1, r2, shape_f),
-            cells_beyond_padding: beyond,
+            noise: from_medians(depth, team_medians.counts[0] as usize, r1, r2, shape_f),
+            cells_beyond_padding: team_medians.sums[0],
         })
     }
 }
@@ -118,69 +114,119 @@ fn ordered_key(v: f64) -> u64 {
     }
 }
 
-/// How many of a key's leading bits name its bin in [`team_median`]'s first round: the sign,
+/// How many of a key's leading bits name its bin in [`team_medians`]' first round: the sign,
 /// the exponent and 4 bits of the fraction, so a bin spans at most 1/16 of a doubling.
 const BIN_BITS: u32 = 16;
 
-/// The median (the upper of the two middle values, as `crate::noise::median` takes it) of the
-/// values every member of `team` holds, `None` when none holds any: every member counts its
-/// values by bins of their leading bits, the counts say which bin holds the median and its
-/// place there, and only the values of that bin are gathered. A collective step.
-pub(crate) fn team_median(team: &dyn Team, mine: &[f64]) -> Result<Option<f64>, OutOfCoreError> {
+/// What [`team_medians`] finds across the team, the same on every member.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct TeamMedians {
+    /// Per list, the median of the values the members hold in it (the upper of the two middle
+    /// values, as `crate::noise::median` takes it); `None` when none holds any.
+    pub(crate) medians: Vec<Option<f64>>,
+    /// Per list, how many values the members hold in it.
+    pub(crate) counts: Vec<u64>,
+    /// The members' `sums`, added up.
+    pub(crate) sums: Vec<u64>,
+}
+
+/// The medians of several lists of values spread over the members of `team` (every member
+/// passes the same number of lists and of `sums`), in two meetings whatever the number of
+/// lists: every member counts each list's values by bins of their leading bits (with its
+/// `sums`), the counts say which bin holds each median and its place there, and only the values
+/// of those bins are gathered. No member holds another's whole lists. A collective step.
+pub(crate) fn team_medians(
+    team: &dyn Team,
+    lists: &[&[f64]],
+    sums: &[u64],
+) -> Result<TeamMedians, OutOfCoreError> {
     let bin_of = |v: f64| ordered_key(v) >> (64 - BIN_BITS);
-    let mut bins: Vec<u64> = mine.iter().map(|&v| bin_of(v)).collect();
-    bins.sort_unstable();
     let mut p = Packer::default();
-    let pairs: Vec<u64> = bins
-        .chunk_by(|a, b| a == b)
-        .flat_map(|run| [run[0], run.len() as u64])
-        .collect();
-    p.u64s(&pairs);
-    drop(bins);
-    let mut totals = std::collections::BTreeMap::<u64, u64>::new();
+    p.u64s(sums);
+    for list in lists {
+        let mut bins: Vec<u64> = list.iter().map(|&v| bin_of(v)).collect();
+        bins.sort_unstable();
+        let pairs: Vec<u64> = bins
+            .chunk_by(|a, b| a == b)
+            .flat_map(|run| [run[0], run.len() as u64])
+            .collect();
+        p.u64s(&pairs);
+    }
+    let mut summed = vec![0u64; sums.len()];
+    let mut histograms = vec![std::collections::BTreeMap::<u64, u64>::new(); lists.len()];
     for bytes in gather(team, Ok(p.bytes))? {
         let mut u = Unpacker::new(&bytes);
-        for pair in u.u64s()?.chunks_exact(2) {
-            *totals.entry(pair[0]).or_default() += pair[1];
+        for (total, theirs) in summed.iter_mut().zip(u.u64s()?) {
+            *total += theirs;
+        }
+        for histogram in &mut histograms {
+            for pair in u.u64s()?.chunks_exact(2) {
+                *histogram.entry(pair[0]).or_default() += pair[1];
+            }
         }
     }
-    let total: u64 = totals.values().sum();
-    if total == 0 {
-        return Ok(None);
-    }
-    let mut place = total / 2;
-    let mut median_bin = 0;
-    for (&bin, &count) in &totals {
-        if place < count {
-            median_bin = bin;
-            break;
-        }
-        place -= count;
-    }
-    let in_bin: Vec<f64> = mine
+    // Per list: the bin holding the median and the median's place among that bin's values.
+    let counts: Vec<u64> = histograms.iter().map(|h| h.values().sum()).collect();
+    let places: Vec<Option<(u64, u64)>> = histograms
         .iter()
-        .copied()
-        .filter(|&v| bin_of(v) == median_bin)
+        .zip(&counts)
+        .map(|(histogram, &count)| {
+            let mut place = count / 2;
+            histogram.iter().find_map(|(&bin, &in_bin)| {
+                if place < in_bin {
+                    Some((bin, place))
+                } else {
+                    place -= in_bin;
+                    None
+                }
+            })
+        })
         .collect();
     let mut p = Packer::default();
-    p.f64s(&in_bin);
-    let mut gathered = Vec::new();
+    for (list, place) in lists.iter().zip(&places) {
+        let in_bin: Vec<f64> = match place {
+            Some((median_bin, _)) => list
+                .iter()
+                .copied()
+                .filter(|&v| bin_of(v) == *median_bin)
+                .collect(),
+            None => Vec::new(),
+        };
+        p.f64s(&in_bin);
+    }
+    let mut gathered = vec![Vec::new(); lists.len()];
     for bytes in gather(team, Ok(p.bytes))? {
         let mut u = Unpacker::new(&bytes);
-        gathered.extend(u.f64s()?);
+        for values in &mut gathered {
+            values.extend(u.f64s()?);
+        }
     }
-    gathered.sort_unstable_by(f64::total_cmp);
-    gathered
-        .get(place as usize)
-        .copied()
-        .map(Some)
-        .ok_or_else(|| {
-            OutOfCoreError::Reconstruction(crate::Error::Internal(format!(
-                "the members' median bin holds {} values, not the {} counted past its place",
-                gathered.len(),
-                place + 1
-            )))
+    let medians = gathered
+        .iter_mut()
+        .zip(&places)
+        .map(|(values, place)| {
+            let Some((_, place)) = *place else {
+                return Ok(None);
+            };
+            values.sort_unstable_by(f64::total_cmp);
+            values
+                .get(place as usize)
+                .copied()
+                .map(Some)
+                .ok_or_else(|| {
+                    OutOfCoreError::Reconstruction(crate::Error::Internal(format!(
+                    "the members' median bin holds {} values, not the {} counted past its place",
+                    values.len(),
+                    place + 1
+                )))
+                })
         })
+        .collect::<Result<_, _>>()?;
+    Ok(TeamMedians {
+        medians,
+        counts,
+        sums: summed,
+    })
 }
 
 #[cfg(test)]
@@ -257,11 +303,12 @@ mod tests {
         }
     }
 
-    /// Proves the team's median is the in-memory median of all the members' values bit for
-    /// bit, for teams of 1 to 4 members, values split unevenly (one member with none), values
-    /// repeated, of both signs, zeros of either sign and infinities, and none at all.
+    /// Proves the team's medians are the in-memory medians of all the members' values bit for
+    /// bit, found for every list in one call, for teams of 1 to 4 members, values split
+    /// unevenly (one member with none), values repeated, of both signs, zeros of either sign
+    /// and infinities, and a list with none at all; the counts and sums are the team's.
     #[test]
-    fn a_team_median_is_the_median_of_every_members_values() {
+    fn the_team_medians_are_the_medians_of_every_members_values() {
         let mut state = 0x2545_f491_4f6c_dd1du64;
         let mut next = || {
             state ^= state << 13;
@@ -269,62 +316,70 @@ mod tests {
             state ^= state << 17;
             state
         };
-        let mut cases: Vec<Vec<f64>> = Vec::new();
+        let mut lists: Vec<Vec<f64>> = Vec::new();
         for n in [1usize, 2, 3, 10, 1001, 20_000] {
-            cases.push(
+            lists.push(
                 (0..n)
                     .map(|_| (next() % 10_000) as f64 * 1e-7 + 3e-4)
                     .collect(),
             );
         }
-        cases.push(vec![0.5; 7]);
-        cases.push(vec![-1.0, 0.0, -0.0, f64::INFINITY, 2.0, 2.0, 1e-300, -5.0]);
-        cases.push(Vec::new());
-        for values in &cases {
-            let mut all = values.clone();
-            let expected = crate::noise::median(&mut all);
-            assert_eq!(
-                team_median(&Alone, values).unwrap().map(f64::to_bits),
-                expected.map(f64::to_bits)
-            );
-            for members in 2..=4usize {
-                // Member r holds the values at places ≡ r mod (members + 1), the last member
-                // also those ≡ members: uneven parts, and member 0 none for a single value.
-                let parts: Vec<Vec<f64>> = (0..members)
+        lists.push(vec![0.5; 7]);
+        lists.push(vec![-1.0, 0.0, -0.0, f64::INFINITY, 2.0, 2.0, 1e-300, -5.0]);
+        lists.push(Vec::new());
+        let expected = TeamMedians {
+            medians: lists
+                .iter()
+                .map(|values| crate::noise::median(&mut values.clone()))
+                .collect(),
+            counts: lists.iter().map(|values| values.len() as u64).collect(),
+            sums: vec![lists.iter().map(|values| values.len() as u64).sum(), 0],
+        };
+        let bits = |found: TeamMedians| {
+            let medians: Vec<Option<u64>> =
+                found.medians.iter().map(|m| m.map(f64::to_bits)).collect();
+            (medians, found.counts, found.sums)
+        };
+        let borrowed: Vec<&[f64]> = lists.iter().map(Vec::as_slice).collect();
+        let alone = team_medians(&Alone, &borrowed, &[expected.sums[0], 0]).unwrap();
+        assert_eq!(bits(alone), bits(expected.clone()));
+        for members in 2..=4usize {
+            // Member r holds the values at places ≡ r mod (members + 1), the last member also
+            // those ≡ members: uneven parts, and member 0 none of a single value.
+            let parts: Vec<Vec<Vec<f64>>> = (0..members)
+                .map(|r| {
+                    lists
+                        .iter()
+                        .map(|values| {
+                            values
+                                .iter()
+                                .enumerate()
+                                .filter(|(i, _)| {
+                                    let slot = i % (members + 1);
+                                    slot == r || (r == members - 1 && slot == members)
+                                })
+                                .map(|(_, &v)| v)
+                                .collect()
+                        })
+                        .collect()
+                })
+                .collect();
+            let team = Threads::new(members);
+            let found: Vec<TeamMedians> = std::thread::scope(|s| {
+                let handles: Vec<_> = (0..members)
                     .map(|r| {
-                        values
-                            .iter()
-                            .enumerate()
-                            .filter(|(i, _)| {
-                                let slot = i % (members + 1);
-                                slot == r || (r == members - 1 && slot == members)
-                            })
-                            .map(|(_, &v)| v)
-                            .collect()
+                        let (team, part) = (&team, &parts[r]);
+                        s.spawn(move || {
+                            let borrowed: Vec<&[f64]> = part.iter().map(Vec::as_slice).collect();
+                            let held = part.iter().map(|values| values.len() as u64).sum();
+                            team_medians(&team.member(r), &borrowed, &[held, 0]).unwrap()
+                        })
                     })
                     .collect();
-                let team = Threads::new(members);
-                let medians: Vec<Option<u64>> = std::thread::scope(|s| {
-                    let handles: Vec<_> = (0..members)
-                        .map(|r| {
-                            let (team, part) = (&team, &parts[r]);
-                            s.spawn(move || {
-                                team_median(&team.member(r), part)
-                                    .unwrap()
-                                    .map(f64::to_bits)
-                            })
-                        })
-                        .collect();
-                    handles.into_iter().map(|h| h.join().unwrap()).collect()
-                });
-                for median in medians {
-                    assert_eq!(
-                        median,
-                        expected.map(f64::to_bits),
-                        "{members} members, {} values",
-                        values.len()
-                    );
-                }
+                handles.into_iter().map(|h| h.join().unwrap()).collect()
+            });
+            for member in found {
+                assert_eq!(bits(member), bits(expected.clone()), "{members} members");
             }
         }
     }

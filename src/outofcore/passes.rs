@@ -879,21 +879,27 @@ fn cut(
             }
             let mut cores = run.cores(&slab, &slab.own_at_depth())?;
             cores.truncate(base_depth as usize + 1);
-            let mut own_area_depths = AreaDepths::new(params.depth);
-            if following_noise {
-                own_area_depths.count(
+            // The own samples' areas counted by depth, only when the noise is followed.
+            let own_area_depths = following_noise.then(|| {
+                let mut counted = AreaDepths::new(params.depth);
+                counted.count(
                     slab.area
                         .iter()
                         .zip(&slab.owned)
                         .filter(|(_, owned)| **owned)
                         .map(|(area, _)| *area),
                 );
-            }
+                counted
+            });
             let mut p = Packer::default();
             p.u64(slab.at_depth.len() as u64 - 1);
             p.f64(area);
             p.f64(confidence);
-            p.u64s(&own_area_depths.counts);
+            p.u64s(
+                own_area_depths
+                    .as_ref()
+                    .map_or(&[], |counted| &counted.counts),
+            );
             p.u64(cores.len() as u64);
             for keys in &cores {
                 p.u64s(keys);
