@@ -1354,9 +1354,10 @@ class Mesh:
             import open3d as o3d
         except ImportError:
             raise ImportError("Mesh.to_open3d needs open3d: pip install open3d") from None
+        # Copies: Open3D's vectors take writeable arrays only, and the mesh's are read-only.
         m = o3d.geometry.TriangleMesh(
-            o3d.utility.Vector3dVector(np.asarray(self.vertices, dtype=np.float64)),
-            o3d.utility.Vector3iVector(np.asarray(self.triangles, dtype=np.int32)),
+            o3d.utility.Vector3dVector(np.array(self.vertices, dtype=np.float64)),
+            o3d.utility.Vector3iVector(np.array(self.triangles, dtype=np.int32)),
         )
         if self.normals is not None:
             m.vertex_normals = o3d.utility.Vector3dVector(self.normals.astype(np.float64))
