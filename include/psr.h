@@ -691,6 +691,32 @@ typedef struct {
     double seconds;
 } psr_out_of_core_report;
 
+/**
+ * The samples' noise as a reconstruction out of core measured it
+ * (psr_reconstructor_out_of_core_noise): what psr_mesh_sample_noise and
+ * psr_mesh_screening_depth tell of an in-memory mesh, which psr_out_of_core_report (a fixed
+ * struct) has no room for.
+ */
+typedef struct {
+    /**
+     * The samples' positional noise sigma in input units (0 for exact samples of a smooth
+     * surface), or NaN when the screening did not follow it
+     * (psr_reconstructor_set_screening_follows_noise was false). The in-memory estimate of the
+     * same cloud, bit for bit, when cells_beyond_padding is 0.
+     */
+    double sample_noise;
+    /**
+     * The noise's depth s of the screening weight, as psr_mesh_screening_depth: the depth
+     * used when the samples read no noise or the screening did not follow it.
+     */
+    double screening_depth;
+    /**
+     * Cells of the estimate wider than their slab's padding, fitted from the samples within
+     * it (0 unless the median sample lies about three depths coarser than the slabs' walls).
+     */
+    uint64_t cells_beyond_padding;
+} psr_out_of_core_noise;
+
 
 
 #ifdef __cplusplus
@@ -938,10 +964,10 @@ psr_status psr_reconstructor_get_point_weight(const psr_reconstructor *r, float 
  * finer than the one whose cells are 10 sigma wide (s, psr_mesh_screening_depth) with alpha
  * 2^s instead of alpha 2^depth, so that a high depth does not pull the surface onto the
  * noise (the coarser depths keep alpha 2^depth, which keeps small detached parts of a scan);
- * exact samples keep 2^depth; so do clouds too sparse for the
- * estimate to resolve the surface (it reads no noise there). Out of core
- * (psr_reconstructor_solve_file_out_of_core) the slabs estimate the same sigma from their
- * parts. Default true (it was false before the 2026-12-06 build).
+ * exact samples keep 2^depth; so do clouds too sparse for the estimate to resolve the surface
+ * (it reads no noise there). Out of core (psr_reconstructor_solve_file_out_of_core) the slabs
+ * estimate the same sigma from their parts (psr_reconstructor_out_of_core_noise). Default true
+ * (it was false before the 2026-12-06 build).
  * false keeps 2^depth at any noise, the scale of SPSR and PoissonRecon: on noisy clouds the
  * surface then follows the noise more with every depth past the samples' own (farther from
  * the true surface and from samples held out of the reconstruction, closer to the points it
@@ -2317,6 +2343,20 @@ psr_status psr_mesh_write_ply(const psr_mesh *m, const char *path, uint32_t flag
  * or valid for writing one psr_out_of_core_report.
  */
 psr_status psr_reconstructor_solve_file_out_of_core(psr_reconstructor *r, const char *input_path, const char *output_path, const char *temp_dir, size_t slabs, int32_t use_confidence, psr_out_of_core_report *report);
+
+/**
+ * Writes to *out the samples' noise as the last psr_reconstructor_solve_file_out_of_core on r
+ * measured it (see psr_out_of_core_noise).
+ *
+ * r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+ * PSR_STATUS_INVALID_ARGUMENT (no reconstruction out of core on r yet, or the last one failed;
+ * or called from r's progress callback), PSR_STATUS_HANDLE_POISONED or
+ * PSR_STATUS_INTERNAL_ERROR; *out is written only on success.
+ *
+ * # Safety
+ * `r` is NULL or a live handle; `out` is NULL or valid for writes.
+ */
+psr_status psr_reconstructor_out_of_core_noise(const psr_reconstructor *r, psr_out_of_core_noise *out);
 
 #ifdef __cplusplus
 }  // extern "C"

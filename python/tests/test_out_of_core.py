@@ -88,6 +88,25 @@ def test_the_mesh_matches_the_in_memory_one(
     assert np.abs(radii - 1.0).max() < 2.2 / 64
 
 
+def test_the_report_gives_the_in_memory_noise_reading(tmp_path: Path, temp: Path) -> None:
+    points, normals = sphere(N, seed=11)
+    rng = np.random.default_rng(5)
+    noisy = (points + rng.normal(scale=0.004, size=points.shape)).astype(np.float32)
+    cloud_file = write_cloud(tmp_path / "noisy.ply", noisy, normals)
+    output = tmp_path / "mesh.ply"
+    report = psr.reconstruct_out_of_core(cloud_file, output, slabs=3, temp_dir=temp, **PARAMS)
+    in_memory = psr.reconstruct(noisy, normals, **PARAMS)
+    assert in_memory.sample_noise is not None and in_memory.sample_noise > 0.0
+    # The slabs' estimate is the in-memory one, bit for bit.
+    assert report.sample_noise == in_memory.sample_noise
+    assert report.screening_depth == in_memory.screening_depth < 6.0
+    assert report.noise_cells_beyond_padding == 0
+    report = psr.reconstruct_out_of_core(
+        cloud_file, output, slabs=3, temp_dir=temp, screening_follows_noise=False, **PARAMS
+    )
+    assert report.sample_noise is None and report.screening_depth == 6.0
+
+
 def test_the_reconstructor_method_uses_its_parameters_and_reports_progress(
     tmp_path: Path, cloud_file: Path, temp: Path
 ) -> None:

@@ -136,7 +136,10 @@ pub use self::normals::{
     psr_reconstructor_get_normal_orientation, psr_reconstructor_set_normal_neighbors,
     psr_reconstructor_set_normal_orientation, psr_reconstructor_set_viewpoint,
 };
-pub use self::outofcore::{psr_out_of_core_report, psr_reconstructor_solve_file_out_of_core};
+pub use self::outofcore::{
+    psr_out_of_core_noise, psr_out_of_core_report, psr_reconstructor_out_of_core_noise,
+    psr_reconstructor_solve_file_out_of_core,
+};
 pub use self::params::{
     psr_boundary, psr_reconstructor_get_boundary, psr_reconstructor_get_degree,
     psr_reconstructor_get_depth, psr_reconstructor_get_full_depth,

@@ -1,6 +1,7 @@
-//! Reconstruction out of core: psr_reconstructor_solve_file_out_of_core and its report.
+//! Reconstruction out of core: psr_reconstructor_solve_file_out_of_core, its report and the
+//! noise it measured.
 
-use super::panic_boundary::{guard, handle_mut};
+use super::panic_boundary::{guard, handle_mut, handle_ref, require_out, write_out};
 use super::ply::path_argument;
 use super::reconstructor::psr_reconstructor;
 use super::status::{psr_status, Failure};
@@ -29,6 +30,26 @@ pub struct psr_out_of_core_report {
     pub isovalue: f64,
     /// Seconds the run took.
     pub seconds: f64,
+}
+
+/// The samples' noise as a reconstruction out of core measured it
+/// (psr_reconstructor_out_of_core_noise): what psr_mesh_sample_noise and
+/// psr_mesh_screening_depth tell of an in-memory mesh, which psr_out_of_core_report (a fixed
+/// struct) has no room for.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct psr_out_of_core_noise {
+    /// The samples' positional noise sigma in input units (0 for exact samples of a smooth
+    /// surface), or NaN when the screening did not follow it
+    /// (psr_reconstructor_set_screening_follows_noise was false). The in-memory estimate of the
+    /// same cloud, bit for bit, when cells_beyond_padding is 0.
+    pub sample_noise: f64,
+    /// The noise's depth s of the screening weight, as psr_mesh_screening_depth: the depth
+    /// used when the samples read no noise or the screening did not follow it.
+    pub screening_depth: f64,
+    /// Cells of the estimate wider than their slab's padding, fitted from the samples within
+    /// it (0 unless the median sample lies about three depths coarser than the slabs' walls).
+    pub cells_beyond_padding: u64,
 }
 
 /// Reconstructs the oriented points of the PLY file input_path into the mesh output_path
@@ -93,6 +114,7 @@ pub unsafe extern "C" fn psr_reconstructor_solve_file_out_of_core(
         // SAFETY: `r` is a live handle (handle_mut found it not NULL) and its mutable
         // reference has ended; calls the callback makes on r see `busy` and are refused.
         let handle: &psr_reconstructor = unsafe { &*r };
+        handle.last_out_of_core_noise.set(None);
         handle.busy.set(true);
         let mut progress = |stage: Stage, fraction: f32| match callback {
             // SAFETY: whoever set the callback promised it is safe to call with `user` until it
@@ -130,6 +152,13 @@ pub unsafe extern "C" fn psr_reconstructor_solve_file_out_of_core(
                 Failure::new(psr_status::InternalError, format!("{F}: {e}"))
             }
         })?;
+        handle
+            .last_out_of_core_noise
+            .set(Some(psr_out_of_core_noise {
+                sample_noise: done.sample_noise.unwrap_or(f64::NAN),
+                screening_depth: done.screening_depth,
+                cells_beyond_padding: done.noise_cells_beyond_padding,
+            }));
         if !report.is_null() {
             let out = psr_out_of_core_report {
                 points: done.points,
@@ -146,6 +175,44 @@ pub unsafe extern "C" fn psr_reconstructor_solve_file_out_of_core(
             unsafe { report.write(out) };
         }
         Ok(())
+    };
+    // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
+    // it ends with the body.
+    unsafe { guard(F, r, body) }
+}
+
+/// Writes to *out the samples' noise as the last psr_reconstructor_solve_file_out_of_core on r
+/// measured it (see psr_out_of_core_noise).
+///
+/// r and out must not be NULL. Returns PSR_STATUS_OK, PSR_STATUS_NULL_ARGUMENT,
+/// PSR_STATUS_INVALID_ARGUMENT (no reconstruction out of core on r yet, or the last one failed;
+/// or called from r's progress callback), PSR_STATUS_HANDLE_POISONED or
+/// PSR_STATUS_INTERNAL_ERROR; *out is written only on success.
+///
+/// # Safety
+/// `r` is NULL or a live handle; `out` is NULL or valid for writes.
+#[no_mangle]
+pub unsafe extern "C" fn psr_reconstructor_out_of_core_noise(
+    r: *const psr_reconstructor,
+    out: *mut psr_out_of_core_noise,
+) -> psr_status {
+    const F: &str = "psr_reconstructor_out_of_core_noise";
+    let body = || {
+        // SAFETY: `r` is NULL or a live handle (this function's contract); guard runs the body
+        // only when no other call on r is under way.
+        let handle = unsafe { handle_ref(F, r) }?;
+        require_out(F, "out", out)?;
+        let noise = handle.last_out_of_core_noise.get().ok_or_else(|| {
+            Failure::new(
+                psr_status::InvalidArgument,
+                format!(
+                    "{F}: no reconstruction out of core on this handle to read (none was made, \
+                     or the last psr_reconstructor_solve_file_out_of_core failed)"
+                ),
+            )
+        })?;
+        // SAFETY: `out` is not NULL and valid for writes (this function's contract).
+        unsafe { write_out(F, "out", out, noise) }
     };
     // SAFETY: `r` is NULL or a live handle (this function's contract); the body's reference to
     // it ends with the body.

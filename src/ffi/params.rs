@@ -345,10 +345,10 @@ pub unsafe extern "C" fn psr_reconstructor_get_point_weight(
 /// finer than the one whose cells are 10 sigma wide (s, psr_mesh_screening_depth) with alpha
 /// 2^s instead of alpha 2^depth, so that a high depth does not pull the surface onto the
 /// noise (the coarser depths keep alpha 2^depth, which keeps small detached parts of a scan);
-/// exact samples keep 2^depth; so do clouds too sparse for the
-/// estimate to resolve the surface (it reads no noise there). Out of core
-/// (psr_reconstructor_solve_file_out_of_core) the slabs estimate the same sigma from their
-/// parts. Default true (it was false before the 2026-12-06 build).
+/// exact samples keep 2^depth; so do clouds too sparse for the estimate to resolve the surface
+/// (it reads no noise there). Out of core (psr_reconstructor_solve_file_out_of_core) the slabs
+/// estimate the same sigma from their parts (psr_reconstructor_out_of_core_noise). Default true
+/// (it was false before the 2026-12-06 build).
 /// false keeps 2^depth at any noise, the scale of SPSR and PoissonRecon: on noisy clouds the
 /// surface then follows the noise more with every depth past the samples' own (farther from
 /// the true surface and from samples held out of the reconstruction, closer to the points it

@@ -47,6 +47,9 @@ pub struct psr_reconstructor {
     pub(super) poisoned: Cell<bool>,
     /// Set while psr_reconstructor_solve runs, to refuse calls from inside the progress callback.
     pub(super) busy: Cell<bool>,
+    /// What the last psr_reconstructor_solve_file_out_of_core measured of the samples' noise,
+    /// `None` before one succeeds (psr_reconstructor_out_of_core_noise).
+    pub(super) last_out_of_core_noise: Cell<Option<super::outofcore::psr_out_of_core_noise>>,
     /// Test hook: the next solve panics (see `debug_panic_next_solve` in solve.rs).
     pub(super) panic_next_solve: bool,
 }
@@ -65,6 +68,7 @@ impl psr_reconstructor {
             last_error: RefCell::new(None),
             poisoned: Cell::new(false),
             busy: Cell::new(false),
+            last_out_of_core_noise: Cell::new(None),
             panic_next_solve: false,
         }
     }

@@ -13,7 +13,8 @@
  * (psr_implicit: evaluation, gradient, grid, bad arguments); PLY files through the library
  * (psr_mesh_write_ply, psr_ply_read: round trip, bad files and arguments); reconstruction out
  * of core (psr_reconstructor_solve_file_out_of_core: bad arguments, a missing file, its report
- * against the file it wrote, cancellation, no temporary file left).
+ * against the file it wrote, cancellation, no temporary file left; the noise it measured,
+ * psr_reconstructor_out_of_core_noise).
  *
  * Prints one line per check and a closing "N passed, N failed" line; exits non-zero on any
  * failure. Meant to run under valgrind or AddressSanitizer as well.
@@ -1604,6 +1605,7 @@ static void test_out_of_core(void) {
     psr_reconstructor *r = NULL;
     psr_out_of_core_report report = untouched_report();
     const psr_out_of_core_report untouched = untouched_report();
+    psr_out_of_core_noise noise = {-1.0, -1.0, 77};
     psr_ply *ply = NULL;
     int k;
 
@@ -1646,6 +1648,12 @@ static void test_out_of_core(void) {
     CHECK(memcmp(&report, &untouched, sizeof report) == 0);
     CHECK(access(output, F_OK) != 0);
     CHECK(entries(temp) == 0);
+    /* No run yet: no noise to read. */
+    CHECK_STATUS(psr_reconstructor_out_of_core_noise(NULL, &noise), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_out_of_core_noise(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_out_of_core_noise(r, &noise), PSR_STATUS_INVALID_ARGUMENT);
+    CHECK(contains(psr_reconstructor_last_error(r), "psr_reconstructor_out_of_core_noise"));
+    CHECK(noise.cells_beyond_padding == 77);
 
     /* A run in 3 slabs: the file holds what the report says. */
     CHECK_STATUS(psr_reconstructor_solve_file_out_of_core(r, input, output, temp, 3, 0, &report),
@@ -1664,6 +1672,10 @@ static void test_out_of_core(void) {
         CHECK(psr_ply_confidence(ply) != NULL); /* the densities, as value */
         psr_ply_free(ply);
     }
+    /* The exact sphere reads no noise: sigma 0, the screening at the depth. */
+    CHECK_STATUS(psr_reconstructor_out_of_core_noise(r, &noise), PSR_STATUS_OK);
+    CHECK(noise.sample_noise == 0.0 && noise.screening_depth == 6.0);
+    CHECK(noise.cells_beyond_padding == 0);
 
     /* A stop from the progress callback inside a pass: cancelled, nothing left behind. */
     for (k = 0; k < 2; k++) {
@@ -1677,6 +1689,7 @@ static void test_out_of_core(void) {
         CHECK(state.stopped == 1 && state.calls_after_stop == 0);
         CHECK(memcmp(&report, &untouched, sizeof report) == 0);
         CHECK(entries(temp) == 0);
+        CHECK_STATUS(psr_reconstructor_out_of_core_noise(r, &noise), PSR_STATUS_INVALID_ARGUMENT);
     }
     CHECK_STATUS(psr_reconstructor_set_progress_callback(r, NULL, NULL), PSR_STATUS_OK);
     psr_reconstructor_free(r);

@@ -22,7 +22,15 @@ from ._errors import (
     Status,
     error_for,
 )
-from ._lib import LIB, PROGRESS_FN, DepthSolve, OutOfCoreReportStruct, PointArrays, TrimOptions
+from ._lib import (
+    LIB,
+    PROGRESS_FN,
+    DepthSolve,
+    OutOfCoreNoiseStruct,
+    OutOfCoreReportStruct,
+    PointArrays,
+    TrimOptions,
+)
 from ._ply import PathLike
 
 __all__ = [
@@ -301,6 +309,15 @@ class OutOfCoreReport:
     isovalue: float
     #: Seconds the run took.
     seconds: float
+    #: The samples' positional noise sigma in input units as the slabs estimated it (the
+    #: in-memory :attr:`Mesh.sample_noise` of the same cloud), or None when the screening did
+    #: not follow it (``screening_follows_noise=False``).
+    sample_noise: float | None
+    #: The noise's depth s of the screening weight (:attr:`Mesh.screening_depth`).
+    screening_depth: float
+    #: Cells of the noise estimate wider than their slab's padding, fitted from the samples
+    #: within it (0 unless the median sample lies far coarser than the slabs' walls).
+    noise_cells_beyond_padding: int
 
 
 class _SolveState:
@@ -944,11 +961,14 @@ class Reconstructor:
                 )
         use_confidence = _bool("confidence", confidence)
         report = OutOfCoreReportStruct()
+        noise = OutOfCoreNoiseStruct()
 
         def call(handle: ctypes.c_void_p, state: _SolveState) -> int:
             status: int = LIB.psr_reconstructor_solve_file_out_of_core(
                 handle, *paths, count, int(use_confidence), ctypes.byref(report)
             )
+            if status == Status.OK:
+                status = LIB.psr_reconstructor_out_of_core_noise(handle, ctypes.byref(noise))
             return status
 
         state = self._run(progress, call)
@@ -966,6 +986,9 @@ class Reconstructor:
             unsupported_components=int(report.unsupported_components),
             isovalue=float(report.isovalue),
             seconds=float(report.seconds),
+            sample_noise=None if math.isnan(noise.sample_noise) else float(noise.sample_noise),
+            screening_depth=float(noise.screening_depth),
+            noise_cells_beyond_padding=int(noise.cells_beyond_padding),
         )
 
     def _run(
@@ -1602,6 +1625,7 @@ def reconstruct_out_of_core(
     scale: float = 1.1,
     degree: int = 2,
     point_weight: float | None = None,
+    screening_follows_noise: bool = True,
     threads: int = 0,
     max_solver_iterations: int = 60,
     solver_tolerance: float = 1e-2,
@@ -1640,6 +1664,7 @@ def reconstruct_out_of_core(
         scale=scale,
         degree=degree,
         point_weight=point_weight,
+        screening_follows_noise=screening_follows_noise,
         threads=threads,
         max_solver_iterations=max_solver_iterations,
         solver_tolerance=solver_tolerance,

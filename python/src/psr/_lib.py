@@ -108,6 +108,16 @@ class OutOfCoreReportStruct(Structure):
     ]
 
 
+class OutOfCoreNoiseStruct(Structure):
+    """psr_out_of_core_noise."""
+
+    _fields_ = [
+        ("sample_noise", c_double),
+        ("screening_depth", c_double),
+        ("cells_beyond_padding", c_uint64),
+    ]
+
+
 _R = c_void_p  # psr_reconstructor *
 _M = c_void_p  # psr_mesh *
 _F = c_void_p  # psr_implicit *
@@ -191,6 +201,7 @@ _PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
         _S,
         [_R, c_char_p, c_char_p, c_char_p, c_size_t, c_int32, POINTER(OutOfCoreReportStruct)],
     ),
+    "psr_reconstructor_out_of_core_noise": (_S, [_R, POINTER(OutOfCoreNoiseStruct)]),
     "psr_mesh_free": (None, [_M]),
     "psr_mesh_vertex_count": (c_size_t, [_M]),
     "psr_mesh_triangle_count": (c_size_t, [_M]),
