@@ -29,8 +29,9 @@ pub(crate) struct SlabNoise {
     /// The fits of the cells its slabs own.
     pub(crate) fits: CellFits,
     /// Cells of the coarser depth among them (those with at least [`MIN_SAMPLES`] samples)
-    /// whose columns reach past their slab's padding: fitted over the samples within it. (A finer cell, half as wide, reaches past its
-    /// owner's padding only inside such a coarser cell.)
+    /// whose columns reach past their slab's padding: fitted over the samples within it. (A
+    /// finer cell, half as wide, reaches past its owner's padding only inside such a coarser
+    /// cell.)
     pub(crate) cells_beyond_padding: u64,
 }
 
