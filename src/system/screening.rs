@@ -37,7 +37,9 @@ pub(crate) fn sample_weights_from_totals(
 /// reconstruction (docs/benchmarks.md, issue 16): 20 was the closest on the synthetic noise and
 /// the bunny but rounded off the Buddha's thin parts (a larger RMS distance than the default's),
 /// 5 kept more of the noise, and 10 came within 1.3 % of the best on the scans and took 28–59 %
-/// off the noisy shapes' distance to the truth at depths 10–11.
+/// off the noisy shapes' distance to the truth at depths 10–11. Measured again with the
+/// per-depth weights of [`ScreeningWeights`] (2026-12-06): the same trade (20 closer on the
+/// bunny and the noisy sphere, farther on the Buddha by mean and RMS), so 10 stays.
 pub(crate) const NOISE_CELLS: f64 = 10.0;
 
 /// The noise's depth s, which [`ScreeningWeights`] reads: the requested depth, or, when the
