@@ -18,6 +18,7 @@
 //! `tests/out_of_core.rs` against the in-memory meshes of a sphere and the shared scans.
 
 pub(crate) mod assemble;
+pub(crate) mod bands;
 pub(crate) mod base;
 pub(crate) mod noise;
 pub(crate) mod passes;

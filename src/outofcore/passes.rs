@@ -4,11 +4,13 @@
 //! then over the slabs, one in memory at a time: their samples prepared (kept for the passes
 //! after) and their own core sets up to the base depth (pass A), their own parts of the base's
 //! right-hand sides and screening groups (pass B), the base solved once, each slab's finer
-//! depths solved over its points and padding (pass C), and every slab's coefficients made its
-//! owners' where slabs overlap, with the isovalue's partial sums (pass D). What it leaves: one
+//! depths solved over its points and padding, writing its bands for its neighbours (pass C),
+//! and every slab's coefficients made its owners' where slabs overlap from those bands
+//! (`bands.rs`), with the isovalue's partial sums (pass D). What it leaves: one
 //! solution file and one file of prepared samples per slab, each slab's χ agreeing with its
 //! neighbours' near their walls, and the isovalue.
 
+use super::bands::{apply_bands, write_bands};
 use super::base::{coarse_cores, merge_groups, BaseParts};
 use super::noise::{SlabNoise, TeamNoise};
 use super::scan::{
@@ -558,20 +560,6 @@ fn load_solution_in(
         Octree::from_cores(cores, params.boundary, params.node_degree(), &Watch::new())
     })?;
     Ok(Indicator { tree, coefficients })
-}
-
-/// The slab owning a node of depth `d` whose cell's lower x is `x` (the slab of the column
-/// holding that corner); `None` beyond the cube (mirror nodes, which follow their images).
-fn owner_of(layout: &SlabLayout, d: u32, x: i32) -> Option<usize> {
-    let column = if d >= layout.wall_depth {
-        x >> (d - layout.wall_depth)
-    } else {
-        x << (layout.wall_depth - d)
-    };
-    let columns = 1i32 << layout.wall_depth;
-    (0..columns)
-        .contains(&column)
-        .then(|| layout.slab_of_column(column as u32))
 }
 
 /// The cloud cut into slabs, binned, and pass A's sums: what a base depth decides.
@@ -1161,7 +1149,8 @@ pub(crate) fn solve_slabs(
     drop(groups);
     let base = agreed(team, solved_base)?;
 
-    // Pass C: each slab's depths above B over its points and padding.
+    // Pass C: each slab's depths above B over its points and padding, and its bands of
+    // coefficients for the slabs whose padding reaches it (`outofcore/bands.rs`).
     rounds(
         team,
         slabs,
@@ -1199,14 +1188,15 @@ pub(crate) fn solve_slabs(
                 &mut |f| keep_going("slabs", (k as f32 + f) / slabs as f32),
             )?;
             write_lists(&coefficients_file, &coefficients)?;
+            write_bands(&scratch, &layout, k, b, &Indicator { tree, coefficients })?;
             Ok(Vec::new())
         },
         |_, _| Ok(()),
     )?;
 
     // Pass D: every node's coefficient its owner's (so neighbours evaluate one χ near their
-    // walls), and the isovalue's partial sums over each slab's own samples, added in slab
-    // order. One neighbour's solution in memory at a time beside the slab's.
+    // walls; from the bands of pass C), and the isovalue's partial sums over each slab's own
+    // samples, added in slab order.
     let (mut weighted_sum, mut weight_sum) = (0.0f64, 0.0f64);
     rounds(
         team,
@@ -1216,30 +1206,7 @@ pub(crate) fn solve_slabs(
                 return Err(cancelled());
             }
             let mut chi = load_solution_in(&scratch, k, &base_cores, &params, pool)?;
-            // The slabs whose own columns k's padding reaches.
-            let padded = layout.padded(k);
-            let readers =
-                layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1;
-            for j in readers.filter(|&j| j != k) {
-                let owner = load_solution_in(&scratch, j, &base_cores, &params, pool)?;
-                for d in b + 1..chi.tree.levels.len() {
-                    let (Some(level), Some(theirs)) =
-                        (chi.tree.levels.get(d), owner.tree.levels.get(d))
-                    else {
-                        continue;
-                    };
-                    for i in 0..level.len() {
-                        let coord = level.coord(i as u32);
-                        // (A node whose owner is beyond the padding is too far from the walls
-                        // to reach a point near them: it keeps the slab's value.)
-                        if owner_of(&layout, d as u32, coord[0]) == Some(j) {
-                            if let Some(o) = theirs.find(coord) {
-                                chi.coefficients[d][i] = owner.coefficients[d][o as usize];
-                            }
-                        }
-                    }
-                }
-            }
+            apply_bands(&scratch, &layout, k, b, &mut chi)?;
             let slab = run.load(k, Some(finest))?;
             let values: Vec<f64> = pool.install(|| {
                 use rayon::prelude::*;
@@ -1258,11 +1225,9 @@ pub(crate) fn solve_slabs(
                     weight += w;
                 }
             }
-            // Written beside the slab's own solution: the neighbours still read the original.
-            write_lists(
-                &scratch.file(&format!("slab-{k}.seamed")),
-                &chi.coefficients,
-            )?;
+            // In place of the slab's own solution: no neighbour reads it any more.
+            let [_, coefficients_file] = solution_files(&scratch, k);
+            write_lists(&coefficients_file, &chi.coefficients)?;
             let mut p = Packer::default();
             p.f64(weighted);
             p.f64(weight);
@@ -1274,25 +1239,6 @@ pub(crate) fn solve_slabs(
             weight_sum += u.f64()?;
             Ok(())
         },
-    )?;
-    // Every slab's seamed solution in place of its own, once every neighbour has read it.
-    rounds(
-        team,
-        slabs,
-        |k| {
-            let [_, coefficients_file] = solution_files(&scratch, k);
-            std::fs::rename(
-                scratch.file(&format!("slab-{k}.seamed")),
-                &coefficients_file,
-            )
-            .map_err(|source| OutOfCoreError::Scratch {
-                action: "rename a slab's solution",
-                path: coefficients_file,
-                source,
-            })?;
-            Ok(Vec::new())
-        },
-        |_, _| Ok(()),
     )?;
     let isovalue = if weight_sum > 0.0 {
         weighted_sum / weight_sum

@@ -1,0 +1,174 @@
+//! The wall bands (pass D): every node's coefficient is its owner's, so that neighbouring slabs
+//! evaluate one χ near their walls. Each slab, once solved (pass C), writes for each slab
+//! whose padding reaches its columns a band: the coefficients of the nodes it owns within
+//! that slab's window ([`window`]), where the reader's tree can have nodes. The reader then
+//! gives every node of its tree owned by a neighbour the neighbour's value from the band,
+//! instead of loading the neighbour's whole solution and rebuilding its tree.
+//!
+//! The result is what reading the neighbours' solutions gave: a node of the reader's tree
+//! owned by a neighbour takes the neighbour's value when the neighbour's tree has the node
+//! and keeps its own otherwise. A node owned by a neighbour but outside the window (where the
+//! reader's tree can have nodes, and [`WINDOW_MARGIN`] nodes more: the tree reaches one or two
+//! past its samples' splats) would have no value written: the reader stops with an internal
+//! error rather than keep its own there.
+//!
+//! A band is as wide as the padding up to the wall depth (the reader's tree spans its padded
+//! columns there) and a few dozen nodes of each finer depth: on the bunny at depth 10 in 5
+//! slabs, 0.4–1.3 million nodes, a third to a half of a neighbour's nodes finer than the base.
+//! It goes through the temporary directory rather than the team's meetings: held until pass D,
+//! the bands of every slab a member does would outgrow the one slab at a time the budget
+//! counts.
+
+use super::passes::FINE_PADDING_NODES;
+use super::scratch::{read_lists, scratch_error, write_lists, Scratch};
+use super::slabs::SlabLayout;
+use super::OutOfCoreError;
+use crate::evaluate::Indicator;
+use crate::grid::morton;
+use std::ops::Range;
+use std::path::PathBuf;
+
+/// Nodes of each depth beyond where a reader's samples splat that its window takes in: more
+/// than its tree reaches past them (a splat touches one node on each side, the 2:1 balance
+/// widens a parent's core by one node and the halo adds one or two).
+const WINDOW_MARGIN: i64 = 8;
+
+/// The slab owning a node of depth `d` whose cell's lower x is `x` (the slab of the column
+/// holding that corner); `None` beyond the cube (mirror nodes, which follow their images).
+pub(crate) fn owner_of(layout: &SlabLayout, d: u32, x: i32) -> Option<usize> {
+    let column = if d >= layout.wall_depth {
+        x >> (d - layout.wall_depth)
+    } else {
+        x << (layout.wall_depth - d)
+    };
+    let columns = 1i32 << layout.wall_depth;
+    (0..columns)
+        .contains(&column)
+        .then(|| layout.slab_of_column(column as u32))
+}
+
+/// The slabs whose own columns slab k's padding reaches (k among them): those it reads
+/// bands from.
+fn read_by(layout: &SlabLayout, k: usize) -> Range<usize> {
+    let padded = layout.padded(k);
+    layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1
+}
+
+/// The x indices of depth `d`'s nodes in slab k's window: where its tree can have nodes, and
+/// [`WINDOW_MARGIN`] nodes of that depth more on each side. Up to the wall depth that is its
+/// padded columns (it holds their samples); finer, its graded band
+/// ([`SlabLayout::band`] with [`FINE_PADDING_NODES`]), within which its splats stay.
+fn window(layout: &SlabLayout, k: usize, d: u32) -> Range<i64> {
+    let w = layout.wall_depth;
+    let within = if d > w {
+        layout.band(k, d, FINE_PADDING_NODES)
+    } else {
+        let padded = layout.padded(k);
+        let shift = w - d;
+        (padded.start as i64) >> shift..((padded.end as i64 - 1) >> shift) + 1
+    };
+    within.start - WINDOW_MARGIN..within.end + WINDOW_MARGIN
+}
+
+/// The band's files of slab j for slab k: the keys (Morton, ascending) and the coefficients,
+/// one list per depth finer than the base.
+fn band_files(scratch: &Scratch, j: usize, k: usize) -> [PathBuf; 2] {
+    [
+        scratch.file(&format!("band-{j}-to-{k}.keys")),
+        scratch.file(&format!("band-{j}-to-{k}.coefficients")),
+    ]
+}
+
+/// Writes slab j's bands from its solution `chi`: for each slab that reads it, the nodes of
+/// depths finer than `base` that j owns within that slab's window.
+pub(crate) fn write_bands(
+    scratch: &Scratch,
+    layout: &SlabLayout,
+    j: usize,
+    base: usize,
+    chi: &Indicator,
+) -> Result<(), OutOfCoreError> {
+    for k in (0..layout.len()).filter(|&k| k != j && read_by(layout, k).contains(&j)) {
+        let (mut keys, mut values) = (Vec::new(), Vec::new());
+        for d in base + 1..chi.tree.levels.len() {
+            let level = &chi.tree.levels[d];
+            let window = window(layout, k, d as u32);
+            let mut owned: Vec<(u64, f64)> = (0..level.len())
+                .filter_map(|i| {
+                    let coord = level.coord(i as u32);
+                    (window.contains(&i64::from(coord[0]))
+                        && owner_of(layout, d as u32, coord[0]) == Some(j))
+                    .then(|| (morton(coord), chi.coefficients[d][i]))
+                })
+                .collect();
+            owned.sort_unstable_by_key(|&(key, _)| key);
+            let (depth_keys, depth_values): (Vec<u64>, Vec<f64>) = owned.into_iter().unzip();
+            keys.push(depth_keys);
+            values.push(depth_values);
+        }
+        let [keys_file, values_file] = band_files(scratch, j, k);
+        write_lists(&keys_file, &keys)?;
+        write_lists(&values_file, &values)?;
+    }
+    Ok(())
+}
+
+/// Gives every node of slab k's solution `chi` finer than `base` that a neighbour owns the
+/// neighbour's coefficient from its band, where the neighbour's tree has the node. One band
+/// in memory at a time.
+pub(crate) fn apply_bands(
+    scratch: &Scratch,
+    layout: &SlabLayout,
+    k: usize,
+    base: usize,
+    chi: &mut Indicator,
+) -> Result<(), OutOfCoreError> {
+    for j in read_by(layout, k).filter(|&j| j != k) {
+        let [keys_file, values_file] = band_files(scratch, j, k);
+        let keys = read_lists::<u64>(&keys_file)?;
+        let values = read_lists::<f64>(&values_file)?;
+        // Read once: off the disk at once (the bands add up to a fair part of the solutions).
+        for file in [&keys_file, &values_file] {
+            std::fs::remove_file(file).map_err(scratch_error("remove a wall band", file))?;
+        }
+        let paired = keys.len() == values.len()
+            && keys
+                .iter()
+                .zip(&values)
+                .all(|(k, v)| k.len() == v.len() && k.is_sorted());
+        if !paired {
+            return Err(internal(format!(
+                "slab {j}'s band for slab {k}: its keys and coefficients do not pair up in order"
+            )));
+        }
+        for d in base + 1..chi.tree.levels.len() {
+            let level = &chi.tree.levels[d];
+            let window = window(layout, k, d as u32);
+            let band = keys.get(d - base - 1).zip(values.get(d - base - 1));
+            for i in 0..level.len() {
+                let coord = level.coord(i as u32);
+                // (A node whose owner is beyond the padding is too far from the walls to reach
+                // a point near them: it keeps the slab's value.)
+                if owner_of(layout, d as u32, coord[0]) != Some(j) {
+                    continue;
+                }
+                if !window.contains(&i64::from(coord[0])) {
+                    return Err(internal(format!(
+                        "slab {k}'s node at {coord:?} (depth {d}), owned by slab {j}, lies \
+                         outside the window of its band"
+                    )));
+                }
+                if let Some((band_keys, band_values)) = band {
+                    if let Ok(place) = band_keys.binary_search(&morton(coord)) {
+                        chi.coefficients[d][i] = band_values[place];
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn internal(message: String) -> OutOfCoreError {
+    OutOfCoreError::Reconstruction(crate::Error::Internal(message))
+}
