@@ -840,7 +840,7 @@ fn cut(
         files: &files,
         field: &field,
         normals: Some(&normal_sums),
-        screening: ScreeningWeights::new(params.point_weight, params.depth, params.depth as f64),
+        screening: ScreeningWeights::full_at_every_depth(params.point_weight, params.depth),
         pool,
         watch: Watch::new(),
     };
@@ -1037,7 +1037,7 @@ pub(crate) fn solve_slabs(
         files: &files,
         field: &field,
         normals: None,
-        screening: ScreeningWeights::new(params.point_weight, params.depth, params.depth as f64),
+        screening: ScreeningWeights::full_at_every_depth(params.point_weight, params.depth),
         pool,
         watch: Watch::new(),
     };

@@ -99,6 +99,11 @@ impl ScreeningWeights {
         }
     }
 
+    /// α·2^D at every depth (the noise not followed, or not yet estimated).
+    pub(crate) fn full_at_every_depth(point_weight: f32, requested_depth: u32) -> Self {
+        Self::new(point_weight, requested_depth, requested_depth as f64)
+    }
+
     /// α_d at depth `depth`.
     pub(crate) fn at(&self, depth: usize) -> f64 {
         if depth <= self.last_full {
