@@ -49,9 +49,7 @@ pub(crate) fn save_part(
 pub(crate) fn load_part(scratch: &Scratch, k: usize) -> Result<SlabPart, OutOfCoreError> {
     let lists: Vec<Vec<u64>> = read_lists(&part_file(scratch, k))?;
     let [vertices, keys, shared, triangles] = <[Vec<u64>; 4]>::try_from(lists).map_err(|_| {
-        OutOfCoreError::Reconstruction(crate::Error::Internal(
-            "a slab's part file has the wrong number of lists".into(),
-        ))
+        OutOfCoreError::internal("a slab's part file has the wrong number of lists")
     })?;
     Ok(SlabPart {
         vertices: vertices
@@ -127,7 +125,7 @@ fn unpack_walls(u: &mut Unpacker<'_>) -> Result<Vec<(u64, u64, u8)>, OutOfCoreEr
     let numbers = u.u64s()?;
     let sides = u.bytes()?;
     if keys.len() != numbers.len() || keys.len() != sides.len() {
-        return Err(internal("a part's wall list is cut short"));
+        return Err(OutOfCoreError::internal("a part's wall list is cut short"));
     }
     Ok(keys
         .into_iter()
@@ -147,13 +145,9 @@ fn unpack_keyed(u: &mut Unpacker<'_>) -> Result<Vec<(u64, u64)>, OutOfCoreError>
     let keys = u.u64s()?;
     let numbers = u.u64s()?;
     if keys.len() != numbers.len() {
-        return Err(internal("a part's wall list is cut short"));
+        return Err(OutOfCoreError::internal("a part's wall list is cut short"));
     }
     Ok(keys.into_iter().zip(numbers).collect())
-}
-
-fn internal(what: &str) -> OutOfCoreError {
-    OutOfCoreError::Reconstruction(crate::Error::Internal(what.into()))
 }
 
 impl Pieces {
@@ -207,12 +201,14 @@ impl Pieces {
                 let piece_edges = u.f64s()?;
                 let walls = unpack_walls(&mut u)?;
                 if piece_edges.len() != piece_triangles.len() {
-                    return Err(internal("a part's piece sums are cut short"));
+                    return Err(OutOfCoreError::internal(
+                        "a part's piece sums are cut short",
+                    ));
                 }
                 let first = parent.len() as u32;
                 let count = piece_triangles.len() as u32;
                 if walls.iter().any(|e| e.1 >= u64::from(count)) {
-                    return Err(internal(
+                    return Err(OutOfCoreError::internal(
                         "a part's wall vertex names a piece it does not have",
                     ));
                 }
@@ -262,7 +258,9 @@ impl Pieces {
         let (local, count) = local_pieces(part);
         let nodes = self.first_node[k] as usize..self.first_node[k + 1] as usize;
         if nodes.len() != count {
-            return Err(internal("a part changed between its passes"));
+            return Err(OutOfCoreError::internal(
+                "a part changed between its passes",
+            ));
         }
         let pieces = &self.piece_of_node[nodes];
         Ok(local.into_iter().map(|l| pieces[l as usize]).collect())
@@ -322,10 +320,9 @@ pub(crate) fn support(
         },
         |_, bytes| {
             for (piece, count) in unpack_keyed(&mut Unpacker::new(bytes))? {
-                *support
-                    .get_mut(piece as usize)
-                    .ok_or_else(|| internal("a slab's support names a piece that is not"))? +=
-                    count;
+                *support.get_mut(piece as usize).ok_or_else(|| {
+                    OutOfCoreError::internal("a slab's support names a piece that is not")
+                })? += count;
             }
             Ok(())
         },
@@ -494,7 +491,9 @@ impl MeshLayout {
                 for (key, number, sides) in walls {
                     let id = if number == FROM_BELOW {
                         let id = *open.get(&key).ok_or_else(|| {
-                            internal("a vertex on a wall is missing from the slabs below")
+                            OutOfCoreError::internal(
+                                "a vertex on a wall is missing from the slabs below",
+                            )
                         })?;
                         if mine(k) {
                             below.insert(key, id);
@@ -634,9 +633,9 @@ fn write_slab(
     };
     let part = part(k)?;
     let of_vertex = pieces.of_vertices(k, &part)?;
-    let wall_below = layout.wall_below[k]
-        .as_ref()
-        .ok_or_else(|| internal("a slab is written by a member that did not plan it"))?;
+    let wall_below = layout.wall_below[k].as_ref().ok_or_else(|| {
+        OutOfCoreError::internal("a slab is written by a member that did not plan it")
+    })?;
     let file = OpenOptions::new()
         .write(true)
         .open(output)
@@ -655,9 +654,9 @@ fn write_slab(
             continue;
         }
         if part.shared[v] & SHARED_BELOW != 0 {
-            id[v] = *wall_below
-                .get(&part.keys[v])
-                .ok_or_else(|| internal("a vertex on a wall is missing from the slab below"))?;
+            id[v] = *wall_below.get(&part.keys[v]).ok_or_else(|| {
+                OutOfCoreError::internal("a vertex on a wall is missing from the slab below")
+            })?;
             continue;
         }
         id[v] = next as u32;
@@ -689,7 +688,7 @@ fn write_slab(
         .copied()
         .unwrap_or(layout.vertices);
     if next != end {
-        return Err(internal(
+        return Err(OutOfCoreError::internal(
             "a slab wrote another number of vertices than it planned",
         ));
     }

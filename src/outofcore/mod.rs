@@ -109,6 +109,14 @@ impl std::error::Error for OutOfCoreError {
     }
 }
 
+impl OutOfCoreError {
+    /// An internal error of the decomposition (a scratch file or a member's message that does
+    /// not hold what its writer wrote, a node outside its band): a bug, not bad input.
+    pub(crate) fn internal(message: impl Into<String>) -> Self {
+        OutOfCoreError::Reconstruction(Error::Internal(message.into()))
+    }
+}
+
 impl From<Error> for OutOfCoreError {
     fn from(e: Error) -> Self {
         OutOfCoreError::Reconstruction(e)

@@ -215,11 +215,11 @@ pub(crate) fn team_medians(
                 .copied()
                 .map(Some)
                 .ok_or_else(|| {
-                    OutOfCoreError::Reconstruction(crate::Error::Internal(format!(
+                    OutOfCoreError::internal(format!(
                     "the members' median bin holds {} values, not the {} counted past its place",
                     values.len(),
                     place + 1
-                )))
+                ))
                 })
         })
         .collect::<Result<_, _>>()?;

@@ -290,11 +290,7 @@ fn write_prepared(
 /// confidence is an `f32` as read, widened to `f64`, and a normal's components are `f32`).
 fn read_prepared(path: &Path) -> std::result::Result<(Samples, SampleDensity), OutOfCoreError> {
     let lists: Vec<Vec<u64>> = read_lists(path)?;
-    let malformed = || {
-        OutOfCoreError::Reconstruction(crate::Error::Internal(
-            "a slab's prepared samples file is malformed".into(),
-        ))
-    };
+    let malformed = || OutOfCoreError::internal("a slab's prepared samples file is malformed");
     let [positions, normals_and_confidence, area, depth] =
         <[Vec<u64>; 4]>::try_from(lists).map_err(|_| malformed())?;
     let n = area.len();
@@ -1291,11 +1287,7 @@ fn unpack_sparse(u: &mut Unpacker<'_>) -> std::result::Result<Vec<f64>, OutOfCor
     let len = u.u64()? as usize;
     let runs = u.u64s()?;
     let kept = u.f64s()?;
-    let bad = || {
-        OutOfCoreError::Reconstruction(crate::Error::Internal(
-            "a slab's part of the base does not fit its length".into(),
-        ))
-    };
+    let bad = || OutOfCoreError::internal("a slab's part of the base does not fit its length");
     let mut values = vec![0.0f64; len];
     let mut taken = 0usize;
     for run in runs.chunks(2) {

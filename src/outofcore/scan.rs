@@ -148,11 +148,9 @@ impl ScannedPart {
         let file_bytes = u.u64()?;
         let count = u.u64()?;
         let corner = |list: Vec<f64>| -> Result<DVec3, OutOfCoreError> {
-            <[f64; 3]>::try_from(list).map(DVec3::from).map_err(|_| {
-                OutOfCoreError::Reconstruction(Error::Internal(
-                    "a scanned part's box is cut short".into(),
-                ))
-            })
+            <[f64; 3]>::try_from(list)
+                .map(DVec3::from)
+                .map_err(|_| OutOfCoreError::internal("a scanned part's box is cut short"))
         };
         let lo = corner(u.f64s()?)?;
         let hi = corner(u.f64s()?)?;
