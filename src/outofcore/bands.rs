@@ -24,7 +24,7 @@ use super::scratch::{read_lists, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::OutOfCoreError;
 use crate::evaluate::Indicator;
-use crate::grid::morton;
+use crate::grid::unmorton;
 use std::ops::Range;
 use std::path::PathBuf;
 
@@ -33,18 +33,21 @@ use std::path::PathBuf;
 /// widens a parent's core by one node and the halo adds one or two).
 const WINDOW_MARGIN: i64 = 8;
 
-/// The slab owning a node of depth `d` whose cell's lower x is `x` (the slab of the column
-/// holding that corner); `None` beyond the cube (mirror nodes, which follow their images).
-pub(crate) fn owner_of(layout: &SlabLayout, d: u32, x: i32) -> Option<usize> {
-    let column = if d >= layout.wall_depth {
-        x >> (d - layout.wall_depth)
+/// The x indices of depth `d`'s nodes that slab j owns: those whose cell's lower x corner
+/// lies in one of j's columns. Nodes beyond the cube (mirror nodes, which follow their
+/// images) belong to no slab.
+fn owned_x(layout: &SlabLayout, j: usize, d: u32) -> Range<i64> {
+    let owned = layout.owned(j);
+    let (start, end) = (i64::from(owned.start), i64::from(owned.end));
+    if d >= layout.wall_depth {
+        let shift = d - layout.wall_depth;
+        start << shift..end << shift
     } else {
-        x << (layout.wall_depth - d)
-    };
-    let columns = 1i32 << layout.wall_depth;
-    (0..columns)
-        .contains(&column)
-        .then(|| layout.slab_of_column(column as u32))
+        // x · 2^shift in [start, end): the first x at or above start / 2^shift, up to end's.
+        let shift = layout.wall_depth - d;
+        let up = |c: i64| (c + (1 << shift) - 1) >> shift;
+        up(start)..up(end)
+    }
 }
 
 /// The slabs whose own columns slab k's padding reaches (k among them): those it reads
@@ -92,17 +95,17 @@ pub(crate) fn write_bands(
         let (mut keys, mut values) = (Vec::new(), Vec::new());
         for d in base + 1..chi.tree.levels.len() {
             let level = &chi.tree.levels[d];
-            let window = window(layout, k, d as u32);
-            let mut owned: Vec<(u64, f64)> = (0..level.len())
-                .filter_map(|i| {
-                    let coord = level.coord(i as u32);
-                    (window.contains(&i64::from(coord[0]))
-                        && owner_of(layout, d as u32, coord[0]) == Some(j))
-                    .then(|| (morton(coord), chi.coefficients[d][i]))
+            let (window, owned) = (window(layout, k, d as u32), owned_x(layout, j, d as u32));
+            // In the level's order, which is the keys' (ascending).
+            let (depth_keys, depth_values): (Vec<u64>, Vec<f64>) = level
+                .keys
+                .iter()
+                .zip(&chi.coefficients[d])
+                .filter(|&(&key, _)| {
+                    let x = i64::from(unmorton(key)[0]);
+                    window.contains(&x) && owned.contains(&x)
                 })
-                .collect();
-            owned.sort_unstable_by_key(|&(key, _)| key);
-            let (depth_keys, depth_values): (Vec<u64>, Vec<f64>) = owned.into_iter().unzip();
+                .unzip();
             keys.push(depth_keys);
             values.push(depth_values);
         }
@@ -137,38 +140,40 @@ pub(crate) fn apply_bands(
                 .zip(&values)
                 .all(|(k, v)| k.len() == v.len() && k.is_sorted());
         if !paired {
-            return Err(internal(format!(
+            return Err(OutOfCoreError::internal(format!(
                 "slab {j}'s band for slab {k}: its keys and coefficients do not pair up in order"
             )));
         }
         for d in base + 1..chi.tree.levels.len() {
             let level = &chi.tree.levels[d];
-            let window = window(layout, k, d as u32);
-            let band = keys.get(d - base - 1).zip(values.get(d - base - 1));
-            for i in 0..level.len() {
-                let coord = level.coord(i as u32);
+            let (window, owned) = (window(layout, k, d as u32), owned_x(layout, j, d as u32));
+            let (band_keys, band_values) =
+                match keys.get(d - base - 1).zip(values.get(d - base - 1)) {
+                    Some((keys, values)) => (keys.as_slice(), values.as_slice()),
+                    None => (&[][..], &[][..]),
+                };
+            // Both in ascending key order: one merge, the band's cursor only moving forward.
+            let mut at = 0;
+            for (i, &key) in level.keys.iter().enumerate() {
+                let x = i64::from(unmorton(key)[0]);
                 // (A node whose owner is beyond the padding is too far from the walls to reach
                 // a point near them: it keeps the slab's value.)
-                if owner_of(layout, d as u32, coord[0]) != Some(j) {
+                if !owned.contains(&x) {
                     continue;
                 }
-                if !window.contains(&i64::from(coord[0])) {
-                    return Err(internal(format!(
-                        "slab {k}'s node at {coord:?} (depth {d}), owned by slab {j}, lies \
-                         outside the window of its band"
+                if !window.contains(&x) {
+                    return Err(OutOfCoreError::internal(format!(
+                        "slab {k}'s node at {:?} (depth {d}), owned by slab {j}, lies outside \
+                         the window of its band",
+                        unmorton(key)
                     )));
                 }
-                if let Some((band_keys, band_values)) = band {
-                    if let Ok(place) = band_keys.binary_search(&morton(coord)) {
-                        chi.coefficients[d][i] = band_values[place];
-                    }
+                at += band_keys[at..].partition_point(|&b| b < key);
+                if band_keys.get(at) == Some(&key) {
+                    chi.coefficients[d][i] = band_values[at];
                 }
             }
         }
     }
     Ok(())
-}
-
-fn internal(message: String) -> OutOfCoreError {
-    OutOfCoreError::Reconstruction(crate::Error::Internal(message))
 }
