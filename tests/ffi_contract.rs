@@ -4416,11 +4416,17 @@ impl Drop for OutOfCoreDir {
 /// them flattened as [`sphere`] gives them.
 fn write_sphere_ply(path: &std::path::Path, n: usize) -> (Vec<f32>, Vec<f32>) {
     let (p, nrm) = sphere(n, [0.1, -0.2, 0.3], 1.0);
-    let mut cloud = psr::ply::PlyPoints::default();
-    cloud.positions = p.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    cloud.normals = nrm.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    psr::ply::write_point_cloud(path, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    write_cloud_ply(path, &p, &nrm);
     (p, nrm)
+}
+
+/// Writes a binary PLY of the points with positions `p` and normals `nrm` (x y z per point).
+fn write_cloud_ply(path: &std::path::Path, p: &[f32], nrm: &[f32]) {
+    let triples = |v: &[f32]| v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = triples(p);
+    cloud.normals = triples(nrm);
+    psr::ply::write_point_cloud(path, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
 }
 
 /// A report whose every field is a value no run gives, to see that a failure leaves it alone.
@@ -4713,14 +4719,8 @@ fn out_of_core_noise_is_the_in_memory_reading_of_the_last_run() {
         .into_iter()
         .flatten()
         .collect();
-    let mut cloud = psr::ply::PlyPoints::default();
-    cloud.positions = jittered
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
-    cloud.normals = nrm.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     let input = dir.path("noisy-sphere.ply");
-    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    write_cloud_ply(&input, &jittered, &nrm);
     let output = dir.path("mesh.ply");
     let r = new_handle();
     out_of_core_parameters(r);
