@@ -104,7 +104,13 @@ impl Indicator {
         let flags = &self.tree.levels[depth].flags;
         let linear = self.tree.levels[depth].degree == Degree::One;
         let x = &self.coefficients[depth];
-        let coefficient = nodes.map(|n| (n != NONE).then(|| x[n as usize]));
+        // Degree 1 reads only each corner's own node: not the 27 (scattered reads, a tenth of
+        // a degree-1 extraction's time on the bunny scans at depth 10).
+        let coefficient = if linear {
+            [None; 27]
+        } else {
+            nodes.map(|n| (n != NONE).then(|| x[n as usize]))
+        };
         std::array::from_fn(|corner| {
             let c = [corner & 1, corner >> 1 & 1, corner >> 2 & 1];
             let own = nodes[(1 + c[0]) + 3 * (1 + c[1]) + 9 * (1 + c[2])];
