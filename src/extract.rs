@@ -876,12 +876,18 @@ pub(crate) fn extract_traced(
         let number = || {
             let mut new_edges: Vec<Crossing> = Vec::new();
             let mut crossing_ids: Vec<u32> = Vec::new();
+            // The leaves around this leaf's new edges, each once and in the order first met,
+            // but for the leaf itself: the table of visited leaves is asked once per leaf
+            // found, not per edge (adjacent edges share their neighbours; on the Happy Buddha
+            // at depth 10 its look-ups were 3 % of a one-thread run).
+            let mut around_leaf: Vec<Leaf> = Vec::new();
             let leaf_crossings = crossed
                 .iter()
                 .flat_map(|run| (0..run.leaves()).map(move |k| run.crossings_of_leaf(k)));
             for ((leaf, (block, _, _, _, _)), crossings) in
                 batch.iter().zip(&plans).zip(leaf_crossings)
             {
+                around_leaf.clear();
                 for c in crossings {
                     let next_id = mesh.vertices.len() + new_edges.len();
                     debug_assert!(next_id < ADDED_CENTRE as usize, "checked for the batch");
@@ -897,11 +903,16 @@ pub(crate) fn extract_traced(
                     }
                     new_edges.push(*c);
                     for around in leaves_around(leaf, block, c, finest).into_iter().flatten() {
-                        if in_window(&around, finest, window)
-                            && visited.insert(leaves.key(&around), ()).is_none()
-                        {
-                            next_frontier.push(around);
+                        if around != *leaf && !around_leaf.contains(&around) {
+                            around_leaf.push(around);
                         }
+                    }
+                }
+                for around in around_leaf.drain(..) {
+                    if in_window(&around, finest, window)
+                        && visited.insert(leaves.key(&around), ()).is_none()
+                    {
+                        next_frontier.push(around);
                     }
                 }
             }
