@@ -216,10 +216,11 @@ pub(crate) fn team_medians(
                 .map(Some)
                 .ok_or_else(|| {
                     OutOfCoreError::internal(format!(
-                    "the members' median bin holds {} values, not the {} counted past its place",
-                    values.len(),
-                    place + 1
-                ))
+                        "the members' median bin holds {} values, not the {} counted past its \
+                         place",
+                        values.len(),
+                        place + 1
+                    ))
                 })
         })
         .collect::<Result<_, _>>()?;
