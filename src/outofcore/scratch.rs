@@ -123,7 +123,7 @@ pub(crate) struct SlabWriter {
 /// The error of `action` on `path` in the temporary directory, for `map_err`. The path is
 /// copied only when there is an error: the slab files are read and written a record at a time,
 /// each through `map_err`, and copying the path for every record (and, before the lists went
-/// by chunks, every word) cost an out-of-core run a quarter of its time in `malloc`, `free`
+/// by chunks, every word) cost an out-of-core run up to 30 % of its time in `malloc`, `free`
 /// and `Path::to_path_buf` (Buddha at depth 10 in 8 slabs: 38-40 s, now 27-28 s).
 pub(crate) fn scratch_error<'a>(
     action: &'static str,
