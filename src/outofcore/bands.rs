@@ -33,30 +33,6 @@ use std::path::PathBuf;
 /// widens a parent's core by one node and the halo adds one or two).
 const WINDOW_MARGIN: i64 = 8;
 
-/// The x indices of depth `d`'s nodes that slab j owns: those whose cell's lower x corner
-/// lies in one of j's columns. Nodes beyond the cube (mirror nodes, which follow their
-/// images) belong to no slab.
-fn owned_x(layout: &SlabLayout, j: usize, d: u32) -> Range<i64> {
-    let owned = layout.owned(j);
-    let (start, end) = (i64::from(owned.start), i64::from(owned.end));
-    if d >= layout.wall_depth {
-        let shift = d - layout.wall_depth;
-        start << shift..end << shift
-    } else {
-        // x · 2^shift in [start, end): the first x at or above start / 2^shift, up to end's.
-        let shift = layout.wall_depth - d;
-        let up = |c: i64| (c + (1 << shift) - 1) >> shift;
-        up(start)..up(end)
-    }
-}
-
-/// The slabs whose own columns slab k's padding reaches (k among them): those it reads
-/// bands from.
-fn read_by(layout: &SlabLayout, k: usize) -> Range<usize> {
-    let padded = layout.padded(k);
-    layout.slab_of_column(padded.start)..layout.slab_of_column(padded.end - 1) + 1
-}
-
 /// The x indices of depth `d`'s nodes in slab k's window: where its tree can have nodes, and
 /// [`WINDOW_MARGIN`] nodes of that depth more on each side. Up to the wall depth that is its
 /// padded columns (it holds their samples); finer, its graded band
@@ -91,11 +67,11 @@ pub(crate) fn write_bands(
     base: usize,
     chi: &Indicator,
 ) -> Result<(), OutOfCoreError> {
-    for k in (0..layout.len()).filter(|&k| k != j && read_by(layout, k).contains(&j)) {
+    for k in (0..layout.len()).filter(|&k| k != j && layout.slabs_read_by(k).contains(&j)) {
         let (mut keys, mut values) = (Vec::new(), Vec::new());
         for d in base + 1..chi.tree.levels.len() {
             let level = &chi.tree.levels[d];
-            let (window, owned) = (window(layout, k, d as u32), owned_x(layout, j, d as u32));
+            let (window, owned) = (window(layout, k, d as u32), layout.owned_at(j, d as u32));
             // In the level's order, which is the keys' (ascending).
             let (depth_keys, depth_values): (Vec<u64>, Vec<f64>) = level
                 .keys
@@ -126,7 +102,7 @@ pub(crate) fn apply_bands(
     base: usize,
     chi: &mut Indicator,
 ) -> Result<(), OutOfCoreError> {
-    for j in read_by(layout, k).filter(|&j| j != k) {
+    for j in layout.slabs_read_by(k).filter(|&j| j != k) {
         let [keys_file, values_file] = band_files(scratch, j, k);
         let keys = read_lists::<u64>(&keys_file)?;
         let values = read_lists::<f64>(&values_file)?;
@@ -146,7 +122,7 @@ pub(crate) fn apply_bands(
         }
         for d in base + 1..chi.tree.levels.len() {
             let level = &chi.tree.levels[d];
-            let (window, owned) = (window(layout, k, d as u32), owned_x(layout, j, d as u32));
+            let (window, owned) = (window(layout, k, d as u32), layout.owned_at(j, d as u32));
             let (band_keys, band_values) =
                 match keys.get(d - base - 1).zip(values.get(d - base - 1)) {
                     Some((keys, values)) => (keys.as_slice(), values.as_slice()),

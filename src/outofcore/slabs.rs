@@ -93,6 +93,29 @@ impl SlabLayout {
         ((owned.start as i64) << shift) - nodes as i64..((owned.end as i64) << shift) + nodes as i64
     }
 
+    /// The x indices of depth `depth`'s cells that slab k owns: those whose lower x corner lies
+    /// in one of its columns. Cells beyond the cube belong to no slab.
+    pub(crate) fn owned_at(&self, k: usize, depth: u32) -> Range<i64> {
+        let owned = self.owned(k);
+        let (start, end) = (i64::from(owned.start), i64::from(owned.end));
+        if depth >= self.wall_depth {
+            let shift = depth - self.wall_depth;
+            start << shift..end << shift
+        } else {
+            // x · 2^shift in [start, end): the first x at or above start / 2^shift, up to end's.
+            let shift = self.wall_depth - depth;
+            let up = |c: i64| (c + (1 << shift) - 1) >> shift;
+            up(start)..up(end)
+        }
+    }
+
+    /// The slabs whose own columns slab k's padded range reaches, in order (k among them): the
+    /// converse of [`SlabLayout::slabs_reading`].
+    pub(crate) fn slabs_read_by(&self, k: usize) -> Range<usize> {
+        let padded = self.padded(k);
+        self.slab_of_column(padded.start)..self.slab_of_column(padded.end - 1) + 1
+    }
+
     /// The slabs whose padded range holds column `column`, in order (its owner among them).
     pub(crate) fn slabs_reading(&self, column: u32) -> Range<usize> {
         let first = self.slab_of_column(column.saturating_sub(self.padding));
@@ -132,6 +155,36 @@ mod tests {
                     "column {column}, slab {j}"
                 );
             }
+        }
+        for k in 0..layout.len() {
+            for j in 0..layout.len() {
+                assert_eq!(
+                    layout.slabs_read_by(k).contains(&j),
+                    layout
+                        .owned(j)
+                        .any(|c| layout.slabs_reading(c).contains(&k)),
+                    "slab {k} reading slab {j}"
+                );
+            }
+        }
+        // Every depth's cells in the cube owned once, by the slab of their lower x's column.
+        for depth in 0..9 {
+            for x in 0..1i64 << depth {
+                let column = if depth >= 6 {
+                    x >> (depth - 6)
+                } else {
+                    x << (6 - depth)
+                };
+                let owners: Vec<usize> = (0..layout.len())
+                    .filter(|&k| layout.owned_at(k, depth).contains(&x))
+                    .collect();
+                assert_eq!(
+                    owners,
+                    vec![layout.slab_of_column(column as u32)],
+                    "depth {depth}"
+                );
+            }
+            assert!((0..layout.len()).all(|k| !layout.owned_at(k, depth).contains(&-1)));
         }
         // All points in one column: one slab, whatever was asked.
         let mut one = vec![0u64; 64];
