@@ -24,8 +24,8 @@
 
 // Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment saying
 // why it holds, also inside `unsafe fn` bodies; unsafe code lives in `ffi/` (the C API),
-// `parallel.rs` (disjoint parallel writes), `memory.rs` (zeroed allocation that may fail) and
-// `system/simd.rs` (SIMD kernels) only.
+// `parallel.rs` (disjoint parallel writes), `memory.rs` (zeroed allocation that may fail),
+// `key_table.rs` (a cache prefetch hint) and `system/simd.rs` (SIMD kernels) only.
 #![deny(unsafe_op_in_unsafe_fn, clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
@@ -40,6 +40,7 @@ pub mod ffi;
 mod grid;
 mod implicit;
 mod isovalue;
+mod key_table;
 mod memory;
 mod mesh;
 mod noise;
