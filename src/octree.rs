@@ -539,13 +539,7 @@ impl Octree {
             let mut keys = clip(dilate(&cells, 1));
             watch.check()?;
             if d < max_depth {
-                let mut parents: Vec<u64> = cores[d as usize + 1]
-                    .par_iter()
-                    .map(|&k| pack(unpack(k).map(|v| v.div_euclid(2))))
-                    .collect();
-                parents.par_sort_unstable();
-                parents.dedup();
-                keys = merge_unique(&keys, &parents);
+                keys = merge_unique(&keys, &parents_of(&cores[d as usize + 1]));
             }
             if d <= full_depth {
                 let mut grid =
@@ -1279,6 +1273,25 @@ pub fn unpack(k: u64) -> Coord {
     ]
 }
 
+/// The parents (coordinates halved, rounding down) of sorted unique packed keys, sorted and
+/// unique, without sorting: among the keys whose y and z have given parities the map to parents
+/// keeps the (z, y, x) order (z = 2Z + parity fixes Z's order, likewise y; x only repeats), so
+/// the parents are four sorted runs, each deduplicated as it is made, merged. (A parallel sort
+/// of them was 1.4 % of a one-thread run on the Happy Buddha at depth 10.)
+fn parents_of(children: &[u64]) -> Vec<u64> {
+    let mut by_parity: [Vec<u64>; 4] = Default::default();
+    for &key in children {
+        let c = unpack(key);
+        let parent = pack(c.map(|v| v.div_euclid(2)));
+        let run = &mut by_parity[((c[1] & 1) | (c[2] & 1) << 1) as usize];
+        if run.last() != Some(&parent) {
+            run.push(parent);
+        }
+    }
+    let [a, b, c, d] = by_parity;
+    merge_unique(&merge_unique(&a, &b), &merge_unique(&c, &d))
+}
+
 /// The sorted union of two sorted, unique key lists.
 fn merge_unique(a: &[u64], b: &[u64]) -> Vec<u64> {
     let mut out = Vec::with_capacity(a.len() + b.len());
@@ -1414,6 +1427,31 @@ mod tests {
             want.dedup();
             assert_eq!(got, want, "r = {r}");
         }
+    }
+
+    #[test]
+    fn parents_without_sorting_match_sorting() {
+        // Keys of a band of nodes, some in the halo below 0, sorted and unique.
+        let mut keys: Vec<u64> = (0..60_000i64)
+            .map(|i| {
+                let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 44;
+                pack([
+                    (h % 41) as i32 - 4,
+                    ((h / 41) % 37) as i32 - 3,
+                    (i % 29) as i32 - 2,
+                ])
+            })
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        let mut want: Vec<u64> = keys
+            .iter()
+            .map(|&k| pack(unpack(k).map(|v| v.div_euclid(2))))
+            .collect();
+        want.sort_unstable();
+        want.dedup();
+        assert_eq!(parents_of(&keys), want);
+        assert!(parents_of(&[]).is_empty());
     }
 
     #[test]
