@@ -30,12 +30,6 @@ pub(crate) struct KeyTable<V: Copy + Default> {
     len: usize,
 }
 
-impl<V: Copy + Default> Default for KeyTable<V> {
-    fn default() -> Self {
-        Self::with_capacity(0)
-    }
-}
-
 impl<V: Copy + Default> KeyTable<V> {
     /// An empty table that holds `keys` keys before it grows.
     pub(crate) fn with_capacity(keys: usize) -> Self {
@@ -132,7 +126,7 @@ mod tests {
 
     #[test]
     fn matches_a_hash_map_through_growth_and_colliding_keys() {
-        let mut table: KeyTable<u32> = KeyTable::default();
+        let mut table: KeyTable<u32> = KeyTable::with_capacity(0);
         let mut want: HashMap<u64, u32> = HashMap::new();
         // Pseudo-random keys and runs of keys a multiple of 2^k apart (which a multiplicative
         // hash sends to nearby buckets), each looked up several times.
@@ -178,7 +172,7 @@ mod tests {
 
     #[test]
     fn insert_new_says_whether_the_key_was_absent() {
-        let mut set: KeyTable<()> = KeyTable::default();
+        let mut set: KeyTable<()> = KeyTable::with_capacity(0);
         assert!(set.insert_new(0, ()));
         assert!(!set.insert_new(0, ()));
         assert!(set.insert_new(EMPTY - 1, ()));
@@ -188,7 +182,7 @@ mod tests {
     #[test]
     #[should_panic(expected = "not a key")]
     fn the_empty_marker_is_refused_as_a_key() {
-        let mut set: KeyTable<()> = KeyTable::default();
+        let mut set: KeyTable<()> = KeyTable::with_capacity(0);
         set.insert_new(EMPTY, ());
     }
 }
