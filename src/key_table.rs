@@ -58,15 +58,7 @@ impl<V: Copy + Default> KeyTable<V> {
     /// that follows a little later then finds it there. No effect on the table's contents.
     #[inline]
     pub(crate) fn prefetch(&self, key: u64) {
-        let bucket: *const (u64, V) = &self.buckets[self.home(key)];
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `_mm_prefetch` needs SSE, which every x86-64 processor has; a prefetch only
-        // hints the cache and never faults, and the address is a bucket of the table anyway.
-        unsafe {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(bucket.cast());
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = bucket;
+        crate::cache::prefetch(&self.buckets[self.home(key)]);
     }
 
     /// The value of `key`, inserting `value` first when `key` is absent; and whether it was

@@ -25,12 +25,13 @@
 // Every unsafe operation sits in an explicit `unsafe {}` block with a `// SAFETY:` comment saying
 // why it holds, also inside `unsafe fn` bodies; unsafe code lives in `ffi/` (the C API),
 // `parallel.rs` (disjoint parallel writes), `memory.rs` (zeroed allocation that may fail),
-// `key_table.rs` (a cache prefetch hint) and `system/simd.rs` (SIMD kernels) only.
+// `cache.rs` (a cache prefetch hint) and `system/simd.rs` (SIMD kernels) only.
 #![deny(unsafe_op_in_unsafe_fn, clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
 mod attributes;
 mod bspline;
+mod cache;
 mod components;
 mod density;
 mod error;
