@@ -127,9 +127,12 @@ impl CoreBricks {
                     let low = before + below(wanted.trailing_zeros());
                     let high = before + below(63 - wanted.leading_zeros());
                     if let Some(nodes) = input.get(low..=high) {
+                        // A hint every line's width from the first node, and the last node,
+                        // whose line the steps miss when the first is not at a line's start.
                         for line in nodes.chunks(NODES_PER_LINE) {
                             prefetch(&line[0]);
                         }
+                        prefetch(&input[high]);
                     }
                 }
                 before += occ.count_ones() as usize;
