@@ -521,28 +521,47 @@ impl CoreBricks {
         cb: usize,
         mut group: impl FnMut(usize, u8, [usize; 3]),
     ) {
+        self.for_each_window_word(level, cb, |slot, word, before, occ, wanted| {
+            let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| 8 * o);
+            let mut bits = wanted;
+            while bits != 0 {
+                let byte = bits.trailing_zeros() as usize / 8;
+                bits &= !(0xff << (8 * byte));
+                let node = before + (occ & ((1u64 << (8 * byte)) - 1)).count_ones() as usize;
+                // Window coordinate: local + 8·(offset − 1) + 2 = local + 8·offset − 6.
+                let l = brick_local(word * 64 + byte * 8);
+                group(
+                    node,
+                    (occ >> (8 * byte)) as u8,
+                    [0, 1, 2].map(|a| l[a] + offset[a] - 6),
+                );
+            }
+        });
+    }
+
+    /// Calls `word(slot, word index, its first node, occupancy, the occupancy in the window)`
+    /// for every occupancy word of the 27 bricks around core brick `cb` (slot (dx+1) + 3(dy+1)
+    /// + 9(dz+1)) that has a node in the window; the word's nodes are consecutive in K_d's
+    /// order from its first.
+    #[inline(always)]
+    pub(super) fn for_each_window_word(
+        &self,
+        level: &Level,
+        cb: usize,
+        mut word: impl FnMut(usize, usize, usize, u64, u64),
+    ) {
         let index = level.bricks();
         let regions = window_regions();
         for (slot, &b) in self.around[cb].iter().enumerate() {
             if b == u32::MAX {
                 continue;
             }
-            let offset = [slot % 3, slot / 3 % 3, slot / 9].map(|o| 8 * o);
             let (first, occupied) = index.brick(b as usize);
             let mut before = first as usize;
-            for (word, (&occ, &region)) in occupied.iter().zip(&regions[slot]).enumerate() {
-                let mut bits = occ & region;
-                while bits != 0 {
-                    let byte = bits.trailing_zeros() as usize / 8;
-                    bits &= !(0xff << (8 * byte));
-                    let node = before + (occ & ((1u64 << (8 * byte)) - 1)).count_ones() as usize;
-                    // Window coordinate: local + 8·(offset − 1) + 2 = local + 8·offset − 6.
-                    let l = brick_local(word * 64 + byte * 8);
-                    group(
-                        node,
-                        (occ >> (8 * byte)) as u8,
-                        [0, 1, 2].map(|a| l[a] + offset[a] - 6),
-                    );
+            for (w, (&occ, &region)) in occupied.iter().zip(&regions[slot]).enumerate() {
+                let wanted = occ & region;
+                if wanted != 0 {
+                    word(slot, w, before, occ, wanted);
                 }
                 before += occ.count_ones() as usize;
             }
