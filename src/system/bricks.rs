@@ -540,8 +540,8 @@ impl CoreBricks {
     }
 
     /// Calls `word(slot, word index, its first node, occupancy, the occupancy in the window)`
-    /// for every occupancy word of the 27 bricks around core brick `cb` (slot (dx+1) + 3(dy+1)
-    /// + 9(dz+1)) that has a node in the window; the word's nodes are consecutive in K_d's
+    /// for every occupancy word of the 27 bricks around core brick `cb` (slots as in
+    /// `around`) that has a node in the window; the word's nodes are consecutive in K_d's
     /// order from its first.
     #[inline(always)]
     pub(super) fn for_each_window_word(
