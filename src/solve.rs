@@ -148,25 +148,39 @@ pub(crate) fn cascade(
             Some(div) if !div.is_empty() => div,
             _ => zeroed(level.core.len(), "a coarse right-hand side")?,
         };
-        // b − A·y on the core, computed in A·y's vector.
-        let rhs = pool.install(|| -> Result<Vec<f64>> {
-            let mut rhs = zeroed(level.core.len(), "the solver's vectors")?;
-            op.apply(&y, &mut rhs);
+        // b − A·y on the core, computed in the coarse divergence's vector, and A·y's vector is
+        // the solver's A·p after: fresh pages for one core-sized vector instead of three. (Not
+        // the search direction: it lives on K_d, and a fresh vector's pages beyond the core are
+        // never touched, where a spent one's are all resident.)
+        let (rhs, ay) = pool.install(|| -> Result<(Vec<f64>, Vec<f64>)> {
+            let mut ay = zeroed(level.core.len(), "the solver's vectors")?;
+            op.apply(&y, &mut ay);
+            // Degree-1 face rows: ⟨∇B_o, V⟩ scaled as the Laplacian's rows are (the term taken
+            // off is read before the divergence's vector turns into the right-hand side).
+            let face_terms: Vec<(usize, f64)> = op
+                .face_rows()
+                .iter()
+                .map(|&(position, scale)| {
+                    let c = level.core[position] as usize;
+                    (
+                        position,
+                        (1.0 - scale) * (rho_here[c] + coarse_div[position]),
+                    )
+                })
+                .collect();
+            let mut rhs = coarse_div;
             rhs.par_iter_mut()
-                .zip(level.core.par_iter().zip(&coarse_div))
-                .for_each(|(a, (&c, div))| *a = rho_here[c as usize] + div - *a);
-            // Degree-1 face rows: ⟨∇B_o, V⟩ scaled as the Laplacian's rows are.
-            for &(position, scale) in op.face_rows() {
-                let c = level.core[position] as usize;
-                rhs[position] -= (1.0 - scale) * (rho_here[c] + coarse_div[position]);
+                .zip(level.core.par_iter().zip(&ay))
+                .for_each(|(div, (&c, a))| *div = rho_here[c as usize] + *div - a);
+            for (position, term) in face_terms {
+                rhs[position] -= term;
             }
             if let Some(target) = params.boundary.screening_target() {
                 op.add_screening_target(target, &mut rhs);
             }
-            Ok(rhs)
+            Ok((rhs, ay))
         })?;
         drop(rho_here);
-        drop(coarse_div);
         go_on()?;
         // The coefficients of this depth: the prolonged coarser solution plus the correction
         // the solve adds on the core.
@@ -180,6 +194,7 @@ pub(crate) fn cascade(
                 &mut z,
                 params.max_solver_iterations,
                 params.solver_tolerance,
+                ay,
                 &mut keep_going,
             )?
         };
@@ -271,8 +286,9 @@ fn dot_on_core(level: &Level, p: &[f64], a: &[f64]) -> f64 {
 
 /// Solves A x = b on the core of `op.level` (x starts at zero) and adds x to `solution`, a
 /// vector on K_d, at the core nodes (its mirror nodes are left to the caller). `b` becomes the
-/// residual, so the solve holds no copy of it and no separate x. `keep_going` is called once
-/// per iteration with the fraction of the iteration budget used; returning false stops.
+/// residual, so the solve holds no copy of it and no separate x. A·p is computed in `ap`'s
+/// memory when it has room (whatever its values; else in fresh memory). `keep_going` is called
+/// once per iteration with the fraction of the iteration budget used; returning false stops.
 fn conjugate_gradients(
     pool: &rayon::ThreadPool,
     op: &mut DepthOperator<'_>,
@@ -280,6 +296,7 @@ fn conjugate_gradients(
     solution: &mut [f64],
     max_iterations: u32,
     tolerance: f64,
+    ap: Vec<f64>,
     keep_going: &mut dyn FnMut(f32) -> bool,
 ) -> Result<CgOutcome> {
     let n = b.len();
@@ -310,7 +327,11 @@ fn conjugate_gradients(
         update_on_core(level, &mut p, |i, _| r[i] * inv_diag[i] as f64);
         weighted_dot(&r, &inv_diag)
     });
-    let mut ap = zeroed(n, "the solver's vectors")?;
+    let mut ap = if ap.len() == n {
+        ap // every element is written by the first product before it is read
+    } else {
+        zeroed(n, "the solver's vectors")?
+    };
     let mut iterations = 0;
     let mut residual = 1.0;
     while iterations < max_iterations {
@@ -384,8 +405,17 @@ mod tests {
         op.apply(&x_true, &mut b);
         let mut x = vec![0.0; level.len()];
         let pool = pool(threads);
-        let outcome =
-            conjugate_gradients(&pool, &mut op, b, &mut x, 2000, 1e-10, &mut |_| true).unwrap();
+        let outcome = conjugate_gradients(
+            &pool,
+            &mut op,
+            b,
+            &mut x,
+            2000,
+            1e-10,
+            Default::default(),
+            &mut |_| true,
+        )
+        .unwrap();
         (x, x_true, outcome)
     }
 
@@ -431,10 +461,19 @@ mod tests {
         let b = vec![1.0; level.core.len()];
         let mut x = vec![0.0; level.len()];
         let mut calls = 0;
-        let outcome = conjugate_gradients(&pool(1), &mut op, b, &mut x, 100, 1e-12, &mut |_| {
-            calls += 1;
-            calls < 3
-        })
+        let outcome = conjugate_gradients(
+            &pool(1),
+            &mut op,
+            b,
+            &mut x,
+            100,
+            1e-12,
+            Default::default(),
+            &mut |_| {
+                calls += 1;
+                calls < 3
+            },
+        )
         .unwrap();
         assert!(outcome.cancelled);
         assert_eq!(outcome.iterations, 2);
