@@ -192,8 +192,10 @@ pub(crate) fn cascade(
                 &mut op,
                 rhs,
                 &mut z,
-                params.max_solver_iterations,
-                params.solver_tolerance,
+                CgLimits {
+                    max_iterations: params.max_solver_iterations,
+                    tolerance: params.solver_tolerance,
+                },
                 ay,
                 &mut keep_going,
             )?
@@ -212,6 +214,14 @@ pub(crate) fn cascade(
         });
     }
     Ok(coefficients)
+}
+
+/// When a depth's conjugate gradients stop: after `max_iterations`, or once the relative
+/// residual is at most `tolerance`.
+#[derive(Debug, Clone, Copy)]
+struct CgLimits {
+    max_iterations: u32,
+    tolerance: f64,
 }
 
 /// How one depth's solve ended.
@@ -294,8 +304,10 @@ fn conjugate_gradients(
     op: &mut DepthOperator<'_>,
     b: Vec<f64>,
     solution: &mut [f64],
-    max_iterations: u32,
-    tolerance: f64,
+    CgLimits {
+        max_iterations,
+        tolerance,
+    }: CgLimits,
     ap: Vec<f64>,
     keep_going: &mut dyn FnMut(f32) -> bool,
 ) -> Result<CgOutcome> {
@@ -410,9 +422,11 @@ mod tests {
             &mut op,
             b,
             &mut x,
-            2000,
-            1e-10,
-            Default::default(),
+            CgLimits {
+                max_iterations: 2000,
+                tolerance: 1e-10,
+            },
+            Vec::new(),
             &mut |_| true,
         )
         .unwrap();
@@ -466,9 +480,11 @@ mod tests {
             &mut op,
             b,
             &mut x,
-            100,
-            1e-12,
-            Default::default(),
+            CgLimits {
+                max_iterations: 100,
+                tolerance: 1e-12,
+            },
+            Vec::new(),
             &mut |_| {
                 calls += 1;
                 calls < 3
