@@ -148,8 +148,13 @@ pub(crate) fn cascade(
             Some(div) if !div.is_empty() => div,
             _ => zeroed(level.core.len(), "a coarse right-hand side")?,
         };
+        debug_assert_eq!(
+            coarse_div.len(),
+            level.core.len(),
+            "one value per core node"
+        );
         // b − A·y on the core, computed in the coarse divergence's vector, and A·y's vector is
-        // the solver's A·p after: fresh pages for one core-sized vector instead of three. (Not
+        // the solver's A·p after: fresh pages for one core-sized vector instead of two. (Not
         // the search direction: it lives on K_d, and a fresh vector's pages beyond the core are
         // never touched, where a spent one's are all resident.)
         let (rhs, ay) = pool.install(|| -> Result<(Vec<f64>, Vec<f64>)> {
@@ -296,9 +301,10 @@ fn dot_on_core(level: &Level, p: &[f64], a: &[f64]) -> f64 {
 
 /// Solves A x = b on the core of `op.level` (x starts at zero) and adds x to `solution`, a
 /// vector on K_d, at the core nodes (its mirror nodes are left to the caller). `b` becomes the
-/// residual, so the solve holds no copy of it and no separate x. A·p is computed in `ap`'s
-/// memory when it has room (whatever its values; else in fresh memory). `keep_going` is called
-/// once per iteration with the fraction of the iteration budget used; returning false stops.
+/// residual, so the solve holds no copy of it and no separate x. A·p is computed in `ap` when it
+/// has one element per core node (whatever their values; else in a fresh vector). `keep_going`
+/// is called once per iteration with the fraction of the iteration budget used; returning false
+/// stops.
 fn conjugate_gradients(
     pool: &rayon::ThreadPool,
     op: &mut DepthOperator<'_>,
