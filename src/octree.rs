@@ -1380,7 +1380,21 @@ fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
             merge_shifted(&copies)
         })
         .collect();
-    merged.concat()
+    // The pieces joined in parallel (`concat` copies them on one thread).
+    let mut out = vec![0u64; merged.iter().map(Vec::len).sum()];
+    let mut at = 0;
+    let ranges: Vec<std::ops::Range<usize>> = merged
+        .iter()
+        .map(|piece| {
+            at += piece.len();
+            at - piece.len()..at
+        })
+        .collect();
+    split_parts(&mut out, ranges)
+        .into_par_iter()
+        .zip(&merged)
+        .for_each(|(to, piece)| to.copy_from_slice(piece));
+    out
 }
 
 /// The sorted union of sorted unique key lists, each shifted by its offset (which keeps it
