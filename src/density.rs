@@ -73,7 +73,9 @@ pub struct DensityField {
 
 impl DensityField {
     /// Splats a unit weight per sample (times its confidence, when given) at `depth`, and
-    /// restricts the counts to every coarser depth.
+    /// restricts the counts to every coarser depth. (The pipeline takes the same counts from
+    /// its [`NormalSums`], see [`NormalSums::kernel_counts`].)
+    #[cfg(test)]
     pub fn splat(positions: &[DVec3], confidence: Option<&[f64]>, depth: u32) -> Self {
         let mut counts = KernelCounts::new(depth);
         counts.add(positions, confidence);
@@ -340,11 +342,25 @@ impl<T: Copy + Default> Bricks<T> {
     fn slots(&self) -> usize {
         self.bricks.capacity() * 64
     }
+
+    /// `f` of every value, in the same bricks and slots (and the same room for bricks).
+    fn map<U: Copy>(&self, f: impl Fn(T) -> U) -> Bricks<U> {
+        let mut bricks = Vec::with_capacity(self.bricks.capacity());
+        bricks.extend(self.bricks.iter().map(|brick| Brick {
+            key: brick.key,
+            touched: brick.touched,
+            values: brick.values.map(&f),
+        }));
+        Bricks {
+            slot: self.slot.clone(),
+            bricks,
+        }
+    }
 }
 
 /// The samples' counts at the kernel depth, gathered in any number of parts (the out-of-core
-/// path reads its points in chunks): [`DensityField::splat`] of all the points is
-/// [`KernelCounts::add`] of each part, then [`KernelCounts::into_field`] (the counts summed in
+/// path reads its points in chunks): [`KernelCounts::add`] of each part, then
+/// [`KernelCounts::into_field`], gives the field of all the points (the counts summed in
 /// another order when the parts are not the points in order: equal to rounding).
 pub(crate) struct KernelCounts {
     depth: u32,
@@ -439,6 +455,16 @@ impl NormalSums {
             let [x, y, z] = normals[s];
             DVec4::new(1.0, x as f64, y as f64, z as f64)
         });
+    }
+
+    /// The counts alone, as [`KernelCounts::add`] over the same samples makes them, bit for bit
+    /// (each the same additions in the same order: the weights times 1): the in-memory
+    /// pipeline splats its samples once for both.
+    pub(crate) fn kernel_counts(&self) -> KernelCounts {
+        KernelCounts {
+            depth: self.depth,
+            counts: self.sums.map(|sum| sum.x),
+        }
     }
 
     /// The nodes whose centre's x `keep` accepts, with their (count, N), sorted by key.
@@ -881,6 +907,27 @@ mod tests {
             }
         }
         (positions, normals)
+    }
+
+    #[test]
+    fn counts_taken_from_the_normal_sums_are_the_splatted_counts() {
+        let (positions, normals) = box_edge(0.004);
+        let kernel_depth = 6;
+        let splatted = DensityField::splat(&positions, None, kernel_depth);
+        let taken = NormalSums::splat(&positions, None, &normals, kernel_depth)
+            .kernel_counts()
+            .into_field();
+        assert_eq!(taken.slots(), splatted.slots());
+        assert_eq!(taken.kernel_slots(), splatted.kernel_slots());
+        for depth in 0..=kernel_depth {
+            for p in positions.iter().step_by(7) {
+                let (a, b) = (
+                    taken.evaluate_at(depth, *p),
+                    splatted.evaluate_at(depth, *p),
+                );
+                assert_eq!(a.to_bits(), b.to_bits(), "depth {depth}, {p}");
+            }
+        }
     }
 
     #[test]

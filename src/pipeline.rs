@@ -5,7 +5,7 @@
 
 use crate::attributes;
 use crate::components;
-use crate::density::{self, DensityField, NormalSums};
+use crate::density::{self, NormalSums};
 use crate::evaluate::Indicator;
 use crate::extract;
 use crate::implicit::ImplicitFunction;
@@ -229,8 +229,14 @@ pub(crate) fn run(
     // `system::screening_depth`).
     let kernel_depth = params.effective_kernel_depth();
     let (field, mut sample_density, noise) = clock.watch(Stage::Density, pool, |watch| {
-        let field =
-            DensityField::splat(&samples.positions, Some(&samples.confidence), kernel_depth);
+        // The counts are the normal sums' first component: one splat gives both.
+        let normal_sums = NormalSums::splat(
+            &samples.positions,
+            Some(&samples.confidence),
+            &samples.normals,
+            kernel_depth,
+        );
+        let field = normal_sums.kernel_counts().into_field();
         budget.check(
             "the density field and the samples' normals summed beside it",
             Footprint::reading_density(
@@ -241,12 +247,6 @@ pub(crate) fn run(
             )
             .peak(),
         )?;
-        let normal_sums = NormalSums::splat(
-            &samples.positions,
-            Some(&samples.confidence),
-            &samples.normals,
-            kernel_depth,
-        );
         watch.step(1, 2, 0.0, 1.0)?;
         let sample_density = density::estimate(
             &field,
