@@ -1380,10 +1380,14 @@ fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
             merge_shifted(&copies)
         })
         .collect();
-    // The pieces joined in parallel (`concat` copies them on one thread).
-    let mut out = vec![0u64; merged.iter().map(Vec::len).sum()];
+    concat_in_parallel(&merged)
+}
+
+/// The pieces one after another, copied in parallel (`concat` copies them on one thread).
+fn concat_in_parallel(pieces: &[Vec<u64>]) -> Vec<u64> {
+    let mut out = vec![0u64; pieces.iter().map(Vec::len).sum()];
     let mut at = 0;
-    let ranges: Vec<std::ops::Range<usize>> = merged
+    let ranges: Vec<std::ops::Range<usize>> = pieces
         .iter()
         .map(|piece| {
             at += piece.len();
@@ -1392,7 +1396,7 @@ fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
         .collect();
     split_parts(&mut out, ranges)
         .into_par_iter()
-        .zip(&merged)
+        .zip(pieces)
         .for_each(|(to, piece)| to.copy_from_slice(piece));
     out
 }
