@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example estimate_normals -- IN.ply [--neighbors 20] [--threads 0]
+//!     [--orientation propagate|reconstruction] [--reconstruction-iterations 10]
 //!     [--viewpoint X,Y,Z] [--out ORIENTED.ply]
 //! ```
 //!
@@ -34,6 +35,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     return Err("--viewpoint takes X,Y,Z".into());
                 };
                 options.orientation = Orientation::Viewpoint([x, y, z]);
+            }
+            "--orientation" => {
+                options.orientation = match value()?.as_str() {
+                    "propagate" => Orientation::Propagate,
+                    "reconstruction" => Orientation::Reconstruction,
+                    other => {
+                        return Err(format!(
+                            "--orientation takes propagate or reconstruction, not {other} \
+                             (--viewpoint X,Y,Z selects the viewpoint)"
+                        )
+                        .into())
+                    }
+                }
+            }
+            "--reconstruction-iterations" => {
+                options.reconstruction_iterations = value()?.parse()?
             }
             "--out" => output = Some(PathBuf::from(value()?)),
             _ if input.is_none() => input = Some(PathBuf::from(arg)),

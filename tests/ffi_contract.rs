@@ -1905,7 +1905,8 @@ fn normal_estimation_reports_progress_first_and_can_be_cancelled() {
 }
 
 /// Proves: the estimation's settings have their documented defaults, keep their value when a
-/// value is refused, and a viewpoint selects the viewpoint orientation.
+/// value is refused, a viewpoint selects the viewpoint orientation, and the reconstruction's
+/// orientation and iteration count round-trip.
 #[test]
 fn normal_estimation_settings_round_trip_and_refuse_bad_values() {
     let r = new_handle();
@@ -1972,6 +1973,39 @@ fn normal_estimation_settings_round_trip_and_refuse_bad_values() {
             psr_status::Ok
         );
         assert_eq!(o, psr_orientation::Viewpoint as i32);
+        assert_eq!(
+            psr_reconstructor_set_normal_orientation(r, 3),
+            psr_status::Ok
+        );
+        assert_eq!(orientation_of(r), psr_orientation::Reconstruction as i32);
+        assert_eq!(
+            psr_reconstructor_get_normal_reconstruction_iterations(r, &mut k),
+            psr_status::Ok
+        );
+        assert_eq!(
+            k,
+            psr::NormalEstimation::default().reconstruction_iterations
+        );
+        for bad in [0, 1001] {
+            assert_eq!(
+                psr_reconstructor_set_normal_reconstruction_iterations(r, bad),
+                psr_status::InvalidParameter
+            );
+            assert!(
+                last_error(r).contains("reconstruction_iterations"),
+                "{}",
+                last_error(r)
+            );
+        }
+        assert_eq!(
+            psr_reconstructor_set_normal_reconstruction_iterations(r, 7),
+            psr_status::Ok
+        );
+        assert_eq!(
+            psr_reconstructor_get_normal_reconstruction_iterations(r, &mut k),
+            psr_status::Ok
+        );
+        assert_eq!(k, 7);
         assert_eq!(
             psr_reconstructor_set_normal_neighbors(ptr::null_mut(), 5),
             psr_status::NullArgument
@@ -2084,7 +2118,7 @@ fn sensor_batches_are_checked_whole_and_every_unoriented_point_needs_a_sensor() 
             psr_status::Ok
         );
         assert_eq!(
-            psr_reconstructor_set_normal_orientation(r, 3),
+            psr_reconstructor_set_normal_orientation(r, 4),
             psr_status::InvalidParameter
         );
         assert!(

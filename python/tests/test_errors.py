@@ -134,6 +134,8 @@ def test_attribute_lengths_and_values() -> None:
         ("vertex_placement", -1),
         ("normal_neighbors", 0),
         ("normal_orientation", 5),
+        ("normal_reconstruction_iterations", 0),
+        ("normal_reconstruction_iterations", 1001),
         ("normal_orientation", psr.Orientation.VIEWPOINT),  # before any viewpoint
     ],
 )

@@ -74,6 +74,7 @@ CHANGED: dict[str, Any] = {
     "vertex_normals": True,
     "normal_neighbors": 12,
     "normal_orientation": psr.Orientation.SENSORS,
+    "normal_reconstruction_iterations": 7,
 }
 
 
@@ -431,3 +432,24 @@ def test_a_cloud_file_gives_its_sensors_to_sensor_orientation(tmp_path: Path) ->
     with psr.Reconstructor(depth=5, normal_orientation=psr.Orientation.SENSORS) as r:
         r.add_points(cloud)
         assert same_mesh(r.solve(), facing)
+
+
+def test_reconstruction_orientation_turns_random_signs_outward() -> None:
+    # Points alone, and the same points with every third normal flipped: the orientation read
+    # off the reconstruction itself gives a mesh facing outward (positive signed volume, about
+    # that of the unit ball) and, from the given lines, keeps them and turns every sign outward.
+    p, n = sphere(3000, seed=5)
+
+    def signed_volume(m: psr.Mesh) -> float:
+        v = m.vertices.astype(np.float64)[m.triangles.astype(np.int64)]
+        return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6)
+
+    mesh = psr.reconstruct(
+        p, depth=5, normal_orientation="reconstruction", normal_reconstruction_iterations=5
+    )
+    assert 3.0 < signed_volume(mesh) < 4.5
+    with psr.Reconstructor(depth=5, normal_orientation=psr.Orientation.RECONSTRUCTION) as r:
+        assert r.normal_reconstruction_iterations == 10
+        r.normal_reconstruction_iterations = 5
+        r.add_points(p)
+        assert same_mesh(r.solve(), mesh)

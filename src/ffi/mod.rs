@@ -133,8 +133,10 @@ pub use self::mesh::{
 pub use self::normals::{
     psr_orientation, psr_reconstructor_add_positions, psr_reconstructor_add_positions_seen_from,
     psr_reconstructor_add_positions_with_sensors, psr_reconstructor_get_normal_neighbors,
-    psr_reconstructor_get_normal_orientation, psr_reconstructor_set_normal_neighbors,
-    psr_reconstructor_set_normal_orientation, psr_reconstructor_set_viewpoint,
+    psr_reconstructor_get_normal_orientation,
+    psr_reconstructor_get_normal_reconstruction_iterations, psr_reconstructor_set_normal_neighbors,
+    psr_reconstructor_set_normal_orientation,
+    psr_reconstructor_set_normal_reconstruction_iterations, psr_reconstructor_set_viewpoint,
 };
 pub use self::outofcore::{
     psr_out_of_core_noise, psr_out_of_core_report, psr_reconstructor_out_of_core_noise,

@@ -142,8 +142,22 @@ impl Grid {
     /// The k nearest other points of the point in slot `slot`, written to `row` (original
     /// indices). `best` is scratch space.
     fn query(&self, slot: usize, k: usize, best: &mut Vec<(f64, u32)>, row: &mut [u32]) {
-        let me = self.order[slot];
-        let p = self.sorted[slot];
+        self.search(self.sorted[slot], self.order[slot], k, best);
+        debug_assert_eq!(
+            best.len(),
+            k,
+            "the caller checked that there are k other points"
+        );
+        for (out, &(_, j)) in row.iter_mut().zip(best.iter()) {
+            *out = j;
+        }
+    }
+
+    /// Fills `best` with the k nearest points to `p` other than the point `me` (u32::MAX for
+    /// none), nearest first as (squared distance, index), ties by index; fewer when the grid
+    /// holds fewer. `p` may lie outside the grid's box: its cell is clamped, and the bound below
+    /// only counts faces with cells beyond them, so it stays a true lower bound.
+    fn search(&self, p: DVec3, me: u32, k: usize, best: &mut Vec<(f64, u32)>) {
         let c = self.cell(p);
         best.clear();
         let mut r = 0usize;
@@ -173,14 +187,6 @@ impl Grid {
                 break;
             }
             r += 1;
-        }
-        debug_assert_eq!(
-            best.len(),
-            k,
-            "the caller checked that there are k other points"
-        );
-        for (out, &(_, j)) in row.iter_mut().zip(best.iter()) {
-            *out = j;
         }
     }
 
@@ -261,6 +267,34 @@ impl Grid {
             let at = best.partition_point(|&(d, i)| (d, i) < (candidate.0, candidate.1));
             best.insert(at, candidate);
         }
+    }
+}
+
+/// Exact nearest-point queries from arbitrary points against a fixed set (e.g. from a mesh's
+/// triangles to the samples): the same grid and ring search as [`k_nearest`].
+pub(super) struct PointIndex {
+    grid: Grid,
+}
+
+impl PointIndex {
+    /// The index over `positions` (at least one, all finite; the caller checks).
+    pub(super) fn new(positions: &[DVec3]) -> PointIndex {
+        assert!(!positions.is_empty() && positions.len() <= u32::MAX as usize);
+        PointIndex {
+            grid: Grid::new(positions),
+        }
+    }
+
+    /// The `k` points nearest to `p` (fewer when there are fewer), nearest first as (squared
+    /// distance, index); ties by index. `best` is the answer's storage, reused across calls.
+    pub(super) fn nearest<'a>(
+        &self,
+        p: DVec3,
+        k: usize,
+        best: &'a mut Vec<(f64, u32)>,
+    ) -> &'a [(f64, u32)] {
+        self.grid.search(p, u32::MAX, k, best);
+        best
     }
 }
 

@@ -140,6 +140,8 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_get_normal_neighbors(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_normal_orientation(NULL, PSR_ORIENTATION_SENSORS), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_normal_orientation(NULL, &i), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_set_normal_reconstruction_iterations(NULL, 5), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_normal_reconstruction_iterations(NULL, &u), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_set_viewpoint(NULL, 0.0, 0.0, 1.0), PSR_STATUS_NULL_ARGUMENT);
     CHECK(u == 7 && i == 7);
     CHECK_STATUS(psr_reconstructor_clear_points(NULL), PSR_STATUS_NULL_ARGUMENT);
@@ -188,6 +190,7 @@ static void test_null_arguments(void) {
     CHECK_STATUS(psr_reconstructor_add_positions_with_sensors(r, NULL, 0, NULL, 0, 0), PSR_STATUS_OK);
     CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_get_normal_neighbors(r, NULL), PSR_STATUS_NULL_ARGUMENT);
+    CHECK_STATUS(psr_reconstructor_get_normal_reconstruction_iterations(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     CHECK_STATUS(psr_reconstructor_solve(r, NULL), PSR_STATUS_NULL_ARGUMENT);
     psr_reconstructor_free(r);
 
@@ -645,6 +648,8 @@ static void test_double_points(void) {
 
 /* Points without normals: counted, refused when bad, and reconstructed with estimated
  * normals into a mesh whose triangles face outward (positive signed volume). */
+static double signed_volume6(const psr_mesh *m);
+
 static void test_positions_without_normals(void) {
     enum { N = 2000 };
     float *positions = malloc(3 * N * sizeof(float)), *normals = malloc(3 * N * sizeof(float));
@@ -687,6 +692,23 @@ static void test_positions_without_normals(void) {
         }
         CHECK(volume6 > 0.0);
     }
+    psr_mesh_free(m);
+    m = NULL;
+
+    /* The same points with the orientation read off the reconstruction itself. */
+    CHECK_STATUS(psr_reconstructor_get_normal_reconstruction_iterations(r, &neighbors), PSR_STATUS_OK);
+    CHECK(neighbors == 10);
+    CHECK_STATUS(psr_reconstructor_set_normal_reconstruction_iterations(r, 0), PSR_STATUS_INVALID_PARAMETER);
+    CHECK(contains(psr_reconstructor_last_error(r), "reconstruction_iterations"));
+    CHECK_STATUS(psr_reconstructor_set_normal_reconstruction_iterations(r, 1001), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_reconstructor_set_normal_reconstruction_iterations(r, 5), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_normal_reconstruction_iterations(r, &neighbors), PSR_STATUS_OK);
+    CHECK(neighbors == 5);
+    CHECK_STATUS(psr_reconstructor_set_normal_orientation(r, PSR_ORIENTATION_RECONSTRUCTION), PSR_STATUS_OK);
+    CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, &orientation), PSR_STATUS_OK);
+    CHECK(orientation == PSR_ORIENTATION_RECONSTRUCTION);
+    CHECK_STATUS(psr_reconstructor_solve(r, &m), PSR_STATUS_OK);
+    CHECK(m != NULL && psr_mesh_triangle_count(m) > 0 && signed_volume6(m) > 0.0);
     psr_mesh_free(m);
     psr_reconstructor_free(r);
     free(positions);
@@ -764,7 +786,7 @@ static void test_sensors(void) {
     CHECK(count == 0);
     CHECK_STATUS(psr_reconstructor_get_normal_orientation(r, &orientation), PSR_STATUS_OK);
     CHECK(orientation == PSR_ORIENTATION_PROPAGATE);
-    CHECK_STATUS(psr_reconstructor_set_normal_orientation(r, 3), PSR_STATUS_INVALID_PARAMETER);
+    CHECK_STATUS(psr_reconstructor_set_normal_orientation(r, 4), PSR_STATUS_INVALID_PARAMETER);
 
     /* Mismatched use: one scan with its sensor, the rest without. */
     CHECK_STATUS(psr_reconstructor_add_positions_seen_from(r, scans, 0, scan_size[0], sensors[0]),

@@ -101,6 +101,7 @@ class Orientation(IntEnum):
     PROPAGATE = 0
     VIEWPOINT = 1
     SENSORS = 2
+    RECONSTRUCTION = 3
 
 
 class TrimThreshold(IntEnum):
@@ -272,6 +273,7 @@ DEFAULTS: dict[str, Any] = {
     "vertex_normals": False,
     "normal_neighbors": 20,
     "normal_orientation": Orientation.PROPAGATE,
+    "normal_reconstruction_iterations": 10,
 }
 
 
@@ -514,7 +516,15 @@ class Reconstructor:
         _enum_param(Orientation),
         _enum_value(Orientation),
         "How estimated normals get their signs: Orientation.PROPAGATE (default), VIEWPOINT "
-        "(set viewpoint first) or SENSORS.",
+        "(set viewpoint first), SENSORS or RECONSTRUCTION (read off a mesh reconstructed from "
+        "the normals themselves, in rounds coarse to fine: holds at folds and on sparse clouds "
+        "where propagation fails, at the cost of a few reconstructions per depth).",
+    )
+    normal_reconstruction_iterations = _Param[int](
+        ctypes.c_uint32,
+        _u32,
+        int,
+        "The most rounds Orientation.RECONSTRUCTION runs at each depth, 1 to 1000 (default 10).",
     )
 
     def __init__(
@@ -540,6 +550,7 @@ class Reconstructor:
         vertex_normals: bool = False,
         normal_neighbors: int = 20,
         normal_orientation: EnumLike[Orientation] = Orientation.PROPAGATE,
+        normal_reconstruction_iterations: int = 10,
         viewpoint: Sequence[float] | None = None,
         progress: ProgressCallback | str | None = None,
     ) -> None:
@@ -579,6 +590,7 @@ class Reconstructor:
         self.max_memory = max_memory
         self.vertex_normals = vertex_normals
         self.normal_neighbors = normal_neighbors
+        self.normal_reconstruction_iterations = normal_reconstruction_iterations
         if viewpoint is not None:
             self.viewpoint = viewpoint
         orientation = _enum(Orientation, "normal_orientation", normal_orientation)
@@ -1550,6 +1562,7 @@ def reconstruct(
     vertex_normals: bool = False,
     normal_neighbors: int = 20,
     normal_orientation: EnumLike[Orientation] = Orientation.PROPAGATE,
+    normal_reconstruction_iterations: int = 10,
     viewpoint: Sequence[float] | None = None,
     confidence: Any = None,
     colors: Any = None,
@@ -1598,6 +1611,7 @@ def reconstruct(
         vertex_normals=vertex_normals,
         normal_neighbors=normal_neighbors,
         normal_orientation=normal_orientation,
+        normal_reconstruction_iterations=normal_reconstruction_iterations,
         viewpoint=viewpoint,
     ) as r:
         r.add_points(

@@ -177,6 +177,8 @@ _PROTOTYPES: dict[str, tuple[Any, list[Any]]] = {
     "psr_reconstructor_get_normal_neighbors": (_S, [_R, POINTER(c_uint32)]),
     "psr_reconstructor_set_normal_orientation": (_S, [_R, c_int32]),
     "psr_reconstructor_get_normal_orientation": (_S, [_R, POINTER(c_int32)]),
+    "psr_reconstructor_set_normal_reconstruction_iterations": (_S, [_R, c_uint32]),
+    "psr_reconstructor_get_normal_reconstruction_iterations": (_S, [_R, POINTER(c_uint32)]),
     "psr_reconstructor_set_viewpoint": (_S, [_R, c_double, c_double, c_double]),
     "psr_reconstructor_add_points": (_S, [_R, _P, c_size_t, _P, c_size_t, c_size_t]),
     "psr_reconstructor_add_points_f64": (_S, [_R, _P, c_size_t, _P, c_size_t, c_size_t]),
