@@ -253,7 +253,8 @@ pub fn estimate_normals(
 /// `Err(Error::Cancelled)`). It receives [`Stage::Normals`] and the fraction done, on the
 /// calling thread, never concurrently, at least every 16,384 points of each step (one step,
 /// the sort of the orientation's graph edges, runs about 0.1 s per million points per core
-/// between reports).
+/// between reports); with [`Orientation::Reconstruction`], also at every stage of each of its
+/// reconstructions.
 pub fn estimate_normals_with_progress(
     positions: &[[f32; 3]],
     options: &NormalEstimation,
