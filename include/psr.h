@@ -1606,8 +1606,8 @@ psr_status psr_reconstructor_get_normal_orientation(const psr_reconstructor *r, 
 psr_status psr_reconstructor_set_normal_reconstruction_iterations(psr_reconstructor *r, uint32_t iterations);
 
 /**
- * Writes the most rounds per depth of PSR_ORIENTATION_RECONSTRUCTION to *out. r and out must not be
- * NULL. Returns the statuses of psr_reconstructor_get_depth.
+ * Writes the most rounds per depth of PSR_ORIENTATION_RECONSTRUCTION to *out. r and out must
+ * not be NULL. Returns the statuses of psr_reconstructor_get_depth.
  *
  * # Safety
  * `r` is NULL or a live handle; `out` is NULL or valid for writes.

@@ -148,7 +148,8 @@ fn threads_give_the_same_normals_bit_for_bit() {
 }
 
 /// Proves: progress rises from 0 to 1 on the calling thread through every reconstruction, and
-/// a stop at any report ends the work with `Error::Cancelled` and no further call.
+/// a stop in the propagation, in either start's rounds or at the end ends the work with
+/// `Error::Cancelled` and no further call.
 #[test]
 fn progress_rises_and_a_stop_cancels() {
     let (p, _) = sample_sphere(4_000, 1.0, [0.0; 3], 12);
@@ -169,7 +170,7 @@ fn progress_rises_and_a_stop_cancels() {
     );
     // How many reports a reconstruction makes depends on its timing, so the stops are set by
     // the fraction reached, not by a call count.
-    for stop_from in [0.0, 0.03, 0.5, 0.97] {
+    for stop_from in [0.0, 0.03, 0.15, 0.5, 0.97] {
         let (mut stopped, mut after) = (false, 0);
         let result = estimate_normals_with_progress(&p, &options, &mut |_, f| {
             if stopped {

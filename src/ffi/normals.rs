@@ -549,8 +549,8 @@ pub unsafe extern "C" fn psr_reconstructor_set_normal_reconstruction_iterations(
     }
 }
 
-/// Writes the most rounds per depth of PSR_ORIENTATION_RECONSTRUCTION to *out. r and out must not be
-/// NULL. Returns the statuses of psr_reconstructor_get_depth.
+/// Writes the most rounds per depth of PSR_ORIENTATION_RECONSTRUCTION to *out. r and out must
+/// not be NULL. Returns the statuses of psr_reconstructor_get_depth.
 ///
 /// # Safety
 /// `r` is NULL or a live handle; `out` is NULL or valid for writes.
