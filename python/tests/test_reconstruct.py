@@ -434,11 +434,11 @@ def test_a_cloud_file_gives_its_sensors_to_sensor_orientation(tmp_path: Path) ->
         assert same_mesh(r.solve(), facing)
 
 
-def test_reconstruction_orientation_turns_random_signs_outward() -> None:
-    # Points alone, and the same points with every third normal flipped: the orientation read
-    # off the reconstruction itself gives a mesh facing outward (positive signed volume, about
-    # that of the unit ball) and, from the given lines, keeps them and turns every sign outward.
-    p, n = sphere(3000, seed=5)
+def test_reconstruction_orientation_faces_outward() -> None:
+    # Points alone: the orientation read off the reconstruction itself gives a mesh facing
+    # outward (positive signed volume, about that of the unit ball), the same through
+    # psr.reconstruct and through a Reconstructor whose round count is set as a property.
+    p, _ = sphere(3000, seed=5)
 
     def signed_volume(m: psr.Mesh) -> float:
         v = m.vertices.astype(np.float64)[m.triangles.astype(np.int64)]
