@@ -272,14 +272,8 @@ pub fn estimate_normals_with_progress(
         }
     };
     report(0.0)?;
-    // The reconstruction's orientation starts from propagation's normals (one of its two
-    // starts), which then take the first part of the span.
     let by_reconstruction = options.orientation == Orientation::Reconstruction;
-    let span = if by_reconstruction {
-        SPAN_BEFORE_RECONSTRUCTION
-    } else {
-        1.0
-    };
+    let (signs, span) = first_signs(&options.orientation);
     let mut report_in_span = |f: f32| report(span * f);
     let neighbors = neighbors::k_nearest(&positions, options.neighbors, pool, &mut |f| {
         report_in_span(SPAN_NEIGHBORS * f)
@@ -309,11 +303,6 @@ pub fn estimate_normals_with_progress(
     estimate::fill_undefined(&positions, &mut fits, &neighbors);
     let mut normals: Vec<DVec3> = fits.into_iter().map(|f| f.normal).collect();
     let done = SPAN_NEIGHBORS + SPAN_FIT;
-    let signs = if by_reconstruction {
-        &Orientation::Propagate
-    } else {
-        &options.orientation
-    };
     orient(
         &positions,
         &mut normals,
@@ -324,11 +313,13 @@ pub fn estimate_normals_with_progress(
         &mut |f| report_in_span(done + (1.0 - done) * f),
     )?;
     if by_reconstruction {
+        let spacing = reconstruction::median_spacing(&positions, &neighbors)?;
         drop((neighbors, across));
         normals = reconstruction::iterate(
             &positions,
             raw,
             normals,
+            spacing,
             options.reconstruction_iterations,
             options.threads,
             pool,
@@ -396,19 +387,8 @@ pub fn orient_normals_with_progress(
     };
     report(0.0)?;
     let positions = checked;
-    // The reconstruction's orientation starts from the lines signed by propagation (one of its
-    // two starts), which then take the first part of the span.
     let by_reconstruction = options.orientation == Orientation::Reconstruction;
-    let span = if by_reconstruction {
-        SPAN_BEFORE_RECONSTRUCTION
-    } else {
-        1.0
-    };
-    let signs = if by_reconstruction {
-        &Orientation::Propagate
-    } else {
-        &options.orientation
-    };
+    let (signs, span) = first_signs(&options.orientation);
     let mut report_in_span = |f: f32| report(span * f);
     let neighbors = match signs {
         Orientation::Propagate => Some(neighbors::k_nearest(
@@ -440,11 +420,16 @@ pub fn orient_normals_with_progress(
         &mut |f| report_in_span(SPAN_NEIGHBORS + SPAN_FIT + (1.0 - SPAN_NEIGHBORS - SPAN_FIT) * f),
     )?;
     if let Some(lines) = lines {
+        let propagation = neighbors.as_ref().ok_or_else(|| {
+            Error::Internal("the reconstruction's start without propagation's neighbours".into())
+        })?;
+        let spacing = reconstruction::median_spacing(&positions, propagation)?;
         drop((neighbors, across));
         let reconstructed = reconstruction::iterate(
             &positions,
             raw,
             unit,
+            spacing,
             options.reconstruction_iterations,
             options.threads,
             pool,
@@ -459,6 +444,16 @@ pub fn orient_normals_with_progress(
     }
     report(1.0)?;
     Ok(to_f32(&unit))
+}
+
+/// The sign step to run first and the share of the progress span it takes:
+/// [`Orientation::Reconstruction`] starts from propagation's signs in the first
+/// [`SPAN_BEFORE_RECONSTRUCTION`] of the span; the others are their own step over all of it.
+fn first_signs(orientation: &Orientation) -> (&Orientation, f32) {
+    match orientation {
+        Orientation::Reconstruction => (&Orientation::Propagate, SPAN_BEFORE_RECONSTRUCTION),
+        other => (other, 1.0),
+    }
 }
 
 /// Validates the options and the positions, and returns the positions in f64.

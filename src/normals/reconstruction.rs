@@ -42,7 +42,7 @@
 //! bit at any thread count, nearest-point ties go to the smaller index, and the sums run in
 //! triangle order.
 
-use super::neighbors::{self, PointIndex};
+use super::neighbors::{Neighbors, PointIndex};
 use super::StepProgress;
 use crate::error::{Error, Result};
 use crate::{reconstruct_with_progress, Mesh, Params, PointSet, Stage};
@@ -71,18 +71,21 @@ const SHARE_PROPAGATED: f32 = 0.25;
 
 /// Normals for `positions` (checked by the caller: finite, more than one distinct): the
 /// refinement of `propagated` (the normals propagation gave) or of the arbitrary start,
-/// whichever mesh lies closer to the samples. `points_f32` are the same positions as the caller
-/// gave them, for the reconstructions. Progress runs from 0 to 1.
+/// whichever mesh lies closer to the samples. `spacing` is [`median_spacing`] of propagation's
+/// neighbours. `points_f32` are the same positions as the caller gave them, for the
+/// reconstructions. Progress runs from 0 to 1.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn iterate(
     positions: &[DVec3],
     points_f32: &[[f32; 3]],
     propagated: Vec<DVec3>,
+    spacing: f64,
     iterations: u32,
     threads: usize,
     pool: &rayon::ThreadPool,
     progress: StepProgress<'_>,
 ) -> Result<Vec<DVec3>> {
-    let finest = depth_for(positions, pool)?;
+    let finest = depth_for(positions, spacing);
     let samples = pool.install(|| PointIndex::new(positions));
     let run = Refinement {
         positions,
@@ -220,13 +223,11 @@ impl Schedule {
     }
 }
 
-/// The depth whose finest cell (the bounding box's longest side × the default scale over
-/// 2^depth) is at most half the median nearest-neighbour distance, within
-/// [`MIN_DEPTH`]..=[`MAX_DEPTH`]. Duplicates do not count: the median is over the points whose
-/// nearest other point is somewhere else.
-fn depth_for(positions: &[DVec3], pool: &rayon::ThreadPool) -> Result<u32> {
-    let nearest = neighbors::k_nearest(positions, 1, pool, &mut |_| Ok(()))?;
-    let mut distances: Vec<f64> = nearest
+/// The median distance from a point to its nearest other point, over the points whose nearest
+/// other point is somewhere else (duplicates do not count), read off propagation's neighbour
+/// lists (nearest first). [`Error::DegenerateInput`] when every point coincides with another.
+pub(super) fn median_spacing(positions: &[DVec3], neighbors: &Neighbors) -> Result<f64> {
+    let mut distances: Vec<f64> = neighbors
         .rows()
         .enumerate()
         .map(|(i, row)| (positions[row[0] as usize] - positions[i]).length())
@@ -239,13 +240,19 @@ fn depth_for(positions: &[DVec3], pool: &rayon::ThreadPool) -> Result<u32> {
     }
     let middle = distances.len() / 2;
     let (_, &mut spacing, _) = distances.select_nth_unstable_by(middle, f64::total_cmp);
+    Ok(spacing)
+}
+
+/// The depth whose finest cell (the bounding box's longest side × the default scale over
+/// 2^depth) is at most half `spacing`, within [`MIN_DEPTH`]..=[`MAX_DEPTH`].
+fn depth_for(positions: &[DVec3], spacing: f64) -> u32 {
     let (lo, hi) = positions.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),
     );
     let side = (hi - lo).max_element() * Params::default().scale as f64;
     let depth = (side / (0.5 * spacing)).log2().ceil();
-    Ok((depth.max(MIN_DEPTH as f64) as u32).min(MAX_DEPTH))
+    (depth.max(MIN_DEPTH as f64) as u32).min(MAX_DEPTH)
 }
 
 /// The starting normal of point `i`: a unit vector from a hash of `i` (splitmix64), spread
