@@ -7,7 +7,9 @@
 #   3. cli/tests/mpi.rs: mpirun with 1 to 4 ranks on a sphere, the bunny (also with the screening
 #      following its noise) and the Happy Buddha
 #      (the mesh of psr --out-of-core with the same slabs, bit for bit), a rank stopped and a rank
-#      killed (the job ends, no hang). More ranks than this machine's cores (--oversubscribe),
+#      killed (the job ends, no hang), a temporary directory or output each rank sees its own of
+#      (a tmpfs in a mount namespace per rank, as nodes with their own /tmp; refused with the
+#      reason). More ranks than this machine's cores (--oversubscribe),
 #      root allowed (--allow-run-as-root); one test at a time, since each runs up to 4 ranks.
 #
 #   .ci/mpi.sh

@@ -51,6 +51,19 @@ fn run_team(
     options: &OutOfCore,
     progress: impl Fn(usize, psr::Stage) -> bool + Sync,
 ) -> Vec<Result<OutOfCoreReport, OutOfCoreError>> {
+    run_team_writing(members, inputs, &[output], params, options, progress)
+}
+
+/// As [`run_team`], member r writing to `outputs[r % outputs.len()]`: a test's stand-in for a
+/// member on another machine, which sees another file under the output's name.
+fn run_team_writing(
+    members: usize,
+    inputs: &[&Path],
+    outputs: &[&Path],
+    params: &Params,
+    options: &OutOfCore,
+    progress: impl Fn(usize, psr::Stage) -> bool + Sync,
+) -> Vec<Result<OutOfCoreReport, OutOfCoreError>> {
     let team = Threads {
         size: members,
         barrier: Barrier::new(members),
@@ -62,6 +75,7 @@ fn run_team(
                 let member = Member { team: &team, rank };
                 let progress = &progress;
                 let input = inputs[rank % inputs.len()];
+                let output = outputs[rank % outputs.len()];
                 s.spawn(move || {
                     psr::reconstruct_out_of_core_in_team(
                         input,
@@ -377,5 +391,58 @@ fn a_bad_point_in_one_members_part_is_refused_with_its_index_in_the_file() {
     }
     assert!(!output.exists(), "no mesh");
     assert!(entries(&dir.join("tmp")).is_empty(), "files left");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves a member that does not see the file rank 0 made under the output's name (as on a
+/// machine that does not share the output's file system) stops every member before any slab
+/// is written, with a message saying the file must be shared: whether that member finds no
+/// file there or an earlier run's mesh of the same length, which it would otherwise have
+/// overwritten slab by slab into a broken mesh. No mesh is left, the other file is untouched
+/// and no temporary file is left.
+#[test]
+fn a_member_that_does_not_see_the_output_is_refused() {
+    let dir = test_dir("output-not-shared");
+    let input = sphere_file(&dir, 20_000, 15);
+    let options = OutOfCore::default()
+        .with_slabs(Some(2))
+        .with_temp_dir(Some(dir.join("tmp")));
+    let params = Params::default().with_depth(7).with_threads(1);
+    let output = dir.join("mesh.ply");
+    let earlier = dir.join("earlier.ply");
+    for result in run_team(2, &[&input], &earlier, &params, &options, |_, _| true) {
+        result.expect("the earlier run");
+    }
+    let earlier_bytes = std::fs::read(&earlier).expect("the earlier mesh");
+    let missing = dir.join("missing.ply");
+    for elsewhere in [&earlier, &missing] {
+        let results = run_team_writing(
+            2,
+            &[&input],
+            &[&output, elsewhere],
+            &params,
+            &options,
+            |_, _| true,
+        );
+        for (rank, result) in results.iter().enumerate() {
+            let message = match (rank, result) {
+                (1, Err(error @ OutOfCoreError::Output { .. })) => error.to_string(),
+                (0, Err(OutOfCoreError::Member { rank: 1, message })) => message.clone(),
+                _ => panic!("{}: member {rank}: {result:?}", elsewhere.display()),
+            };
+            assert!(message.contains("file system they share"), "{message}");
+        }
+        assert!(!output.exists(), "{}: no mesh", elsewhere.display());
+        assert!(
+            !missing.exists(),
+            "no file made by the member that did not see it"
+        );
+        assert_eq!(
+            std::fs::read(&earlier).expect("still there"),
+            earlier_bytes,
+            "the earlier mesh untouched"
+        );
+        assert!(entries(&dir.join("tmp")).is_empty(), "files left");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

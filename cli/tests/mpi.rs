@@ -1,6 +1,7 @@
 //! `psr-mpi` under `mpirun` (issue 21): the mesh of 1 to 4 ranks is `psr --out-of-core`'s with
 //! the same slabs, bit for bit; a rank that is stopped or killed ends the job, with its rank
-//! named on rank 0, never a hang; no temporary file is left. Built and run with the `mpi`
+//! named on rank 0, never a hang; no temporary file is left; a temporary directory or output
+//! the ranks do not share is refused with the reason. Built and run with the `mpi`
 //! feature only (`.ci/mpi.sh`), which needs Open MPI's `mpirun`.
 #![cfg(feature = "mpi")]
 
@@ -70,6 +71,17 @@ fn run_args(input: &Path, output: &Path, dir: &Path, depth: u32, slabs: usize) -
     ]
     .map(String::from)
     .to_vec()
+}
+
+/// `n` points of the unit sphere (seed `seed`) written as `sphere.ply` in `dir`.
+fn sphere_input(dir: &Path, n: usize, seed: u64) -> PathBuf {
+    let (positions, normals) = sample_sphere(n, 1.0, [0.0; 3], seed);
+    let mut cloud = psr::ply::PlyPoints::default();
+    cloud.positions = positions;
+    cloud.normals = normals;
+    let input = dir.join("sphere.ply");
+    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    input
 }
 
 fn leftovers(dir: &Path) -> Vec<PathBuf> {
@@ -155,12 +167,7 @@ fn same_mesh_from_one_to_four_ranks_with(
 #[test]
 fn a_sphere_from_one_to_four_ranks_is_one_process_mesh() {
     let dir = scratch("sphere-input");
-    let (positions, normals) = sample_sphere(30_000, 1.0, [0.0; 3], 21);
-    let mut cloud = psr::ply::PlyPoints::default();
-    cloud.positions = positions;
-    cloud.normals = normals;
-    let input = dir.join("sphere.ply");
-    psr::ply::write_point_cloud(&input, &cloud, psr::ply::PlyFormat::BinaryLittleEndian).unwrap();
+    let input = sphere_input(&dir, 30_000, 21);
     same_mesh_from_one_to_four_ranks("sphere", &input, 8, 5);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -293,4 +300,75 @@ fn a_rank_killed_ends_the_job() {
         stderr.contains("signal 9"),
         "mpirun names the killed rank: {stderr}"
     );
+}
+
+/// Whether this machine lets a process give itself a mount namespace (`unshare -m`: root, or a
+/// kernel allowing user namespaces), which the tests of node-local directories need.
+fn mount_namespaces_allowed() -> bool {
+    Command::new("unshare")
+        .args(["-m", "--propagation", "private", "true"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// `mpirun -n ranks psr-mpi args` with every rank in a mount namespace of its own in which
+/// `local` is a fresh, empty file system: what a directory on each node's own disk (its
+/// `/tmp`) is to the ranks of a cluster. Its output, once done (within two minutes).
+fn mpirun_node_local(ranks: usize, local: &Path, args: &[String]) -> Output {
+    std::fs::create_dir_all(local).unwrap();
+    let child = Command::new("mpirun")
+        .args(["--allow-run-as-root", "--oversubscribe", "-n"])
+        .arg(ranks.to_string())
+        .args(["unshare", "-m", "--propagation", "private", "sh", "-c"])
+        .arg(r#"mount -t tmpfs psr-node-local "$0" && exec "$@""#)
+        .arg(local)
+        .arg(PSR_MPI)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("mpirun runs (Open MPI installed?)");
+    wait_within(child, Duration::from_secs(120), "node-local")
+}
+
+/// Proves a temporary directory or an output that the ranks do not share (each rank sees its
+/// own, as on a cluster's nodes with their own `/tmp`) ends the job with rank 1 named and the
+/// reason given, before the run reads the input (the directory) or writes any slab of the mesh
+/// (the output); no file is left in the shared directories.
+#[test]
+fn a_directory_or_output_the_ranks_do_not_share_is_refused() {
+    if !mount_namespaces_allowed() {
+        eprintln!(
+            "skipping a_directory_or_output_the_ranks_do_not_share_is_refused: this machine \
+             does not allow mount namespaces (unshare -m), which stand in for separate nodes"
+        );
+        return;
+    }
+    let dir = scratch("node-local");
+    let input = sphere_input(&dir, 20_000, 22);
+    let local = dir.join("node-local");
+    let shared_output = dir.join("mesh.ply");
+    let mut local_temp = run_args(&input, &shared_output, &dir, 7, 2);
+    let temp_at = local_temp.len() - 1;
+    local_temp[temp_at] = local.to_str().unwrap().into();
+    let local_output = run_args(&input, &local.join("mesh.ply"), &dir, 7, 2);
+    for (args, reason) in [
+        (local_temp, "could not find the temporary directory"),
+        (local_output, "could not write the mesh to"),
+    ] {
+        let done = mpirun_node_local(2, &local, &args);
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert!(!done.status.success(), "{stderr}");
+        assert!(
+            stderr.contains(&format!(
+                "psr: error: reconstruction failed: rank 1 failed: {reason}"
+            )) && stderr.contains("on a file system they share"),
+            "{stderr}"
+        );
+        assert!(!shared_output.exists(), "no mesh");
+        assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

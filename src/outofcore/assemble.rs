@@ -6,9 +6,9 @@
 //! pieces' sizes, the vertices on walls, the counts) is gathered and folded in slab order, so
 //! the file is the same whatever the team's size.
 
-use super::scratch::{read_lists, write_lists, Scratch};
+use super::scratch::{fresh_token, read_lists, write_lists, Scratch};
 use super::seams::{SlabPart, SHARED_ABOVE, SHARED_BELOW};
-use super::team::{agreed, rounds, Packer, Team, Unpacker};
+use super::team::{agreed, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::components::vertex_components;
 use crate::density::DensityField;
@@ -16,7 +16,7 @@ use crate::points::UnitCubeMap;
 use glam::DVec3;
 use std::collections::{BTreeMap, HashMap};
 use std::fs::{File, OpenOptions};
-use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::io::{self, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 fn part_file(scratch: &Scratch, k: usize) -> PathBuf {
@@ -550,6 +550,13 @@ impl MeshLayout {
             + self.vertices * self.vertex_bytes
             + self.triangles * TRIANGLE_ENTRY_BYTES
     }
+
+    /// How many of the file's last bytes carry the team's token until the slabs are written:
+    /// eight, or the whole body when it is shorter (none for an empty mesh, which no member
+    /// writes to).
+    fn token_bytes(&self) -> usize {
+        (self.file_bytes() - self.header.len() as u64).min(8) as usize
+    }
 }
 
 /// In [`MeshLayout::plan`]'s summaries: the vertex is written by the slab below.
@@ -579,20 +586,46 @@ pub(crate) fn write_ply(
         source,
     };
     let slabs = layout.first_vertex.len();
-    let made = agreed(
+    // Rank 0 makes the file; with more than one member its last bytes (which the last slab
+    // written overwrites) hold a fresh token, and every other member must read that token in
+    // the file it sees before any slab is written. A member on another machine that does not
+    // share the output's file system would otherwise write its slabs into a file of its own:
+    // an error if none is there, but a silently broken mesh were a file of the same length
+    // left there by an earlier run.
+    let alone = team.size() == 1;
+    let made = from_first(
         team,
-        if team.rank() == 0 {
-            (|| {
-                let mut file = File::create(output).map_err(output_error)?;
-                file.write_all(layout.header.as_bytes())
+        || {
+            let mut file = File::create(output).map_err(output_error)?;
+            file.write_all(layout.header.as_bytes())
+                .map_err(output_error)?;
+            file.set_len(layout.file_bytes()).map_err(output_error)?;
+            let token = fresh_token();
+            if !alone {
+                let mark = &token.to_le_bytes()[..layout.token_bytes()];
+                file.seek(SeekFrom::Start(layout.file_bytes() - mark.len() as u64))
+                    .and_then(|_| file.write_all(mark))
                     .map_err(output_error)?;
-                file.set_len(layout.file_bytes()).map_err(output_error)
-            })()
-        } else {
-            Ok(())
+            }
+            Ok(token)
         },
+        |token, p| p.u64(*token),
+        |u| u.u64(),
     );
-    let written = made.and_then(|()| {
+    let checked = match made {
+        Ok(_) if alone => Ok(()),
+        Ok(token) => agreed(
+            team,
+            if team.rank() == 0 {
+                Ok(())
+            } else {
+                find_output_token(output, layout, token)
+            },
+        ),
+        // Every member has the same error (`from_first`): no meeting to hold.
+        Err(e) => Err(e),
+    };
+    let written = checked.and_then(|()| {
         rounds(
             team,
             slabs,
@@ -612,6 +645,36 @@ pub(crate) fn write_ply(
     }
     written?;
     Ok((layout.vertices, layout.triangles))
+}
+
+/// Whether the file at `output` is the one the team's first member made: as long as the
+/// layout says and ending with the first [`MeshLayout::token_bytes`] bytes of `token`.
+fn find_output_token(output: &Path, layout: &MeshLayout, token: u64) -> Result<(), OutOfCoreError> {
+    let not_shared = |found: &dyn std::fmt::Display| OutOfCoreError::Output {
+        path: output.to_path_buf(),
+        source: io::Error::other(format!(
+            "{found}: this member does not see the file the team's first member made (every \
+             member must write the same file: with members on several machines, one on a file \
+             system they share)"
+        )),
+    };
+    let mark = &token.to_le_bytes()[..layout.token_bytes()];
+    let mut file = File::open(output).map_err(|e| not_shared(&e))?;
+    let len = file.metadata().map_err(|e| not_shared(&e))?.len();
+    if len != layout.file_bytes() {
+        return Err(not_shared(&format!(
+            "{len} bytes where the mesh takes {}",
+            layout.file_bytes()
+        )));
+    }
+    let mut found = vec![0u8; mark.len()];
+    file.seek(SeekFrom::Start(len - mark.len() as u64))
+        .and_then(|_| file.read_exact(&mut found))
+        .map_err(|e| not_shared(&e))?;
+    if found != mark {
+        return Err(not_shared(&"another run's bytes"));
+    }
+    Ok(())
 }
 
 /// Slab k's vertices and triangles, written where `layout` puts them in `output`.

@@ -80,8 +80,8 @@ impl fmt::Display for OutOfCoreError {
                 source,
             } => write!(
                 f,
-                "could not {action} ({}): {source}; choose another temporary directory with \
-                 enough free space",
+                "could not {action} ({}): {source}; choose another temporary directory (one \
+                 with enough free space, which every member of a team sees)",
                 path.display()
             ),
             OutOfCoreError::Output { path, source } => {

@@ -17,7 +17,7 @@ use super::scan::{
     bin_part, binned_file, columns_of_part, scan_of_parts, scan_part, ColumnsOfPart, Input, Scan,
     ScannedPart,
 };
-use super::scratch::{read_lists, read_slab, scratch_error, write_lists, Scratch};
+use super::scratch::{fresh_token, read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
 use super::team::{agreed, agreed_with, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
@@ -674,6 +674,7 @@ impl SlabFiles {
 #[allow(clippy::too_many_arguments)]
 fn cut(
     input: &Input<'_>,
+    scratch: Scratch,
     scan: &Scan,
     part_count: u64,
     params: &Params,
@@ -762,18 +763,6 @@ fn cut(
     // Every member has a slab to do (when the points fill enough columns).
     let layout = SlabLayout::balanced(&counts, wall_depth, slabs.max(team.size()), padding);
     let slabs = layout.len();
-    let scratch = from_first(
-        team,
-        || Scratch::create(plan.temp_dir.as_deref()),
-        |scratch, p| p.bytes(scratch.path().as_os_str().as_encoded_bytes()),
-        |u| {
-            let bytes = u.bytes()?;
-            // SAFETY: the bytes are those of an `OsStr` of rank 0 on the same platform, as
-            // `as_encoded_bytes` gave them (the members run the same program).
-            let dir = unsafe { std::ffi::OsStr::from_encoded_bytes_unchecked(bytes) };
-            Ok(Scratch::join(dir.into()))
-        },
-    )?;
     let binned = bin_part(input, part, scan, &layout, &scratch, &mut |done| {
         keep_going("bin", part_fraction(done))
     });
@@ -921,6 +910,50 @@ fn cut(
     })
 }
 
+/// The run's temporary directory under `parent`, made by the first member of `team`. With
+/// more than one member the maker leaves a fresh token in it and every other member must find
+/// that token there before the run goes on: a directory not shared by the members (each
+/// machine's own temporary directory) is refused at the start, by every member alike, with a
+/// message that says so.
+fn team_scratch(
+    team: &dyn Team,
+    parent: Option<&Path>,
+) -> std::result::Result<Scratch, OutOfCoreError> {
+    let alone = team.size() == 1;
+    let (scratch, token) = from_first(
+        team,
+        || {
+            let scratch = Scratch::create(parent)?;
+            let token = fresh_token();
+            if !alone {
+                scratch.leave_token(token)?;
+            }
+            Ok((scratch, token))
+        },
+        |(scratch, token), p| {
+            p.bytes(scratch.path().as_os_str().as_encoded_bytes());
+            p.u64(*token);
+        },
+        |u| {
+            let bytes = u.bytes()?;
+            // SAFETY: the bytes are those of an `OsStr` of rank 0 on the same platform, as
+            // `as_encoded_bytes` gave them (the members run the same program).
+            let dir = unsafe { std::ffi::OsStr::from_encoded_bytes_unchecked(bytes) };
+            Ok((Scratch::join(dir.into()), u.u64()?))
+        },
+    )?;
+    if alone {
+        return Ok(scratch);
+    }
+    let found = if team.rank() == 0 {
+        Ok(())
+    } else {
+        scratch.find_token(token)
+    };
+    agreed(team, found)?;
+    Ok(scratch)
+}
+
 /// Runs the passes on the PLY file at `path` (oriented points) with `params`, cut as `plan`
 /// says, each member of `team` doing its own slabs. `keep_going(pass, fraction)` is asked
 /// between chunks and slabs; false cancels.
@@ -939,6 +972,9 @@ pub(crate) fn solve_slabs(
         chunk: plan.chunk,
         confidence: plan.confidence,
     };
+    // First the temporary directory, so that one the members do not share is refused before
+    // any pass over the input.
+    let scratch = team_scratch(team, plan.temp_dir.as_deref())?;
     // Each member scans its part of the input (r of n); they meet with what they found.
     let scanned = scan_part(&input, (team.rank(), team.size()), &mut |_| {
         keep_going("scan", 0.0)
@@ -995,7 +1031,7 @@ pub(crate) fn solve_slabs(
     // depths above it (a sparse cloud at a depth its samples do not resolve).
     let part_count = parts[team.rank()].count;
     let mut cut = cut(
-        &input, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
+        &input, scratch, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
     )?;
     if cut.finest < base_depth + 2 {
         let lowest = cut.finest.saturating_sub(2);
@@ -1008,11 +1044,13 @@ pub(crate) fn solve_slabs(
             ));
         }
         base_depth = lowest;
-        // Every member is done with the first cut's files before rank 0 removes them.
+        // Every member is done with the first cut's files before rank 0 removes them (with
+        // their directory: the second cut has its own).
         agreed(team, Ok(()))?;
         drop(cut);
+        let scratch = team_scratch(team, plan.temp_dir.as_deref())?;
         cut = self::cut(
-            &input, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
+            &input, scratch, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
         )?;
     }
     let Cut {

@@ -51,11 +51,45 @@ impl Scratch {
         }
     }
 
-    /// The directory `dir` another member of the team made (and removes).
+    /// The directory `dir` another member of the team made (and removes); see
+    /// [`Scratch::find_token`] for the check that this member sees the same directory.
     pub(crate) fn join(dir: PathBuf) -> Scratch {
         Scratch {
             dir,
             made_here: false,
+        }
+    }
+
+    /// Leaves `token` in the directory, for the other members of a team to find
+    /// ([`Scratch::find_token`]).
+    pub(crate) fn leave_token(&self, token: u64) -> Result<(), OutOfCoreError> {
+        let path = self.file(TOKEN_FILE);
+        fs::write(&path, token.to_le_bytes())
+            .map_err(scratch_error("write the team's token", &path))
+    }
+
+    /// Whether this member sees the directory the member that made it sees: it must hold the
+    /// `token` that member left. Members on different machines each have their own system
+    /// temporary directory, so a run across machines needs a directory on a file system they
+    /// share; without this check the first slab file written or read would fail with a bare
+    /// "No such file or directory" (or, were a stale directory of the same name there, mix
+    /// another run's files into this one).
+    pub(crate) fn find_token(&self, token: u64) -> Result<(), OutOfCoreError> {
+        let path = self.file(TOKEN_FILE);
+        let not_shared = |source| OutOfCoreError::Scratch {
+            action: "find the temporary directory the team's first member made (every member \
+                     must see the same directory: with members on several machines, one on a \
+                     file system they share)",
+            path: path.clone(),
+            source,
+        };
+        match fs::read(&path) {
+            Ok(bytes) if bytes == token.to_le_bytes() => Ok(()),
+            Ok(_) => Err(not_shared(io::Error::other(
+                "it holds another run's token: a directory of the same name, not the one made \
+                 for this run",
+            ))),
+            Err(source) => Err(not_shared(source)),
         }
     }
 
@@ -77,6 +111,19 @@ impl Drop for Scratch {
             let _ = fs::remove_dir_all(&self.dir);
         }
     }
+}
+
+/// The file in which the member that made the directory leaves a token for the others.
+const TOKEN_FILE: &str = "team-token";
+
+/// A number no other run is likely to pick: the team's token for its directory and output.
+pub(crate) fn fresh_token() -> u64 {
+    use std::hash::BuildHasher;
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |t| t.as_nanos());
+    // Each `RandomState` is seeded from the system's randomness.
+    std::collections::hash_map::RandomState::new().hash_one((std::process::id(), now))
 }
 
 /// One point as a slab file keeps it.
@@ -325,6 +372,34 @@ mod tests {
         fs::create_dir(scratch.file("nested")).expect("a subdirectory");
         drop(scratch);
         assert!(!dir.exists(), "{} left behind", dir.display());
+    }
+
+    /// Proves a member finds the directory's token only where the member that made it left
+    /// that token: a directory it cannot see, or one holding another token, is refused with a
+    /// message that says the directory must be shared.
+    #[test]
+    fn a_member_joins_only_the_directory_holding_its_teams_token() {
+        let made = Scratch::create(None).expect("a temporary directory");
+        let token = fresh_token();
+        made.leave_token(token).expect("written");
+        let joined = Scratch::join(made.path().to_path_buf());
+        joined.find_token(token).expect("the same directory");
+        for (dir, wrong) in [
+            (made.path().to_path_buf(), token ^ 1),
+            (made.path().join("elsewhere"), token),
+        ] {
+            let message = Scratch::join(dir)
+                .find_token(wrong)
+                .expect_err("not this team's directory")
+                .to_string();
+            assert!(message.contains("file system they share"), "{message}");
+        }
+        assert_ne!(fresh_token(), fresh_token(), "tokens differ");
+        drop(joined);
+        assert!(
+            made.path().is_dir(),
+            "only the member that made it removes it"
+        );
     }
 
     /// Proves a parent that cannot hold the directory gives an error naming the path.

@@ -4,8 +4,10 @@
 //! `--slabs` or `--max-memory` says otherwise); every rank runs the same passes on its own
 //! slabs, the ranks meet through `MPI_Allgather(v)`, and every rank writes its slabs of the mesh
 //! into the one PLY rank 0 made, which is the one `psr --out-of-core` writes with the same
-//! slabs, bit for bit. The temporary directory
-//! must be one that every rank sees (one machine's disk, or a cluster's shared file system).
+//! slabs, bit for bit. The temporary directory and the output must be ones that every rank
+//! sees (one machine's disk, or a cluster's shared file system): a rank that does not find
+//! rank 0's token in them stops the job at the start of the run (the directory) or before any
+//! slab of the mesh is written (the output), with a message saying so.
 
 use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
