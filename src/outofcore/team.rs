@@ -212,6 +212,27 @@ impl Packer {
         self.u64(bytes.len() as u64);
         self.bytes.extend_from_slice(bytes);
     }
+
+    /// `list` as the steps between consecutive values (the first from 0), each zigzagged (a
+    /// small step back is a small number too) and written in seven bits a byte: sorted keys a
+    /// few apart, or cells of a surface in Morton order, take one or two bytes a value instead
+    /// of eight. Any values come back, bit for bit ([`Unpacker::u64s_by_steps`]).
+    pub(crate) fn u64s_by_steps(&mut self, list: &[u64]) {
+        let mut steps = Vec::with_capacity(list.len() * 2);
+        let mut previous = 0u64;
+        for &v in list {
+            let step = v.wrapping_sub(previous) as i64;
+            let mut zigzag = ((step << 1) ^ (step >> 63)) as u64;
+            while zigzag >= 0x80 {
+                steps.push(zigzag as u8 | 0x80);
+                zigzag >>= 7;
+            }
+            steps.push(zigzag as u8);
+            previous = v;
+        }
+        self.u64(list.len() as u64);
+        self.bytes(&steps);
+    }
 }
 
 /// Reads what a [`Packer`] wrote, in the same order.
@@ -272,6 +293,44 @@ impl<'a> Unpacker<'a> {
     pub(crate) fn bytes(&mut self) -> Result<&'a [u8], OutOfCoreError> {
         let n = self.len()?;
         self.take(n)
+    }
+
+    /// What [`Packer::u64s_by_steps`] wrote.
+    pub(crate) fn u64s_by_steps(&mut self) -> Result<Vec<u64>, OutOfCoreError> {
+        let n = self.u64()?;
+        let steps = self.bytes()?;
+        let bad = || Error::Internal("a member's list of steps does not fit its count".into());
+        // Every value takes a byte at least.
+        if n > steps.len() as u64 {
+            return Err(bad().into());
+        }
+        let mut list = Vec::with_capacity(n as usize);
+        let mut previous = 0u64;
+        let mut at = 0;
+        for _ in 0..n {
+            let mut zigzag = 0u64;
+            let mut shift = 0;
+            loop {
+                let byte = *steps.get(at).ok_or_else(bad)?;
+                at += 1;
+                // Ten bytes of seven bits hold 64; the tenth may carry only the last bit.
+                if shift == 63 && byte > 1 {
+                    return Err(bad().into());
+                }
+                zigzag |= u64::from(byte & 0x7f) << shift;
+                if byte & 0x80 == 0 {
+                    break;
+                }
+                shift += 7;
+            }
+            let step = (zigzag >> 1) as i64 ^ -((zigzag & 1) as i64);
+            previous = previous.wrapping_add(step as u64);
+            list.push(previous);
+        }
+        if at != steps.len() {
+            return Err(bad().into());
+        }
+        Ok(list)
     }
 }
 
@@ -354,6 +413,59 @@ pub(crate) mod tests {
         short.u64().unwrap();
         short.f64().unwrap();
         assert!(short.u64s().is_err());
+    }
+
+    /// Proves lists packed by their steps come back bit for bit whatever the values (the
+    /// extremes, steps both ways, repeats), that sorted keys a few apart take a byte or two a
+    /// value, and that steps that do not fit their count are an error, not values.
+    #[test]
+    fn lists_packed_by_steps_read_back_and_sorted_keys_take_few_bytes() {
+        // Scrambled values: steps of every size, both ways.
+        let scrambled: Vec<u64> = (1..1000u64)
+            .map(|i| i.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(i as u32))
+            .collect();
+        let sorted: Vec<u64> = (0..10_000u64).map(|i| (1 << 40) + 3 * i + i % 7).collect();
+        let cases: Vec<Vec<u64>> = vec![
+            Vec::new(),
+            vec![0],
+            vec![u64::MAX, 0, u64::MAX, 1 << 63, (1 << 63) - 1, 5, 5],
+            scrambled,
+            sorted.clone(),
+        ];
+        for list in &cases {
+            let mut p = Packer::default();
+            p.u64s_by_steps(list);
+            p.u64(9);
+            let mut u = Unpacker::new(&p.bytes);
+            assert_eq!(&u.u64s_by_steps().unwrap(), list);
+            assert_eq!(u.u64().unwrap(), 9, "nothing more or less read");
+        }
+        let mut p = Packer::default();
+        p.u64s_by_steps(&sorted);
+        assert!(
+            p.bytes.len() < 16 + sorted.len() + 8,
+            "{} bytes",
+            p.bytes.len()
+        );
+        // More values than bytes; a value cut short; a byte left over; eleven bytes of value.
+        let malformed = |count: u64, steps: &[u8]| {
+            let mut p = Packer::default();
+            p.u64(count);
+            p.bytes(steps);
+            Unpacker::new(&p.bytes).u64s_by_steps().is_err()
+        };
+        assert!(malformed(3, &[1, 1]));
+        assert!(malformed(1, &[0x80]));
+        assert!(malformed(1, &[2, 2]));
+        assert!(malformed(1, &[0xff; 11]));
+        assert!(malformed(
+            1,
+            &[0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x02]
+        ));
+        assert!(!malformed(
+            1,
+            &[0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x01]
+        ));
     }
 
     #[test]
