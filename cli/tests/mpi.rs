@@ -1,7 +1,8 @@
 //! `psr-mpi` under `mpirun` (issue 21): the mesh of 1 to 4 ranks is `psr --out-of-core`'s with
 //! the same slabs, bit for bit; a rank that is stopped or killed ends the job, with its rank
 //! named on rank 0, never a hang; no temporary file is left; a temporary directory or output
-//! the ranks do not share is refused with the reason. Built and run with the `mpi`
+//! the ranks do not share is refused with the reason; every rank's `--verbose` lines come out
+//! whole. Built and run with the `mpi`
 //! feature only (`.ci/mpi.sh`), which needs Open MPI's `mpirun`.
 #![cfg(feature = "mpi")]
 
@@ -370,5 +371,46 @@ fn a_directory_or_output_the_ranks_do_not_share_is_refused() {
         assert!(!shared_output.exists(), "no mesh");
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Proves every rank's `--verbose` lines reach mpirun's output whole, one line each, however
+/// the ranks' writes meet (they were interleaved piece by piece when each line went out in
+/// several writes).
+#[test]
+fn every_ranks_verbose_lines_come_whole() {
+    let dir = scratch("verbose");
+    let input = sphere_input(&dir, 20_000, 23);
+    let mut args = run_args(&input, &dir.join("mesh.ply"), &dir, 7, 4);
+    args.push("--verbose".into());
+    let done = wait_within(
+        mpirun(4, &args, "verbose"),
+        Duration::from_secs(120),
+        "verbose",
+    );
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert!(done.status.success(), "{stderr}");
+    for rank in 0..4 {
+        let totals: Vec<&str> = stderr
+            .lines()
+            .filter(|l| l.starts_with(&format!("psr-mpi: rank {rank}: ")))
+            .collect();
+        assert!(
+            totals.len() == 1
+                && totals[0].contains(" s of CPU), of which ")
+                && totals[0].contains(" meetings; sent ")
+                && totals[0].ends_with(" MiB"),
+            "rank {rank}: {totals:?}\n{stderr}"
+        );
+        let stages: Vec<&str> = stderr
+            .lines()
+            .filter(|l| l.starts_with(&format!("psr-mpi: rank {rank} by stage: points ")))
+            .collect();
+        assert!(
+            stages.len() == 1 && stages[0].contains("), mesh ") && stages[0].ends_with(" MiB)"),
+            "rank {rank}: {stages:?}\n{stderr}"
+        );
+    }
+    assert_eq!(stderr.matches("psr-mpi: rank").count(), 8, "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -17,6 +17,17 @@ use std::cell::Cell;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+/// Writes `line` and a newline to stderr in one write: `eprintln!` writes each piece of its
+/// format apart, and mpirun, which forwards every rank's stderr, interleaved the ranks'
+/// `--verbose` lines piece by piece ("psr-mpi: rank psr-mpi: rank 1: 23…"). A pipe takes a
+/// write of up to 4096 bytes whole, so lines that short are never cut.
+fn say(line: String) {
+    use std::io::Write;
+    let _ = std::io::stderr()
+        .lock()
+        .write_all(format!("{line}\n").as_bytes());
+}
+
 /// The ranks of `MPI_COMM_WORLD` as a [`psr::Team`], counting what passes through them.
 struct World {
     comm: SimpleCommunicator,
@@ -33,7 +44,10 @@ impl World {
     /// Ends the whole job (MPI_Abort) after saying why: a rank that cannot take part in a
     /// meeting must not leave the others waiting.
     fn abort(&self, why: &str) -> ! {
-        eprintln!("psr-mpi: rank {}: {why}; ending the job", self.comm.rank());
+        say(format!(
+            "psr-mpi: rank {}: {why}; ending the job",
+            self.comm.rank()
+        ));
         self.comm.abort(70)
     }
 }
@@ -182,7 +196,7 @@ fn main() -> ExitCode {
     // With --verbose, every rank says what it exchanged and how long it waited (for
     // docs/distributed.md's measurements).
     if std::env::args().any(|a| a == "--verbose" || a == "-v") {
-        eprintln!(
+        say(format!(
             "psr-mpi: rank {}: {:.1} s ({:.1} s of CPU), of which {:.1} s in {} meetings; sent \
              {:.1} MB, received {:.1} MB{}",
             team.comm.rank(),
@@ -195,12 +209,12 @@ fn main() -> ExitCode {
             psr_cli::peak_resident_kib()
                 .map(|kib| format!("; peak {} MiB", kib / 1024))
                 .unwrap_or_default()
-        );
-        eprintln!(
+        ));
+        say(format!(
             "psr-mpi: rank {} by stage: {}",
             team.comm.rank(),
             by_stage(&marks, &end)
-        );
+        ));
     }
     // (The universe is dropped after the run: MPI_Finalize on every rank.)
     status
