@@ -407,8 +407,9 @@ struct Args {
 
     /// With --out-of-core: where to make the temporary directory (it needs about twice the
     /// points' size, 40 bytes a point, plus the mesh); removed on success, error and Ctrl-C
-    /// alike [default: the system's temporary directory]. PoissonRecon: --tempDir (of its
-    /// distributed programs).
+    /// alike [default: the system's temporary directory]. With psr-mpi, one every rank sees (on
+    /// a cluster a shared file system, not a node's own /tmp; refused otherwise), as must be
+    /// --out. PoissonRecon: --tempDir (of its distributed programs).
     #[arg(long, value_name = "DIR", requires = "out_of_core")]
     temp_dir: Option<PathBuf>,
 
