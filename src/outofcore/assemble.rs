@@ -8,7 +8,7 @@
 
 use super::scratch::{fresh_token, read_lists, write_lists, Scratch};
 use super::seams::{SlabPart, SHARED_ABOVE, SHARED_BELOW};
-use super::team::{agreed, from_first, rounds, Packer, Team, Unpacker};
+use super::team::{checked_by_others, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::components::vertex_components;
 use crate::density::DensityField;
@@ -612,19 +612,9 @@ pub(crate) fn write_ply(
         |token, p| p.u64(*token),
         |u| u.u64(),
     );
-    let checked = match made {
-        Ok(_) if alone => Ok(()),
-        Ok(token) => agreed(
-            team,
-            if team.rank() == 0 {
-                Ok(())
-            } else {
-                find_output_token(output, layout, token)
-            },
-        ),
-        // Every member has the same error (`from_first`): no meeting to hold.
-        Err(e) => Err(e),
-    };
+    // On an error every member has it (`from_first`): no meeting to hold.
+    let checked =
+        made.and_then(|token| checked_by_others(team, || find_output_token(output, layout, token)));
     let written = checked.and_then(|()| {
         rounds(
             team,

@@ -19,7 +19,9 @@ use super::scan::{
 };
 use super::scratch::{fresh_token, read_lists, read_slab, scratch_error, write_lists, Scratch};
 use super::slabs::SlabLayout;
-use super::team::{agreed, agreed_with, from_first, rounds, Packer, Team, Unpacker};
+use super::team::{
+    agreed, agreed_with, checked_by_others, from_first, rounds, Packer, Team, Unpacker,
+};
 use super::OutOfCoreError;
 use crate::density::{
     estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, NormalSums, SampleDensity,
@@ -942,15 +944,7 @@ fn team_scratch(
             Ok((Scratch::join(dir.into()), u.u64()?))
         },
     )?;
-    if alone {
-        return Ok(scratch);
-    }
-    let found = if team.rank() == 0 {
-        Ok(())
-    } else {
-        scratch.find_token(token)
-    };
-    agreed(team, found)?;
+    checked_by_others(team, || scratch.find_token(token))?;
     Ok(scratch)
 }
 

@@ -130,6 +130,18 @@ pub(crate) fn agreed_with<T>(
     }
 }
 
+/// Every member but rank 0 runs `check` (of what rank 0 made for the team); then they meet,
+/// so that a member whose check failed ends every member. Nothing to check or meet alone.
+pub(crate) fn checked_by_others(
+    team: &dyn Team,
+    check: impl FnOnce() -> Result<(), OutOfCoreError>,
+) -> Result<(), OutOfCoreError> {
+    if team.size() == 1 {
+        return Ok(());
+    }
+    agreed(team, if team.rank() == 0 { Ok(()) } else { check() })
+}
+
 /// Rank 0's `value` (made by rank 0 only, with `make`) given to every member.
 pub(crate) fn from_first<T>(
     team: &dyn Team,
