@@ -120,6 +120,16 @@ impl Degree {
         }
     }
 
+    /// The offsets, per axis, of the nodes whose functions are non-zero in the cell c
+    /// (from node c + first offset to node c + last): c − 1..=c + 1 at degree 2, the cell's
+    /// corners c..=c + 1 at degree 1 (see [`Degree::first_node`]).
+    pub fn nodes_over_a_cell(self) -> std::ops::RangeInclusive<i32> {
+        match self {
+            Degree::One => 0..=1,
+            Degree::Two => -1..=1,
+        }
+    }
+
     /// The same-depth tables (5 wide for both degrees: degree 1's are zero at δ = ±2).
     pub fn tables(self) -> &'static Tables {
         match self {

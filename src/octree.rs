@@ -3,10 +3,10 @@
 //! At each depth d the tree keeps two nested node sets:
 //!
 //! * the **core** C_d: the nodes that carry unknowns. It holds every node whose function covers
-//!   a cell holding a sample splatted at depth d (§4.2; the 27 nodes around the cell, which
-//!   include the eight trilinear ones), the parent of every core node of depth d + 1 (so the tree
-//!   is a proper octree), all of that widened by one node (see [`Octree::build`]), and every
-//!   node when d ≤ full depth;
+//!   a cell holding a sample splatted at depth d (§4.2; the 27 nodes around the cell at degree
+//!   2, its eight corners at degree 1: [`Degree::nodes_over_a_cell`]), the parent of every core
+//!   node of depth d + 1 (so the tree is a proper octree), all of that widened by one node (see
+//!   [`Octree::build`]), and every node when d ≤ full depth;
 //! * the **halo** K_d ⊇ C_d: every node within two nodes (Chebyshev distance) of the core. The
 //!   node functions of C_d overlap exactly the nodes of K_d, so every stencil, the prolongation of
 //!   the coarser solution and the evaluation of χ near the core read only nodes of K_d.
@@ -434,8 +434,15 @@ impl Octree {
     /// (`sample_cells[d]`, any order, duplicates allowed).
     ///
     /// The core of depth d is every node whose function covers such a cell (the cell's 3×3×3
-    /// block) plus the parent of every core node of depth d + 1, widened by one node on every
-    /// side; down to `full_depth` it is the complete grid. Then the halo is added.
+    /// block at degree 2, its 2×2×2 corners at degree 1) plus the parent of every core node of
+    /// depth d + 1, widened by one node on every side; down to `full_depth` it is the complete
+    /// grid. Then the halo is added.
+    ///
+    /// At degree 1 the node below the cell on each axis (c − 1, whose hat is zero over the cell)
+    /// is not counted as covering it: counted, it gave the samples a second layer of unknowns on
+    /// their low side only, a fifth of the finest depth's unknowns on the bunny and the Happy
+    /// Buddha scans, and the held-out samples were no closer for it (`docs/benchmarks.md`,
+    /// 2026-12-07).
     ///
     /// The widening: a depth's unknowns correct what the coarser depths could not resolve, and
     /// that correction decays over a few node widths away from the samples; a core that ends
@@ -536,7 +543,11 @@ impl Octree {
             // Cancel points between the finest depths' sorts and dilations, each a fraction of
             // a second on a million samples.
             watch.check()?;
-            let mut keys = clip(dilate(&cells, 1));
+            let over_cells = shifted_by(&cells, degree.nodes_over_a_cell());
+            let mut keys = clip(match (mirror_sign, degree) {
+                (Some(_), Degree::One) => with_corner_images(over_cells, n),
+                _ => over_cells,
+            });
             watch.check()?;
             if d < max_depth {
                 keys = merge_unique(&keys, &parents_of(&cores[d as usize + 1]));
@@ -682,6 +693,24 @@ pub(crate) fn sample_cells(at_depth: &[Vec<DepthSample>], positions: &[DVec3]) -
                 .collect()
         })
         .collect()
+}
+
+/// Degree-1 nodes (sorted packed keys) with mirrors: each node beyond the cube replaced by the
+/// inside node it mirrors ([`reflect_corner`]), which carries its function's weight. A sample
+/// on the cube's far face lies in cell n, whose corners are n and n + 1: with Dirichlet n is
+/// no unknown (χ is 0 there) and n + 1 is n − 1's image, so the sample's cell stays in reach
+/// of the core only through the image. At degree 2 the 3×3×3 block over a cell already holds
+/// the images of its nodes beyond the cube.
+fn with_corner_images(keys: Vec<u64>, n: i32) -> Vec<u64> {
+    let image = |k: u64| reflect_corner(unpack(k), n).map(|(c, _)| pack(c));
+    let mut images: Vec<u64> = keys.par_iter().filter_map(|&k| image(k)).collect();
+    if images.is_empty() {
+        return keys;
+    }
+    images.sort_unstable();
+    images.dedup();
+    let inside: Vec<u64> = keys.into_iter().filter(|&k| image(k).is_none()).collect();
+    merge_unique(&inside, &images)
 }
 
 /// The node coordinates (per axis, inclusive) a core at depth `d` may hold: one node beyond the
@@ -1308,29 +1337,39 @@ fn merge_unique(a: &[u64], b: &[u64]) -> Vec<u64> {
 }
 
 /// All keys within Chebyshev distance `r` of the given packed keys (sorted, unique), sorted and
-/// unique. One axis at a time, never sorting: along x the sorted keys form runs that are
-/// widened and merged in one pass; along y and z the union of the list shifted by −r..=r is a
-/// merge of sorted lists (a shift along an axis keeps a (z, y, x)-sorted list sorted). No
-/// coordinate may leave −OFFSET..2^21 − OFFSET.
+/// unique: [`shifted_by`] with the offsets −r..=r.
+pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
+    shifted_by(keys, -r..=r)
+}
+
+/// ∪ (keys + (i, j, k)) over every offset i, j, k in `offsets`, for sorted unique packed keys;
+/// sorted and unique. One axis at a time, never sorting: along x the sorted keys form runs that
+/// are widened and merged in one pass; along y and z the union of the shifted lists is a merge
+/// of sorted lists (a shift along an axis keeps a (z, y, x)-sorted list sorted). No coordinate
+/// may leave −OFFSET..2^21 − OFFSET.
 ///
 /// Inside a cancelled watched job ([`stop_requested`]) the result is incomplete: the job stops
 /// at its next cancel point and nothing reads it.
-pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
+fn shifted_by(keys: &[u64], offsets: std::ops::RangeInclusive<i32>) -> Vec<u64> {
+    let (below, above) = (-*offsets.start() as i64, *offsets.end() as i64);
+    assert!(below + above >= 0, "an empty range of offsets");
     let mut along_x = Vec::with_capacity(keys.len() * 2);
     let row_of = |k: u64| k >> BITS;
+    let low = |k: u64| (k as i64 - below) as u64;
+    let high = |k: u64| (k as i64 + above) as u64;
     let mut i = 0;
     while i < keys.len() {
         let row = row_of(keys[i]);
-        let mut lo = keys[i] - r as u64;
-        let mut hi = keys[i] + r as u64;
+        let mut lo = low(keys[i]);
+        let mut hi = high(keys[i]);
         i += 1;
         while i < keys.len() && row_of(keys[i]) == row {
             let k = keys[i];
-            if k - r as u64 > hi + 1 {
+            if low(k) > hi + 1 {
                 along_x.extend(lo..=hi);
-                lo = k - r as u64;
+                lo = low(k);
             }
-            hi = k + r as u64;
+            hi = high(k);
             i += 1;
         }
         along_x.extend(lo..=hi);
@@ -1338,20 +1377,20 @@ pub fn dilate(keys: &[u64], r: i32) -> Vec<u64> {
     if stop_requested() {
         return Vec::new();
     }
-    let along_y = union_of_shifts(&along_x, 1 << BITS, r);
+    let along_y = union_of_shifts(&along_x, 1 << BITS, offsets.clone());
     drop(along_x);
-    union_of_shifts(&along_y, 1 << (2 * BITS), r)
+    union_of_shifts(&along_y, 1 << (2 * BITS), offsets)
 }
 
-/// ∪_{k = −r..=r} (keys + k·step), for sorted unique keys.
+/// ∪_{k ∈ offsets} (keys + k·step), for sorted unique keys.
 ///
 /// In parallel: the output is cut at key values taken from `keys` (how many pieces depends only
 /// on the length, so the result does not depend on the thread count), and each piece merges,
 /// from every shifted copy, the keys that land in it, all copies at once into the piece's one
 /// list (merging them two at a time made a list per copy and per merge: a tenth of a degree-1
 /// run's page faults on the Happy Buddha at depth 10).
-fn union_of_shifts(keys: &[u64], step: u64, r: i32) -> Vec<u64> {
-    let shifts: Vec<i64> = (-r..=r).map(|k| k as i64 * step as i64).collect();
+fn union_of_shifts(keys: &[u64], step: u64, offsets: std::ops::RangeInclusive<i32>) -> Vec<u64> {
+    let shifts: Vec<i64> = offsets.map(|k| k as i64 * step as i64).collect();
     let pieces = (keys.len() >> 15).clamp(1, 256);
     let bounds: Vec<i64> = (1..pieces)
         .map(|p| keys[p * keys.len() / pieces] as i64)
@@ -1453,15 +1492,21 @@ mod tests {
             [6, 0, 0],
             [-1, 4, 4],
         ];
-        for r in 1..=2 {
-            let mut keys: Vec<u64> = pts.iter().map(|&c| pack(c)).collect();
-            keys.sort_unstable();
-            let got = dilate(&keys, r);
+        let mut keys: Vec<u64> = pts.iter().map(|&c| pack(c)).collect();
+        keys.sort_unstable();
+        // Chebyshev balls, and the one-sided ranges of degree 1's corners and beyond.
+        let ranges = [(-1, 1), (-2, 2), (0, 1), (0, 0), (1, 3), (-3, -1)];
+        for (lo, hi) in ranges {
+            let got = if lo == -hi {
+                dilate(&keys, hi)
+            } else {
+                shifted_by(&keys, lo..=hi)
+            };
             let mut want = Vec::new();
             for p in &pts {
-                for dz in -r..=r {
-                    for dy in -r..=r {
-                        for dx in -r..=r {
+                for dz in lo..=hi {
+                    for dy in lo..=hi {
+                        for dx in lo..=hi {
                             want.push(pack([p[0] + dx, p[1] + dy, p[2] + dz]));
                         }
                     }
@@ -1469,7 +1514,34 @@ mod tests {
             }
             want.sort_unstable();
             want.dedup();
-            assert_eq!(got, want, "r = {r}");
+            assert_eq!(got, want, "offsets {lo}..={hi}");
+        }
+    }
+
+    #[test]
+    fn a_samples_core_is_the_nodes_over_its_cell_widened_by_one() {
+        // One sample cell at depth 5, far from the faces, nothing complete below depth 1:
+        // degree 2's nodes over the cell are c − 1..=c + 1 per axis, degree 1's its corners
+        // c..=c + 1; widened by one node, the core of depth 5 is a box of 5 or 4 nodes a side,
+        // the same about the cell's centre on both sides.
+        let c = [12, 17, 9];
+        for (degree, lo, hi) in [(Degree::Two, -2, 2), (Degree::One, -1, 2)] {
+            let mut sample_cells = vec![Vec::new(); 6];
+            sample_cells[5] = vec![c];
+            let tree = Octree::build_for(sample_cells, 1, Boundary::Neumann, degree);
+            let finest = &tree.levels[5];
+            let mut core: Vec<Coord> = finest.core.iter().map(|&i| finest.coord(i)).collect();
+            core.sort_unstable();
+            let mut want = Vec::new();
+            for x in lo..=hi {
+                for y in lo..=hi {
+                    for z in lo..=hi {
+                        want.push([c[0] + x, c[1] + y, c[2] + z]);
+                    }
+                }
+            }
+            want.sort_unstable();
+            assert_eq!(core, want, "{degree:?}");
         }
     }
 
@@ -1518,7 +1590,7 @@ mod tests {
                 .collect();
             want.sort_unstable();
             want.dedup();
-            assert_eq!(union_of_shifts(&keys, step, r), want);
+            assert_eq!(union_of_shifts(&keys, step, -r..=r), want);
         }
     }
 
