@@ -167,7 +167,7 @@ impl Degree {
             Degree::Two => stencil27(p, inv_h),
             Degree::One => {
                 let t = p * inv_h;
-                let cell = t.floor();
+                let cell = crate::grid::floor3(t);
                 let c = [cell.x as i32, cell.y as i32, cell.z as i32];
                 let w = std::array::from_fn(|axis| {
                     let f = t[axis] - c[axis] as f64;
@@ -266,7 +266,7 @@ fn integrate_piecewise(f: impl Fn(f64) -> f64) -> f64 {
 #[inline]
 pub fn stencil27(p: DVec3, inv_h: f64) -> ([i32; 3], [[f64; 3]; 3]) {
     let t = p * inv_h;
-    let cell = t.floor();
+    let cell = crate::grid::floor3(t);
     let c = [cell.x as i32, cell.y as i32, cell.z as i32];
     let mut w = [[0.0; 3]; 3];
     for axis in 0..3 {

@@ -47,7 +47,7 @@ const PLANE_KERNEL_PEAK: f64 = 115.0 / 192.0;
 #[inline]
 fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
     let t = p * inv_h - DVec3::splat(0.5);
-    let base = t.floor();
+    let base = crate::grid::floor3(t);
     let f = t - base;
     let b = [base.x as i32, base.y as i32, base.z as i32];
     let mut out = [([0; 3], 0.0); 8];

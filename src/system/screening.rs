@@ -233,7 +233,7 @@ impl Proxies {
         }
         let inv_h = (level.depth as f64).exp2();
         let t = sum_p / sum_w * inv_h;
-        let offset = [t.x, t.y, t.z].map(|v| (v - v.floor()).clamp(0.0, 1.0) as f32);
+        let offset = [t.x, t.y, t.z].map(|v| (v - crate::grid::floor(v)).clamp(0.0, 1.0) as f32);
         self.cell.push(idx);
         self.weight.push(sum_w);
         self.offset.push(offset);
