@@ -124,10 +124,7 @@ impl Degree {
     /// (from node c + first offset to node c + last): c − 1..=c + 1 at degree 2, the cell's
     /// corners c..=c + 1 at degree 1 (see [`Degree::first_node`]).
     pub fn nodes_over_a_cell(self) -> std::ops::RangeInclusive<i32> {
-        match self {
-            Degree::One => 0..=1,
-            Degree::Two => -1..=1,
-        }
+        self.first_node() as i32 - 1..=1
     }
 
     /// The same-depth tables (5 wide for both degrees: degree 1's are zero at δ = ±2).
