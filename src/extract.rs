@@ -58,7 +58,7 @@
 use crate::bspline::Degree;
 use crate::error::{Error, Result};
 use crate::evaluate::Indicator;
-use crate::grid::{cell_of, KeyMap};
+use crate::grid::{cell_of, morton, KeyMap};
 use crate::key_table::KeyTable;
 use crate::octree::{Level, Octree, CORE, NONE, SPLIT};
 use crate::parallel::Watch;
@@ -754,8 +754,11 @@ pub(crate) fn extract_traced(
     let mut values: KeyMap<f64> = KeyMap::default();
     let mut mesh = RawMesh::default();
 
+    // In Morton order, so that the leaves of a batch lie close together, as the nodes and
+    // coefficients their plans read do (lexicographic order walked the cube in columns:
+    // the Buddha's extraction at depth 10, degree 1, one thread, 2.97 → 2.78 s).
     let mut seeds = seeds;
-    seeds.par_sort_unstable();
+    seeds.par_sort_unstable_by_key(|c| morton(c.map(|v| v as i32)));
     seeds.dedup();
     let mut frontier: Vec<Leaf> = seeds
         .par_iter()
