@@ -302,25 +302,49 @@ fn block_index(offset: [i64; 3]) -> usize {
     ((offset[0] + 1) + 3 * (offset[1] + 1) + 9 * (offset[2] + 1)) as usize
 }
 
-/// Whether the leaf's edge from corner `a` along `axis` is cut: some cell of the leaf's depth
-/// around it is split.
-fn edge_is_cut(block: &Block, a: usize, axis: usize) -> bool {
-    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-    let (au, av) = (((a >> u) & 1) as i64, ((a >> v) & 1) as i64);
-    [(au - 1, av - 1), (au, av - 1), (au - 1, av), (au, av)]
-        .into_iter()
-        .any(|(du, dv)| {
-            let mut offset = [0i64; 3];
-            offset[u] = du;
-            offset[v] = dv;
-            block[block_index(offset)] == Status::Split
-        })
+/// The slots of a leaf's block (see [`block_index`]) whose cells are split, as a bit mask.
+fn split_slots(block: &Block) -> u32 {
+    (0..27)
+        .filter(|&s| block[s] == Status::Split)
+        .fold(0, |mask, s| mask | 1 << s)
 }
 
-fn face_is_split(block: &Block, face: usize) -> bool {
-    let mut across = [0i64; 3];
-    across[face / 2] = 2 * (face % 2) as i64 - 1;
-    block[block_index(across)] == Status::Split
+/// Per edge of a leaf (numbered as in [`edge_corners`]): the slots of its block of the four
+/// cells of the leaf's depth around the edge, the leaf's own among them.
+const EDGE_CELLS: [u32; 12] = {
+    let mut masks = [0u32; 12];
+    let mut e = 0;
+    while e < 12 {
+        let axis = e / 4;
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        // The edge's position across u and v: 0 on the leaf's low side, 1 on its high side.
+        let (eu, ev) = ((e % 4) & 1, (e % 4) >> 1);
+        let mut k = 0;
+        while k < 4 {
+            // A cell beside the edge lies at offset eu − 1 or eu along u, ev − 1 or ev along v.
+            let mut slot_of_offset = [1usize; 3];
+            slot_of_offset[u] = eu + (k & 1);
+            slot_of_offset[v] = ev + (k >> 1);
+            let slot = slot_of_offset[0] + 3 * slot_of_offset[1] + 9 * slot_of_offset[2];
+            masks[e] |= 1 << slot;
+            k += 1;
+        }
+        e += 1;
+    }
+    masks
+};
+
+/// Whether a leaf's edge `e` is cut: some cell of the leaf's depth around it is split (`split`:
+/// [`split_slots`] of the leaf's block).
+fn edge_is_cut(split: u32, e: usize) -> bool {
+    split & EDGE_CELLS[e] != 0
+}
+
+/// Whether the cell across a leaf's face `face` (2·axis + side) is split.
+fn face_is_split(split: u32, face: usize) -> bool {
+    let mut slot_of_offset = [1usize; 3];
+    slot_of_offset[face / 2] = 2 * (face % 2);
+    split >> (slot_of_offset[0] + 3 * slot_of_offset[1] + 9 * slot_of_offset[2]) & 1 == 1
 }
 
 /// Slots of a leaf's points: corner k at k, the midpoint of edge e at 8 + e, the centre of
@@ -334,8 +358,9 @@ const fn centre_slot(f: usize) -> u8 {
 }
 
 /// A leaf's points on the finest grid, by slot, and which slots are in use: the corners, the
-/// midpoints of cut edges and the centres of faces towards finer leaves.
-fn leaf_points(leaf: &Leaf, block: &Block, finest: u32) -> ([Point; SLOTS], u32) {
+/// midpoints of cut edges and the centres of faces towards finer leaves (`split`:
+/// [`split_slots`] of the leaf's block).
+fn leaf_points(leaf: &Leaf, split: u32, finest: u32) -> ([Point; SLOTS], u32) {
     let size = 1i64 << (finest - leaf.depth);
     let half = size / 2;
     let mut points = [[0i64; 3]; SLOTS];
@@ -346,7 +371,7 @@ fn leaf_points(leaf: &Leaf, block: &Block, finest: u32) -> ([Point; SLOTS], u32)
     }
     for e in 0..12 {
         let (a, _) = edge_corners(e);
-        if edge_is_cut(block, a, e / 4) {
+        if edge_is_cut(split, e) {
             let mut m = points[a];
             m[e / 4] += half;
             points[edge_slot(e) as usize] = m;
@@ -354,7 +379,7 @@ fn leaf_points(leaf: &Leaf, block: &Block, finest: u32) -> ([Point; SLOTS], u32)
         }
     }
     for f in 0..6 {
-        if face_is_split(block, f) {
+        if face_is_split(split, f) {
             let (axis, side) = (f / 2, f % 2);
             let c: Point = std::array::from_fn(|a| {
                 leaf.cell[a] * size + if a == axis { side as i64 * size } else { half }
@@ -788,14 +813,10 @@ pub(crate) fn extract_traced(
             .par_iter()
             .map(|leaf| {
                 let (block, nodes) = leaves.block(leaf);
-                let (points, used) = leaf_points(leaf, &block, finest);
+                let split = split_slots(&block);
+                let (points, used) = leaf_points(leaf, split, finest);
                 let corners = match &nodes {
-                    Some(nodes) => {
-                        let split = (0..27)
-                            .filter(|&s| block[s] == Status::Split)
-                            .fold(0u32, |m, s| m | 1 << s);
-                        chi.corner_values(leaf.depth, nodes, split)
-                    }
+                    Some(nodes) => chi.corner_values(leaf.depth, nodes, split),
                     None => [None; 8],
                 };
                 let mut values = [0.0; SLOTS];
@@ -1600,7 +1621,7 @@ mod tests {
             depth: 0,
             cell: [0, 0, 0],
         };
-        let (points, used) = leaf_points(&leaf, &[Status::Leaf; 27], 0);
+        let (points, used) = leaf_points(&leaf, 0, 0);
         assert_eq!(used, 0xFF);
         (used, points)
     }
@@ -1622,6 +1643,39 @@ mod tests {
     }
 
     #[test]
+    fn an_edges_cells_are_the_cells_of_the_leafs_depth_that_hold_it() {
+        // In units of the leaf's cell: the leaf is [0, 1]³, the block's cell at offset o is
+        // [o, o + 1]³, and an edge lies on a cell when both its ends do.
+        for (e, &cells) in EDGE_CELLS.iter().enumerate() {
+            let (a, b) = edge_corners(e);
+            let corner = |c: usize| [c & 1, c >> 1 & 1, c >> 2 & 1].map(|v| v as i64);
+            let holding: u32 = (0..27)
+                .filter(|&s| {
+                    let offset = [s as i64 % 3 - 1, s as i64 / 3 % 3 - 1, s as i64 / 9 - 1];
+                    [corner(a), corner(b)]
+                        .iter()
+                        .all(|p| (0..3).all(|i| (offset[i]..=offset[i] + 1).contains(&p[i])))
+                })
+                .fold(0, |mask, s| mask | 1 << s);
+            assert_eq!(holding.count_ones(), 4, "edge {e}");
+            assert_eq!(cells, holding, "edge {e}");
+            // A lone split cell beside the edge cuts it; one elsewhere does not.
+            for s in 0..27 {
+                assert_eq!(edge_is_cut(1 << s, e), holding >> s & 1 == 1);
+            }
+        }
+        for f in 0..6 {
+            let (axis, side) = (f / 2, f % 2);
+            let across = (0..27)
+                .filter(|&s| face_is_split(1 << s, f))
+                .collect::<Vec<_>>();
+            let mut offset = [0i64; 3];
+            offset[axis] = 2 * side as i64 - 1;
+            assert_eq!(across, vec![block_index(offset)], "face {f}");
+        }
+    }
+
+    #[test]
     fn cut_edges_and_split_neighbours_give_closed_loops() {
         // A depth-1 leaf at (1, 1, 1) of a depth-3 grid, random neighbour statuses (cut edges and
         // split faces in every combination) and random values at every point.
@@ -1637,8 +1691,9 @@ mod tests {
                 1 => Status::Coarser,
                 _ => Status::Leaf,
             });
-            split_faces += (0..6).filter(|&f| face_is_split(&block, f)).count();
-            let (points, used) = leaf_points(&leaf, &block, 3);
+            let split = split_slots(&block);
+            split_faces += (0..6).filter(|&f| face_is_split(split, f)).count();
+            let (points, used) = leaf_points(&leaf, split, 3);
             let seed = lcg(&mut state);
             let random = |p: Point| {
                 let h = pack(p).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ seed;
