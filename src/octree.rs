@@ -977,12 +977,25 @@ impl BrickRows {
         spread(brick & mask) | spread(brick >> BITS & mask) << 1 | spread(brick >> (2 * BITS)) << 2
     }
 
-    /// The brick's occupancy by Morton position (x, y, z bits interleaved from bit 0).
+    /// The brick's occupancy by Morton position (x, y, z bits interleaved from bit 0), row by
+    /// row: a position's bits 6–8 (the coordinates' high bits) pick its word, and a row's four
+    /// nodes with the same high x bit land in one word at bits 0, 1, 8 and 9 (x's low bits are
+    /// position bits 0 and 3) shifted by the row's y and z low bits (position bits 1, 4 and 2,
+    /// 5). Position by position this took 7.7 % of the density and octree stages' time on the
+    /// Happy Buddha at depth 10 (degree 1, one thread).
     fn morton_masks(rows: &[u8; 64]) -> [u64; 8] {
         let mut mask = [0u64; 8];
-        for p in 0..512 {
-            let [x, y, z] = brick_local(p);
-            mask[p >> 6] |= (((rows[y + 8 * z] >> x) & 1) as u64) << (p & 63);
+        for (row, &bits) in rows.iter().enumerate() {
+            if bits == 0 {
+                continue;
+            }
+            let (y, z) = (row & 7, row >> 3);
+            let word = (y >> 2) << 1 | (z >> 2) << 2;
+            let shift = (y & 1) << 1 | (z & 1) << 2 | (y >> 1 & 1) << 4 | (z >> 1 & 1) << 5;
+            for (high_x, nibble) in [(0, bits & 15), (1, bits >> 4)] {
+                let nibble = u64::from(nibble);
+                mask[word | high_x] |= ((nibble & 3) | (nibble >> 2) << 8) << shift;
+            }
         }
         mask
     }
@@ -1469,6 +1482,40 @@ fn merge_shifted(copies: &[(&[u64], i64)]) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bricks_morton_masks_hold_each_row_node_at_its_position() {
+        // Position by position against the rows, on random rows, single nodes and full rows.
+        let mut state = 11u64;
+        let mut cases: Vec<[u8; 64]> = (0..200)
+            .map(|_| std::array::from_fn(|_| lcg_byte(&mut state)))
+            .collect();
+        cases.push([0xff; 64]);
+        for row in 0..64 {
+            for x in 0..8 {
+                let mut rows = [0u8; 64];
+                rows[row] = 1 << x;
+                cases.push(rows);
+            }
+        }
+        for rows in cases {
+            let mask = BrickRows::morton_masks(&rows);
+            for p in 0..512 {
+                let [x, y, z] = brick_local(p);
+                assert_eq!(
+                    mask[p >> 6] >> (p & 63) & 1,
+                    u64::from(rows[y + 8 * z] >> x & 1)
+                );
+            }
+        }
+    }
+
+    fn lcg_byte(state: &mut u64) -> u8 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 56) as u8
+    }
 
     #[test]
     fn morton_order_keeps_a_parents_children_contiguous() {
