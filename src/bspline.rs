@@ -28,6 +28,7 @@
 //! D = (−1, 2, −1), G = (½, 0, −½), and the two-scale relation is the node at coarse corner i =
 //! fine corner 2i + ½·(fine corners 2i ± 1) ([`Degree::refine`]).
 
+use crate::grid::cell_of;
 use glam::DVec3;
 use std::sync::OnceLock;
 
@@ -164,8 +165,7 @@ impl Degree {
             Degree::Two => stencil27(p, inv_h),
             Degree::One => {
                 let t = p * inv_h;
-                let cell = crate::grid::floor3(t);
-                let c = [cell.x as i32, cell.y as i32, cell.z as i32];
+                let c = cell_of(p, inv_h);
                 let w = std::array::from_fn(|axis| {
                     let f = t[axis] - c[axis] as f64;
                     [0.0, 1.0 - f, f]
@@ -263,8 +263,7 @@ fn integrate_piecewise(f: impl Fn(f64) -> f64) -> f64 {
 #[inline]
 pub fn stencil27(p: DVec3, inv_h: f64) -> ([i32; 3], [[f64; 3]; 3]) {
     let t = p * inv_h;
-    let cell = crate::grid::floor3(t);
-    let c = [cell.x as i32, cell.y as i32, cell.z as i32];
+    let c = cell_of(p, inv_h);
     let mut w = [[0.0; 3]; 3];
     for axis in 0..3 {
         // Node c−1+k has centre c−½+k; b at t − centre.

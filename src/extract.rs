@@ -298,7 +298,7 @@ type Block = [Status; 27];
 /// uses, χ − γ at them, and the slots whose values come from the table of evaluated points.
 type Plan = (Block, [Point; SLOTS], u32, [f64; SLOTS], u32);
 
-fn block_index(offset: [i64; 3]) -> usize {
+const fn block_index(offset: [i64; 3]) -> usize {
     ((offset[0] + 1) + 3 * (offset[1] + 1) + 9 * (offset[2] + 1)) as usize
 }
 
@@ -318,15 +318,14 @@ const EDGE_CELLS: [u32; 12] = {
         let axis = e / 4;
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
         // The edge's position across u and v: 0 on the leaf's low side, 1 on its high side.
-        let (eu, ev) = ((e % 4) & 1, (e % 4) >> 1);
+        let (eu, ev) = (((e % 4) & 1) as i64, ((e % 4) >> 1) as i64);
         let mut k = 0;
         while k < 4 {
             // A cell beside the edge lies at offset eu − 1 or eu along u, ev − 1 or ev along v.
-            let mut slot_of_offset = [1usize; 3];
-            slot_of_offset[u] = eu + (k & 1);
-            slot_of_offset[v] = ev + (k >> 1);
-            let slot = slot_of_offset[0] + 3 * slot_of_offset[1] + 9 * slot_of_offset[2];
-            masks[e] |= 1 << slot;
+            let mut offset = [0i64; 3];
+            offset[u] = eu - 1 + (k & 1);
+            offset[v] = ev - 1 + (k >> 1);
+            masks[e] |= 1 << block_index(offset);
             k += 1;
         }
         e += 1;
@@ -342,9 +341,9 @@ fn edge_is_cut(split: u32, e: usize) -> bool {
 
 /// Whether the cell across a leaf's face `face` (2·axis + side) is split.
 fn face_is_split(split: u32, face: usize) -> bool {
-    let mut slot_of_offset = [1usize; 3];
-    slot_of_offset[face / 2] = 2 * (face % 2);
-    split >> (slot_of_offset[0] + 3 * slot_of_offset[1] + 9 * slot_of_offset[2]) & 1 == 1
+    let mut across = [0i64; 3];
+    across[face / 2] = 2 * (face % 2) as i64 - 1;
+    split >> block_index(across) & 1 == 1
 }
 
 /// Slots of a leaf's points: corner k at k, the midpoint of edge e at 8 + e, the centre of
