@@ -107,7 +107,10 @@ fn complete_and_sparse_trees_of(boundary: Boundary, degree: Degree) -> [Octree; 
 /// the coarse divergence's windows), the restriction and the separable passes give the
 /// node-by-node values bit for bit, with free and
 /// with Neumann boundaries (mirror nodes beyond the cube), on sparse levels (only part of
-/// the cube refined) as well as complete ones.
+/// the cube refined) as well as complete ones. The values are half-integers and the weights
+/// dyadic, so every sum is exact whatever its order: the test checks which parents each node
+/// takes and with which weights (the brick paths sum one axis at a time, node by node all
+/// eight parents at once, which rounds differently on real data).
 #[test]
 fn brick_prolongations_match_node_by_node_prolongation() {
     for boundary in BOUNDARIES {

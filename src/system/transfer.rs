@@ -105,9 +105,9 @@ impl CoreBricks {
     /// fine depth has no node). The fine window covers fine coordinates origin − 2 .. origin + 10
     /// per axis; their refinement parents (m = ⌊f/2⌋ and its partner m ± 1) lie in the coarse
     /// coordinates origin/2 − 2 .. origin/2 + 6, gathered once into an 8×8×8 array from the
-    /// eight coarse bricks that cover them. Each window node then sums its eight parents in
-    /// the order and with the weights of [`refinement_parents`]. Nodes beyond the cube (mirrors,
-    /// with Neumann or Dirichlet boundaries) take the node-by-node path.
+    /// eight coarse bricks that cover them, and prolonged to the whole window one axis at a
+    /// time ([`prolong_window`], with the weights of [`refinement_parents`]). Nodes beyond the
+    /// cube (mirrors, with Neumann or Dirichlet boundaries) take the node-by-node path.
     pub(super) fn gather_prolonged(
         &self,
         field: &ProlongedField<'_>,
@@ -246,18 +246,28 @@ fn coarse_window<const C: usize>(
                 *r &= m;
             }
         }
+        // The window's bounds are even in the brick, so it takes whole 2×2×2 groups (a byte of
+        // an occupancy word, nodes in corner order x + 2y + 4z), placed group by group.
         let (mut node, occupied) = index.brick(slot);
         for (word, (&occ, &region)) in occupied.iter().zip(&region).enumerate() {
             let mut bits = occ & region;
             while bits != 0 {
-                let bit = bits.trailing_zeros();
-                bits &= bits - 1;
-                let n = node + (occ & ((1u64 << bit) - 1)).count_ones();
-                let l = brick_local(word * 64 + bit as usize);
+                let byte = bits.trailing_zeros() / 8;
+                bits &= !(0xff << (8 * byte));
+                let mut n = (node + (occ & ((1u64 << (8 * byte)) - 1)).count_ones()) as usize;
+                let l = brick_local(word * 64 + 8 * byte as usize);
                 let u: [usize; 3] =
                     std::array::from_fn(|a| (brick_origin[a] + l[a] as i32 - origin[a]) as usize);
-                for (w, values) in window.iter_mut().zip(&fields) {
-                    w[u[2] * 64 + u[1] * 8 + u[0]] = values[n as usize];
+                let base = u[2] * 64 + u[1] * 8 + u[0];
+                let mut corners = (occ >> (8 * byte)) as u8;
+                while corners != 0 {
+                    let c = corners.trailing_zeros() as usize;
+                    corners &= corners - 1;
+                    let at = base + (c & 1) + 8 * (c >> 1 & 1) + 64 * (c >> 2);
+                    for (w, values) in window.iter_mut().zip(&fields) {
+                        w[at] = values[n];
+                    }
+                    n += 1;
                 }
             }
             node += occ.count_ones();
@@ -265,36 +275,89 @@ fn coarse_window<const C: usize>(
     }
 }
 
-/// The prolongation (times `scale`) at fine coordinate `f` of the coarse values in `window`
-/// (from [`coarse_window`] at `origin`): its eight refinement parents summed in the order and
-/// with the weights of [`refinement_parents`].
-#[inline]
-fn prolonged_from_window<const C: usize>(
+/// The prolongation (times `scale`) of a coarse 8×8×8 window (`coarse`, index x + 8y + 64z,
+/// as [`coarse_window`] fills it for the fine brick at `origin`, from origin/2 − 2) at the
+/// brick's 8×8×8 positions (`out`, index x + 8y + 64z), one axis at a time with the weights and
+/// in the order of [`prolong_window`], so a node takes the value it has in a brick window's
+/// prolongation. Along each axis, brick position l takes `own` of window position ⌊l/2⌋ + 2
+/// and `partner` of ⌊l/2⌋ + 1 (l even) or ⌊l/2⌋ + 3 (l odd), so the window's rows 1..7 are
+/// read. `along_x` (6·6 rows) and `along_y` (6·8 rows) are scratch space.
+fn prolong_brick(
     degree: Degree,
-    window: &[Vec<f64>; C],
-    origin: [i32; 3],
-    f: [i32; 3],
+    coarse: &[f64],
+    along_x: &mut [[f64; 8]; 36],
+    along_y: &mut [[f64; 8]; 48],
+    out: &mut [f64],
     scale: f64,
-) -> [f64; C] {
-    // Per axis: the parent's and its partner's place in the window (as flat-index terms), then
-    // parent k's place: bit a of k picks the partner along axis a.
-    let place: [[usize; 2]; 3] = std::array::from_fn(|a| {
-        let own = ((f[a] >> 1) - origin[a]) as usize;
-        let partner = if f[a] & 1 == 1 { own + 1 } else { own - 1 };
-        [own << (3 * a), partner << (3 * a)]
-    });
-    let parents: [usize; 8] =
-        std::array::from_fn(|k| place[0][k & 1] + place[1][(k >> 1) & 1] + place[2][(k >> 2) & 1]);
-    let weights = parent_weights(degree, f.map(|v| (v & 1) as usize));
-    std::array::from_fn(|component| {
-        let values = &window[component][..512];
-        (0..8).map(|k| weights[k] * values[parents[k]]).sum::<f64>() * scale
-    })
+) {
+    let weights = [degree.refine(0), degree.refine(1)];
+    let own = |l: usize| (l >> 1) + 2;
+    let partner = |l: usize| {
+        if l & 1 == 0 {
+            (l >> 1) + 1
+        } else {
+            (l >> 1) + 3
+        }
+    };
+    // Window rows (y, z) in 1..7, stored at (y − 1) + 6 (z − 1).
+    for (r, row) in along_x.iter_mut().enumerate() {
+        let (y, z) = (r % 6 + 1, r / 6 + 1);
+        let line = &coarse[8 * y + 64 * z..8 * y + 64 * z + 8];
+        *row = std::array::from_fn(|x| {
+            let [own_w, other_w] = weights[x & 1];
+            own_w * line[own(x)] + other_w * line[partner(x)]
+        });
+    }
+    // Window planes z in 1..7 and brick rows y, stored at y + 8 (z − 1).
+    for z in 0..6 {
+        for y in 0..8 {
+            let [own_w, other_w] = weights[y & 1];
+            let (own, other) = (
+                &along_x[(own(y) - 1) + 6 * z],
+                &along_x[(partner(y) - 1) + 6 * z],
+            );
+            along_y[y + 8 * z] = std::array::from_fn(|x| own_w * own[x] + other_w * other[x]);
+        }
+    }
+    for z in 0..8 {
+        let [own_w, other_w] = weights[z & 1];
+        for y in 0..8 {
+            let (own, other) = (
+                &along_y[y + 8 * (own(z) - 1)],
+                &along_y[y + 8 * (partner(z) - 1)],
+            );
+            let row = &mut out[8 * y + 64 * z..8 * y + 64 * z + 8];
+            for (x, o) in row.iter_mut().enumerate() {
+                *o = (own_w * own[x] + other_w * other[x]) * scale;
+            }
+        }
+    }
+}
+
+/// A task's scratch space for [`prolong_by_brick`]: the coarse window of each field, its
+/// prolongation at the brick's positions, and [`prolong_brick`]'s passes.
+struct BrickProlongation<const C: usize> {
+    window: [Vec<f64>; C],
+    prolonged: [Vec<f64>; C],
+    along_x: [[f64; 8]; 36],
+    along_y: [[f64; 8]; 48],
+}
+
+impl<const C: usize> BrickProlongation<C> {
+    fn new() -> Self {
+        BrickProlongation {
+            window: std::array::from_fn(|_| vec![0.0; 512]),
+            prolonged: std::array::from_fn(|_| vec![0.0; 512]),
+            along_x: [[0.0; 8]; 36],
+            along_y: [[0.0; 8]; 48],
+        }
+    }
 }
 
 /// `outputs[c][node] = combine(outputs[c][node], value[c])` for every node of `fine`, with
 /// `value` the prolongation of `fields` (times `scale`) there, brick by brick in parallel: each
-/// fine brick gathers the coarse nodes under it once ([`coarse_window`]). With `at_mirror`,
+/// fine brick gathers the coarse nodes under it once ([`coarse_window`]) and prolongs them to
+/// all its positions one axis at a time ([`prolong_brick`]). With `at_mirror`,
 /// nodes beyond the cube take `at_mirror(node)` instead. A brick's nodes are consecutive, so
 /// each task owns its brick's part of every output.
 fn prolong_by_brick<const C: usize>(
@@ -322,40 +385,48 @@ fn prolong_by_brick<const C: usize>(
         .into_par_iter()
         .enumerate()
         .with_min_len(16)
-        .for_each_init(
-            || std::array::from_fn::<_, C, _>(|_| vec![0.0; 512]),
-            |window, (b, mut out)| {
-                // (A cancelled solve skips the remaining bricks; see `stop_requested`.)
-                if stop_requested() {
-                    return;
-                }
-                let origin = fine.bricks().origin(b);
-                let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
-                coarse_window(coarse, coarse_origin, fields, window);
-                let (first, occupied) = index.brick(b);
-                let mut node = first;
-                for (word, &occ) in occupied.iter().enumerate() {
-                    let mut bits = occ;
-                    while bits != 0 {
-                        let bit = bits.trailing_zeros();
-                        bits &= bits - 1;
-                        let l = brick_local(word * 64 + bit as usize);
-                        let f: [i32; 3] = std::array::from_fn(|a| origin[a] + l[a] as i32);
-                        let value = match at_mirror {
-                            Some(at) if fine.follows_mirror_rule(f) => at(node),
-                            _ => {
-                                prolonged_from_window(fine.degree, window, coarse_origin, f, scale)
-                            }
-                        };
-                        let k = (node - first) as usize;
-                        for (out, v) in out.iter_mut().zip(value) {
-                            out[k] = combine(out[k], v);
+        .for_each_init(BrickProlongation::<C>::new, |scratch, (b, mut out)| {
+            // (A cancelled solve skips the remaining bricks; see `stop_requested`.)
+            if stop_requested() {
+                return;
+            }
+            let origin = fine.bricks().origin(b);
+            let coarse_origin: [i32; 3] = std::array::from_fn(|a| origin[a] / 2 - 2);
+            coarse_window(coarse, coarse_origin, fields, &mut scratch.window);
+            for (window, prolonged) in scratch.window.iter().zip(&mut scratch.prolonged) {
+                prolong_brick(
+                    fine.degree,
+                    window,
+                    &mut scratch.along_x,
+                    &mut scratch.along_y,
+                    prolonged,
+                    scale,
+                );
+            }
+            let (first, occupied) = index.brick(b);
+            let mut node = first;
+            for (word, &occ) in occupied.iter().enumerate() {
+                let mut bits = occ;
+                while bits != 0 {
+                    let bit = bits.trailing_zeros();
+                    bits &= bits - 1;
+                    let l = brick_local(word * 64 + bit as usize);
+                    let f: [i32; 3] = std::array::from_fn(|a| origin[a] + l[a] as i32);
+                    let value = match at_mirror {
+                        Some(at) if fine.follows_mirror_rule(f) => at(node),
+                        _ => {
+                            let at = l[0] + 8 * l[1] + 64 * l[2];
+                            std::array::from_fn(|c| scratch.prolonged[c][at])
                         }
-                        node += 1;
+                    };
+                    let k = (node - first) as usize;
+                    for (out, v) in out.iter_mut().zip(value) {
+                        out[k] = combine(out[k], v);
                     }
+                    node += 1;
                 }
-            },
-        );
+            }
+        });
 }
 
 /// The two-scale weight of parent k of a fine node (bit a of k set: the partner along axis a,
