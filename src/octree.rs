@@ -1223,6 +1223,25 @@ impl BrickIndex {
         (self.first[b], &self.occupied[b])
     }
 
+    /// The indices of brick `b`'s nodes, consecutive in the level.
+    #[inline]
+    pub fn nodes(&self, b: usize) -> std::ops::Range<usize> {
+        let count: u32 = self.occupied[b].iter().map(|w| w.count_ones()).sum();
+        self.first[b] as usize..(self.first[b] + count) as usize
+    }
+
+    /// Each brick's part (its nodes') of each of `outputs` (vectors with one element per node
+    /// of the level), in brick order: for tasks that each own a brick's nodes.
+    pub fn parts<'a, T, const C: usize>(&self, outputs: [&'a mut [T]; C]) -> Vec<[&'a mut [T]; C]> {
+        let mut parts = outputs.map(|output| {
+            crate::parallel::split_parts(output, (0..self.brick_count()).map(|b| self.nodes(b)))
+                .into_iter()
+        });
+        (0..self.brick_count())
+            .map(|_| std::array::from_fn(|c| parts[c].next().expect("one part per brick")))
+            .collect()
+    }
+
     /// The slots of the 27 bricks around brick `b` (index (dx+1) + 3(dy+1) + 9(dz+1); brick b
     /// itself in the middle), `None` where no node lies.
     pub fn bricks_around27(&self, b: usize) -> [Option<usize>; 27] {

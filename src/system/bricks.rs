@@ -258,12 +258,12 @@ impl CoreBricks {
         let found: Vec<Found> = (0..index.brick_count())
             .into_par_iter()
             .map(|b| {
-                let (first, occupied) = index.brick(b);
-                let count: u32 = occupied.iter().map(|w| w.count_ones()).sum();
+                let nodes = index.nodes(b);
+                let first = nodes.start as u32;
                 let mut mask = [0u64; 8];
-                for i in first..first + count {
-                    if level.flags[i as usize] & crate::octree::CORE != 0 {
-                        let p = (level.keys[i as usize] & 511) as usize;
+                for i in nodes {
+                    if level.flags[i] & crate::octree::CORE != 0 {
+                        let p = (level.keys[i] & 511) as usize;
                         mask[p >> 6] |= 1 << (p & 63);
                     }
                 }

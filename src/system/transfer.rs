@@ -370,18 +370,8 @@ fn prolong_by_brick<const C: usize>(
     combine: impl Fn(f64, f64) -> f64 + Sync,
 ) {
     let index = fine.bricks();
-    let bricks = || {
-        (0..index.brick_count()).map(|b| {
-            let (first, occupied) = index.brick(b);
-            let count: u32 = occupied.iter().map(|w| w.count_ones()).sum();
-            first as usize..(first + count) as usize
-        })
-    };
-    let mut parts = outputs.map(|output| split_parts(output, bricks()).into_iter());
-    let per_brick: Vec<[&mut [f64]; C]> = (0..index.brick_count())
-        .map(|_| std::array::from_fn(|c| parts[c].next().expect("one part per brick")))
-        .collect();
-    per_brick
+    index
+        .parts(outputs)
         .into_par_iter()
         .enumerate()
         .with_min_len(16)
