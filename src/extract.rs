@@ -294,9 +294,9 @@ impl Leaves<'_> {
 /// The statuses of the 3×3×3 cells of a leaf's depth around it (index (dx+1) + 3(dy+1) + 9(dz+1)).
 type Block = [Status; 27];
 
-/// A leaf planned for tracing: its neighbours' statuses, its points (slots), the slots it
-/// uses, χ − γ at them, and the slots whose values come from the table of evaluated points.
-type Plan = (Block, [Point; SLOTS], u32, [f64; SLOTS], u32);
+/// A leaf planned for tracing: its neighbours' statuses, the slots it uses (its points:
+/// [`LeafPoints`]), χ − γ at them, and the slots whose values come from the table of evaluated points.
+type Plan = (Block, u32, [f64; SLOTS], u32);
 
 const fn block_index(offset: [i64; 3]) -> usize {
     ((offset[0] + 1) + 3 * (offset[1] + 1) + 9 * (offset[2] + 1)) as usize
@@ -356,38 +356,66 @@ const fn centre_slot(f: usize) -> u8 {
     20 + f as u8
 }
 
-/// A leaf's points on the finest grid, by slot, and which slots are in use: the corners, the
-/// midpoints of cut edges and the centres of faces towards finer leaves (`split`:
-/// [`split_slots`] of the leaf's block).
-fn leaf_points(leaf: &Leaf, split: u32, finest: u32) -> ([Point; SLOTS], u32) {
-    let size = 1i64 << (finest - leaf.depth);
-    let half = size / 2;
-    let mut points = [[0i64; 3]; SLOTS];
-    let mut used = 0u32;
-    for (k, p) in points.iter_mut().enumerate().take(8) {
-        *p = std::array::from_fn(|a| (leaf.cell[a] + ((k >> a) & 1) as i64) * size);
-        used |= 1 << k;
+/// A leaf's points on the finest grid, by slot ([`edge_slot`], [`centre_slot`]): its corners,
+/// the midpoints of its edges and the centres of its faces, computed where they are read
+/// rather than stored (26 points are 624 bytes, most of a plan).
+#[derive(Debug, Clone, Copy)]
+struct LeafPoints {
+    /// Corner 0 on the finest grid.
+    origin: Point,
+    /// The leaf's width on the finest grid.
+    size: i64,
+}
+
+impl LeafPoints {
+    fn new(leaf: &Leaf, finest: u32) -> Self {
+        let size = 1i64 << (finest - leaf.depth);
+        LeafPoints {
+            origin: leaf.cell.map(|c| c * size),
+            size,
+        }
     }
+
+    /// The point of `slot`.
+    #[inline]
+    fn at(&self, slot: usize) -> Point {
+        let (size, half) = (self.size, self.size / 2);
+        let corner = |k: usize| -> Point {
+            std::array::from_fn(|a| self.origin[a] + ((k >> a) & 1) as i64 * size)
+        };
+        match slot {
+            0..8 => corner(slot),
+            8..20 => {
+                let e = slot - 8;
+                let mut m = corner(edge_corners(e).0);
+                m[e / 4] += half;
+                m
+            }
+            _ => {
+                let (axis, side) = ((slot - 20) / 2, (slot - 20) % 2);
+                std::array::from_fn(|a| {
+                    self.origin[a] + if a == axis { side as i64 * size } else { half }
+                })
+            }
+        }
+    }
+}
+
+/// The slots a leaf uses: its corners, the midpoints of its cut edges and the centres of its
+/// faces towards finer leaves (`split`: [`split_slots`] of the leaf's block).
+fn used_slots(split: u32) -> u32 {
+    let mut used = 0xFF;
     for e in 0..12 {
-        let (a, _) = edge_corners(e);
         if edge_is_cut(split, e) {
-            let mut m = points[a];
-            m[e / 4] += half;
-            points[edge_slot(e) as usize] = m;
             used |= 1 << edge_slot(e);
         }
     }
     for f in 0..6 {
         if face_is_split(split, f) {
-            let (axis, side) = (f / 2, f % 2);
-            let c: Point = std::array::from_fn(|a| {
-                leaf.cell[a] * size + if a == axis { side as i64 * size } else { half }
-            });
-            points[centre_slot(f) as usize] = c;
             used |= 1 << centre_slot(f);
         }
     }
-    (points, used)
+    used
 }
 
 /// One minimal face: its boundary points (slots of the leaf's points), counter-clockwise seen
@@ -401,7 +429,7 @@ struct MinimalFace {
 }
 
 /// The minimal faces of a leaf (at most 24: four quarters on each face), and their number,
-/// from the slots its points use (see [`leaf_points`]): a cut edge has its midpoint, a face
+/// from the slots its points use (see [`used_slots`]): a cut edge has its midpoint, a face
 /// towards finer leaves its centre.
 fn minimal_faces(used: u32, cycles: &[[usize; 4]; 6]) -> ([MinimalFace; 24], usize) {
     let in_use = |slot: u8| used >> slot & 1 == 1;
@@ -520,7 +548,7 @@ impl Loops {
 /// centre of a face with cut edges, needed only when such a face has more than two crossings.
 fn leaf_loops(
     faces: &[MinimalFace],
-    points: &[Point; SLOTS],
+    points: &LeafPoints,
     values: &[f64; SLOTS],
     centre_value: &impl Fn(Point) -> f64,
     out: &mut Loops,
@@ -557,7 +585,7 @@ fn leaf_loops(
                     q >= p
                 }
             } else {
-                let corners: Vec<Point> = (0..len).map(|k| points[slot(k) as usize]).collect();
+                let corners: Vec<Point> = (0..len).map(|k| points.at(slot(k) as usize)).collect();
                 centre_value(face_centre(&corners)) >= 0.0
             };
         let edge = |i: usize| {
@@ -578,7 +606,7 @@ fn leaf_loops(
     let segments = &segments[..count];
     let same = |x: (u8, u8), y: (u8, u8)| x == y || x == (y.1, y.0);
     let crossing = |(i, j): (u8, u8), faces: u8| {
-        let (a, b) = (points[i as usize], points[j as usize]);
+        let (a, b) = (points.at(i as usize), points.at(j as usize));
         Crossing {
             key: edge_key(a, b),
             a,
@@ -662,12 +690,13 @@ pub(crate) fn extract_around_samples(
 
 /// Leaves planned and traced together (fixed, so the mesh does not depend on the thread count).
 ///
-/// A batch's plans (about 870 bytes a leaf: its block, 26 points, their values) are written
-/// once and read by four passes (the points to evaluate, their values, the loops, the
-/// numbering), so the batch is sized for them to stay in cache between the passes: 4096 leaves
-/// are about 3.5 MB. With 16,384 (14 MB) every pass read them from memory: on the Happy Buddha
-/// at depth 10 (degree 1) the extraction took 3.42 → 2.81 s on one thread and 2.00 → 1.65 s on
-/// two (medians of five), the bunny's 1.25 → 1.02 s; 2048 leaves did about as well as 4096.
+/// A batch's plans are written once and read by four passes (the points to evaluate, their
+/// values, the loops, the numbering), so the batch is sized for them to stay in cache between
+/// the passes. When a plan held its 26 points (870 bytes a leaf), 4096 leaves were 3.5 MB and
+/// 16,384 (14 MB) had every pass read them from memory: on the Happy Buddha at depth 10
+/// (degree 1) the extraction took 3.42 → 2.81 s on one thread and 2.00 → 1.65 s on two
+/// (medians of five), the bunny's 1.25 → 1.02 s; 2048 leaves did about as well as 4096. The
+/// points are now computed where read ([`LeafPoints`]): 248 bytes a leaf, 1 MB a batch.
 /// The mesh is the same but for the order of its vertices, which are numbered batch by batch.
 const WAVE_BATCH: usize = 4096;
 
@@ -813,7 +842,7 @@ pub(crate) fn extract_traced(
             .map(|leaf| {
                 let (block, nodes) = leaves.block(leaf);
                 let split = split_slots(&block);
-                let (points, used) = leaf_points(leaf, split, finest);
+                let used = used_slots(split);
                 let corners = match &nodes {
                     Some(nodes) => chi.corner_values(leaf.depth, nodes, split),
                     None => [None; 8],
@@ -826,7 +855,7 @@ pub(crate) fn extract_traced(
                         _ => looked_up |= 1 << i,
                     }
                 }
-                (block, points, used, values, looked_up)
+                (block, used, values, looked_up)
             })
             .collect_into_vec(plans);
     };
@@ -846,11 +875,12 @@ pub(crate) fn extract_traced(
         }
         let mut needed: Vec<u64> = plans
             .par_iter()
-            .flat_map_iter(|(_, points, _, _, looked_up)| {
-                // By reference: a plan's points are 624 bytes, copied per leaf otherwise.
+            .zip(batch)
+            .flat_map_iter(|(&(_, _, _, looked_up), leaf)| {
+                let points = LeafPoints::new(leaf, finest);
                 (0..SLOTS)
                     .filter(move |&i| looked_up >> i & 1 == 1)
-                    .map(move |i| pack(points[i]))
+                    .map(move |i| pack(points.at(i)))
             })
             .filter(|k| !values.contains_key(k))
             .collect();
@@ -861,9 +891,11 @@ pub(crate) fn extract_traced(
         watch.check()?;
         plans
             .par_iter_mut()
-            .for_each(|(_, points, _, vals, looked_up)| {
+            .zip(batch)
+            .for_each(|((_, _, vals, looked_up), leaf)| {
+                let points = LeafPoints::new(leaf, finest);
                 for i in (0..SLOTS).filter(|&i| *looked_up >> i & 1 == 1) {
-                    vals[i] = values[&pack(points[i])];
+                    vals[i] = values[&pack(points.at(i))];
                 }
             });
 
@@ -872,18 +904,22 @@ pub(crate) fn extract_traced(
         // are needed.
         let crossed: Vec<Loops> = plans
             .par_chunks(LOOP_RUN)
-            .map(|run| {
+            .zip(batch.par_chunks(LOOP_RUN))
+            .map(|(run, leaves)| {
                 let mut out = Loops::default();
-                for (_, points, used, vals, _) in run {
+                for ((_, used, vals, _), leaf) in run.iter().zip(leaves) {
                     let used = *used;
-                    let (mut outside, mut inside) = (false, false);
-                    for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                        outside |= vals[i] >= 0.0;
-                        inside |= vals[i] < 0.0;
-                    }
+                    // The used points' signs as a mask, without a branch per point (the
+                    // signs follow the surface, which a branch predictor cannot).
+                    let non_negative = vals
+                        .iter()
+                        .enumerate()
+                        .fold(0u32, |m, (i, &v)| m | ((v >= 0.0) as u32) << i);
+                    let (outside, inside) = (non_negative & used != 0, !non_negative & used != 0);
                     if outside && inside {
                         let (faces, count) = minimal_faces(used, &cycles);
-                        leaf_loops(&faces[..count], points, vals, &evaluate, &mut out);
+                        let points = LeafPoints::new(leaf, finest);
+                        leaf_loops(&faces[..count], &points, vals, &evaluate, &mut out);
                     }
                     out.end_leaf();
                 }
@@ -930,7 +966,7 @@ pub(crate) fn extract_traced(
             let leaf_crossings = crossed
                 .iter()
                 .flat_map(|run| (0..run.leaves()).map(move |k| run.crossings_of_leaf(k)));
-            for ((leaf, (block, _, _, _, _)), crossings) in
+            for ((leaf, (block, _, _, _)), crossings) in
                 batch.iter().zip(&plans).zip(leaf_crossings)
             {
                 around_leaf.clear();
@@ -1575,7 +1611,7 @@ mod tests {
     /// of the leaf.
     fn assert_loops_cover_crossed_edges(
         used: u32,
-        points: &[Point; SLOTS],
+        points: &LeafPoints,
         vals: &[f64; SLOTS],
         centre_value: &impl Fn(Point) -> f64,
     ) -> Vec<Vec<Crossing>> {
@@ -1592,7 +1628,7 @@ mod tests {
             for k in 0..len {
                 let (i, j) = (f.slots[k] as usize, f.slots[(k + 1) % len] as usize);
                 if (vals[i] >= 0.0) != (vals[j] >= 0.0) {
-                    expected.push(edge_key(points[i], points[j]));
+                    expected.push(edge_key(points.at(i), points.at(j)));
                 }
             }
         }
@@ -1614,13 +1650,42 @@ mod tests {
         loops
     }
 
+    /// Proves: a leaf's points by slot are its corners (corner k at offset k's bits × its
+    /// width), the midpoints of its edges and the centres of its faces, at several depths
+    /// below the finest and places in the cube.
+    #[test]
+    fn a_leafs_points_are_its_corners_edge_midpoints_and_face_centres() {
+        let cycles = face_cycles();
+        for (depth, cell) in [(0, [0, 0, 0]), (2, [1, 3, 0]), (4, [7, 2, 15])] {
+            let leaf = Leaf { depth, cell };
+            let points = LeafPoints::new(&leaf, 5);
+            let size = 1i64 << (5 - depth);
+            for k in 0..8 {
+                let want: Point = std::array::from_fn(|a| (cell[a] + (k >> a & 1) as i64) * size);
+                assert_eq!(points.at(k), want, "corner {k}");
+            }
+            let mean = |corners: &[usize]| -> Point {
+                std::array::from_fn(|a| {
+                    corners.iter().map(|&k| points.at(k)[a]).sum::<i64>() / corners.len() as i64
+                })
+            };
+            for e in 0..12 {
+                let (a, b) = edge_corners(e);
+                assert_eq!(points.at(edge_slot(e) as usize), mean(&[a, b]), "edge {e}");
+            }
+            for (f, cycle) in cycles.iter().enumerate() {
+                assert_eq!(points.at(centre_slot(f) as usize), mean(cycle), "face {f}");
+            }
+        }
+    }
+
     /// The unit cube as a leaf among same-size leaves: its eight corners only.
-    fn unit_leaf() -> (u32, [Point; SLOTS]) {
+    fn unit_leaf() -> (u32, LeafPoints) {
         let leaf = Leaf {
             depth: 0,
             cell: [0, 0, 0],
         };
-        let (points, used) = leaf_points(&leaf, 0, 0);
+        let (points, used) = (LeafPoints::new(&leaf, 0), used_slots(0));
         assert_eq!(used, 0xFF);
         (used, points)
     }
@@ -1692,7 +1757,7 @@ mod tests {
             });
             let split = split_slots(&block);
             split_faces += (0..6).filter(|&f| face_is_split(split, f)).count();
-            let (points, used) = leaf_points(&leaf, split, 3);
+            let (points, used) = (LeafPoints::new(&leaf, 3), used_slots(split));
             let seed = lcg(&mut state);
             let random = |p: Point| {
                 let h = pack(p).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ seed;
@@ -1700,7 +1765,7 @@ mod tests {
             };
             let mut vals = [0.0; SLOTS];
             for i in (0..SLOTS).filter(|&i| used >> i & 1 == 1) {
-                vals[i] = random(points[i]);
+                vals[i] = random(points.at(i));
             }
             assert_loops_cover_crossed_edges(used, &points, &vals, &random);
         }

@@ -134,11 +134,9 @@ fn splat_depth(
             })
         })
     };
-    // Each brick's nodes are consecutive in K_d, so a task per brick owns its part of each
-    // component. A brick's samples (those of the cells within one node of it, in a window) are
-    // scattered to its nodes slot by slot: node o receives, for each of `cell_slots` in order,
-    // the samples of the cell at that offset in order, the sequence a per-node gather would
-    // add, so the sums are the same bit for bit, without a look-up per node and slot.
+    // A task per brick (its nodes are consecutive in K_d, so it owns its part of each
+    // component): the samples of its window scattered to its positions ([`BrickSums::scatter`],
+    // in the order a per-node gather adds them), then its core nodes take their sums.
     let index = level.bricks();
     index
         .parts(field.each_mut().map(|component| &mut component[..]))

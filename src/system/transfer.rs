@@ -291,8 +291,8 @@ fn prolong_brick(
     scale: f64,
 ) {
     let weights = [degree.refine(0), degree.refine(1)];
-    let own = |l: usize| (l >> 1) + 2;
-    let partner = |l: usize| {
+    let own_at = |l: usize| (l >> 1) + 2;
+    let partner_at = |l: usize| {
         if l & 1 == 0 {
             (l >> 1) + 1
         } else {
@@ -305,7 +305,7 @@ fn prolong_brick(
         let line = &coarse[8 * y + 64 * z..8 * y + 64 * z + 8];
         *row = std::array::from_fn(|x| {
             let [own_w, other_w] = weights[x & 1];
-            own_w * line[own(x)] + other_w * line[partner(x)]
+            own_w * line[own_at(x)] + other_w * line[partner_at(x)]
         });
     }
     // Window planes z in 1..7 and brick rows y, stored at y + 8 (z − 1).
@@ -313,8 +313,8 @@ fn prolong_brick(
         for y in 0..8 {
             let [own_w, other_w] = weights[y & 1];
             let (own, other) = (
-                &along_x[(own(y) - 1) + 6 * z],
-                &along_x[(partner(y) - 1) + 6 * z],
+                &along_x[(own_at(y) - 1) + 6 * z],
+                &along_x[(partner_at(y) - 1) + 6 * z],
             );
             along_y[y + 8 * z] = std::array::from_fn(|x| own_w * own[x] + other_w * other[x]);
         }
@@ -323,8 +323,8 @@ fn prolong_brick(
         let [own_w, other_w] = weights[z & 1];
         for y in 0..8 {
             let (own, other) = (
-                &along_y[y + 8 * (own(z) - 1)],
-                &along_y[y + 8 * (partner(z) - 1)],
+                &along_y[y + 8 * (own_at(z) - 1)],
+                &along_y[y + 8 * (partner_at(z) - 1)],
             );
             let row = &mut out[8 * y + 64 * z..8 * y + 64 * z + 8];
             for (x, o) in row.iter_mut().enumerate() {
