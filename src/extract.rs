@@ -909,8 +909,8 @@ pub(crate) fn extract_traced(
                 let mut out = Loops::default();
                 for ((_, used, vals, _), leaf) in run.iter().zip(leaves) {
                     let used = *used;
-                    // The used points' signs as a mask, without a branch per point (the
-                    // signs follow the surface, which a branch predictor cannot).
+                    // The points' signs as a mask (one pass, no branch per point), then
+                    // whether the used ones have both.
                     let non_negative = vals
                         .iter()
                         .enumerate()
