@@ -38,6 +38,9 @@
 //! reconstruction error, 3 when the reconstruction needs more memory than `--max-memory` (or
 //! the system) allows.
 
+#[cfg(target_os = "linux")]
+pub mod allocator;
+
 use std::ffi::OsString;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -696,7 +699,6 @@ enum Failure {
 
 /// The program `psr`: its arguments from the command line, its exit status.
 pub fn main() -> ExitCode {
-    keep_large_blocks_out_of_the_heap();
     let args = Args::parse();
     exit_status(run(&args, &psr::Alone, &mut |_| {}), true)
 }
@@ -708,7 +710,6 @@ pub fn main() -> ExitCode {
 /// same exit status. `on_stage` hears each stage of the run as it begins on this member (for
 /// `psr-mpi --verbose`'s account of each stage).
 pub fn main_in_team(team: &dyn psr::Team, on_stage: &mut dyn FnMut(Stage)) -> ExitCode {
-    keep_large_blocks_out_of_the_heap();
     let mut argv: Vec<OsString> = std::env::args_os().collect();
     if !argv.iter().any(|a| a == "--out-of-core") {
         argv.insert(1.min(argv.len()), "--out-of-core".into());
@@ -744,22 +745,6 @@ fn exit_status(result: Result<(), Failure>, speaks: bool) -> ExitCode {
         eprintln!("psr: error: {message}");
     }
     ExitCode::from(code)
-}
-
-/// glibc's malloc serves a block from its heap instead of a fresh mapping once a block as large
-/// has been freed (the mmap threshold rises up to 32 MiB), and a freed heap block below live ones
-/// stays resident. psr frees and allocates per-depth vectors of 1–32 MiB all the time, so by
-/// default about 150 MiB of its peak (bunny, depth 10) is such holes. A fixed threshold of 1 MiB
-/// maps every large vector and unmaps it when freed, for about 2% more time. This is a setting
-/// of this program's process; the library leaves the host's allocator alone (hosts on glibc can
-/// do the same with `mallopt` or `MALLOC_MMAP_THRESHOLD_=1048576`).
-fn keep_large_blocks_out_of_the_heap() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only changes a tunable of glibc's allocator; called before any thread
-    // starts.
-    unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
-    }
 }
 
 /// Fills or re-orients `cloud`'s normals as `--normals` asks, reporting to `progress`, and says
@@ -844,6 +829,12 @@ fn oriented_normals(
 }
 
 fn run(args: &Args, team: &dyn psr::Team, on_stage: &mut dyn FnMut(Stage)) -> Result<(), Failure> {
+    // Under a memory budget, freed pages are given back at once: the budget is planned from
+    // psr's own accounting, which knows nothing of pages kept for reuse.
+    #[cfg(target_os = "linux")]
+    if args.max_memory.is_some_and(|bytes| bytes > 0) {
+        allocator::keep_at_most(0);
+    }
     let params = args.params();
     params.validate().map_err(|e| match &e {
         psr::Error::InvalidParameter { name, .. } => {

@@ -168,6 +168,10 @@ fn cpu_seconds() -> f64 {
     seconds(usage.ru_utime) + seconds(usage.ru_stime)
 }
 
+// Large blocks' pages reused from one stage to the next (src/allocator.rs).
+#[global_allocator]
+static ALLOCATOR: psr_cli::allocator::ReusingAllocator = psr_cli::allocator::ReusingAllocator;
+
 fn main() -> ExitCode {
     let Some(universe) = mpi::initialize() else {
         eprintln!("psr-mpi: error: MPI could not be initialised (start it with mpirun or srun)");
