@@ -169,6 +169,7 @@ fn cpu_seconds() -> f64 {
 }
 
 // Large blocks' pages reused from one stage to the next (src/allocator.rs).
+#[cfg(target_os = "linux")]
 #[global_allocator]
 static ALLOCATOR: psr_cli::allocator::ReusingAllocator = psr_cli::allocator::ReusingAllocator;
 
