@@ -86,21 +86,28 @@ impl CoreBricks {
         input: &[f64],
         window: &mut Vec<[f64; WINDOW]>,
     ) {
+        self.prefetch(level, cb + PREFETCH_AHEAD, input);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("popcnt")
+        {
+            // SAFETY: the CPU has the features the function is compiled for.
+            unsafe { self.gather_values_avx512(level, cb, input, window) };
+            return;
+        }
+        self.gather(level, cb, &|n| [input[n]], std::array::from_mut(window));
+    }
+
+    /// [`CoreBricks::prefetch_window`], with the POPCNT instruction where the CPU has it
+    /// (checked at run time on x86-64).
+    fn prefetch(&self, level: &Level, cb: usize, input: &[f64]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("popcnt") {
             // SAFETY: the CPU has the feature the function is compiled for.
-            unsafe { self.prefetch_window_popcnt(level, cb + PREFETCH_AHEAD, input) };
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU has the features the function is compiled for.
-                unsafe { self.gather_values_avx512(level, cb, input, window) };
-                return;
-            }
-        } else {
-            self.prefetch_window(level, cb + PREFETCH_AHEAD, input);
+            unsafe { self.prefetch_window_popcnt(level, cb, input) };
+            return;
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        self.prefetch_window(level, cb + PREFETCH_AHEAD, input);
-        self.gather(level, cb, &|n| [input[n]], std::array::from_mut(window));
+        self.prefetch_window(level, cb, input);
     }
 
     /// [`CoreBricks::prefetch_window`] with the POPCNT instruction for its counts (three per
