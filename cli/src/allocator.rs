@@ -149,26 +149,29 @@ fn unmap(address: usize, length: usize) {
 }
 
 /// `length` bytes of pages for a large block, and how many of its first bytes hold old data
-/// (the rest is zero). From the kept pages when they can: the front of the shortest kept range
-/// long enough, or else a new mapping into which the longest kept ranges are moved side by
-/// side (`mremap` moves page tables, not data; the kernel fills the rest with zeros).
+/// (the rest is zero). From the kept pages when they can: the shortest kept range long enough
+/// for the whole block, or else the longest ranges one after another, the front of each taken
+/// and the rest kept. One range is the block itself; several are moved side by side into a new
+/// mapping (`mremap` moves page tables, not data; the kernel fills what they do not cover with
+/// zeros).
 fn map(length: usize) -> Option<(*mut u8, usize)> {
     let mut pieces = [(0usize, 0usize); SLOTS];
     let mut count = 0;
+    let mut gathered = 0;
     {
         let mut kept = lock();
-        if let Some(slot) = kept.shortest_fitting(length) {
-            let (address, had) = kept.remove(slot);
-            if had > length {
-                kept.keep(address + length, had - length);
-            }
-            return Some((address as *mut u8, length));
-        }
-        let mut gathered = 0;
         while gathered < length {
-            let Some(slot) = kept.longest() else { break };
+            let wanted = length - gathered;
+            let whole = if count == 0 {
+                kept.shortest_fitting(length)
+            } else {
+                None
+            };
+            let Some(slot) = whole.or_else(|| kept.longest()) else {
+                break;
+            };
             let (address, had) = kept.remove(slot);
-            let used = had.min(length - gathered);
+            let used = had.min(wanted);
             if used < had {
                 kept.keep(address + used, had - used);
             }
@@ -176,6 +179,9 @@ fn map(length: usize) -> Option<(*mut u8, usize)> {
             count += 1;
             gathered += used;
         }
+    }
+    if count == 1 && gathered == length {
+        return Some((pieces[0].0 as *mut u8, length));
     }
     // SAFETY: an anonymous private mapping at an address of the kernel's choice.
     let fresh = unsafe {
@@ -238,16 +244,17 @@ fn clear(block: *mut u8, length: usize) {
                 resident.as_mut_ptr(),
             )
         };
+        // Where mincore fails, every page counts as resident (written, so zero either way).
+        let is_resident = |j: usize| asked != 0 || resident[j] & 1 != 0;
         let mut k = 0;
         while k < count {
-            let is_resident = asked != 0 || resident[k] & 1 != 0;
             let run = (k..count)
-                .take_while(|&j| (asked != 0 || resident[j] & 1 != 0) == is_resident)
+                .take_while(|&j| is_resident(j) == is_resident(k))
                 .count();
             // SAFETY: the run's pages lie in the block, which no one else refers to.
             unsafe {
                 let start = block.add((first + k) * page);
-                if is_resident {
+                if is_resident(k) {
                     std::ptr::write_bytes(start, 0, run * page);
                 } else {
                     libc::madvise(start.cast(), run * page, libc::MADV_DONTNEED);
