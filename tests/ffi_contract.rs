@@ -4151,11 +4151,27 @@ fn a_memory_limit_fails_typed_and_leaves_the_handle_usable() {
 // PLY files: psr_ply_read and its views, psr_mesh_write_ply
 // ---------------------------------------------------------------------------------------------
 
-/// A path in a fresh directory of its own under the system's temporary directory.
-fn scratch_path(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("psr-ffi-ply-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A fresh, empty directory of its own under the system's temporary directory, removed with
+/// the value (so that a test run leaves nothing behind).
+struct ScratchDir(std::path::PathBuf);
+
+impl ScratchDir {
+    fn new(test: &str) -> ScratchDir {
+        let dir = std::env::temp_dir().join(format!("psr-ffi-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        ScratchDir(dir)
+    }
+
+    fn path(&self, name: &str) -> std::path::PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 fn c_path(path: &std::path::Path) -> std::ffi::CString {
@@ -4239,7 +4255,8 @@ fn ply_read_refuses_bad_arguments_and_files_with_a_message() {
         psr_status::NullArgument
     );
 
-    let missing = scratch_path("missing.ply");
+    let dir = ScratchDir::new("ply-read");
+    let missing = dir.path("missing.ply");
     let (status, _, message) = read_ply(c_path(&missing).as_ptr());
     assert_eq!(status, psr_status::IoError);
     assert!(
@@ -4247,7 +4264,7 @@ fn ply_read_refuses_bad_arguments_and_files_with_a_message() {
         "{message}"
     );
 
-    let bad = scratch_path("bad.ply");
+    let bad = dir.path("bad.ply");
     let cases: [(&[u8], &str); 4] = [
         (b"solid cube\n", "not a PLY file"),
         (
@@ -4303,7 +4320,8 @@ fn mesh_write_ply_writes_what_the_program_writes_and_reads_back() {
     mesh.colors = Some(psr::Colors::Rgba(vec![[0.2, 0.4, 0.6, 1.0]; 4]));
     mesh.channels = vec![psr::Channel::new("time", vec![9.0, 8.0, 7.0, 6.0])];
     let m = debug_mesh_new(mesh.clone());
-    let path = scratch_path("mesh.ply");
+    let dir = ScratchDir::new("ply-write");
+    let path = dir.path("mesh.ply");
     let cpath = c_path(&path);
     for (flags, format) in [
         (0, psr::ply::PlyFormat::BinaryLittleEndian),
@@ -4403,7 +4421,7 @@ fn mesh_write_ply_writes_what_the_program_writes_and_reads_back() {
     let (status, message) = write(m, cpath.as_ptr(), 1 << 8);
     assert_eq!(status, psr_status::InvalidArgument);
     assert!(message.contains("0x100"), "{message}");
-    let nowhere = scratch_path("x").join("no/such/dir/mesh.ply");
+    let nowhere = dir.path("no/such/dir/mesh.ply");
     let (status, message) = write(m, c_path(&nowhere).as_ptr(), 0);
     assert_eq!(status, psr_status::IoError);
     assert!(message.contains("no/such/dir"), "{message}");
@@ -4414,21 +4432,19 @@ fn mesh_write_ply_writes_what_the_program_writes_and_reads_back() {
 // Out of core: psr_reconstructor_solve_file_out_of_core
 // ---------------------------------------------------------------------------------------------
 
-/// A fresh, empty directory of its own under the system's temporary directory, removed with
-/// the value; `temp` is a subdirectory for the run's temporary directory, so that what the run
-/// leaves there can be listed.
-struct OutOfCoreDir(std::path::PathBuf);
+/// A [`ScratchDir`] with a subdirectory `temp` for the run's temporary directory, so that what
+/// the run leaves there can be listed.
+struct OutOfCoreDir(ScratchDir);
 
 impl OutOfCoreDir {
     fn new(test: &str) -> OutOfCoreDir {
-        let dir = std::env::temp_dir().join(format!("psr-ffi-ooc-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(dir.join("temp")).unwrap();
+        let dir = ScratchDir::new(&format!("ooc-{test}"));
+        std::fs::create_dir_all(dir.path("temp")).unwrap();
         OutOfCoreDir(dir)
     }
 
     fn path(&self, name: &str) -> std::path::PathBuf {
-        self.0.join(name)
+        self.0.path(name)
     }
 
     /// What the runs left under `temp`.
@@ -4437,12 +4453,6 @@ impl OutOfCoreDir {
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect()
-    }
-}
-
-impl Drop for OutOfCoreDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

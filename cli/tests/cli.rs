@@ -1461,6 +1461,7 @@ fn max_memory_refuses_with_exit_3_and_estimate_memory_prints_a_figure() {
     let bytes: u64 = stdout.split_whitespace().next().unwrap().parse().unwrap();
     assert!(bytes > 1 << 20 && stdout.contains("depth 8"), "{stdout}");
     assert!(!estimate.exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A binary PLY of `n` oriented points on the unit sphere (a golden-angle spiral).
