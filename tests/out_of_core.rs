@@ -346,6 +346,49 @@ fn a_budget_too_small_is_refused_up_front_with_the_smallest_that_works() {
     assert!(dir.entries("tmp").is_empty());
 }
 
+/// Proves a budget that cuts the cloud thin chooses a finer base depth than the default, whose
+/// thinner padding cuts fewer slabs: a sphere at depth 8 (default base 5, walls on depth 7)
+/// under half as much again as the least budget the default base fits runs at base 6 in fewer
+/// slabs than `--base-depth 5` needs for the same budget.
+#[test]
+fn a_thin_budget_takes_a_finer_base_in_fewer_slabs() {
+    let dir = TestDir::new("finer-base");
+    // Enough samples to reach depth 8, the walls of base 6.
+    let (positions, normals) = sample_sphere(100_000, 1.0, [0.0; 3], 4);
+    let input = dir.path("sphere.ply");
+    write_cloud(&input, &positions, &normals);
+    std::fs::create_dir(dir.path("tmp")).expect("a temporary parent");
+    let options = OutOfCore::default().with_temp_dir(Some(dir.path("tmp")));
+    let params = Params::default().with_depth(8).with_threads(2);
+    let run = |budget: u64, base_depth: Option<u32>| {
+        psr::reconstruct_out_of_core(
+            &input,
+            &dir.path("mesh.ply"),
+            &params.clone().with_max_memory(Some(budget)),
+            &options.clone().with_base_depth(base_depth),
+        )
+    };
+    let least = match run(1 << 20, None) {
+        Err(OutOfCoreError::Reconstruction(psr::Error::OutOfMemory {
+            enough: Some(enough),
+            ..
+        })) => enough,
+        other => panic!("expected OutOfMemory with the smallest budget, got {other:?}"),
+    };
+    let budget = least + least / 2;
+    let chosen = run(budget, None).expect("the budget fits");
+    assert_eq!(chosen.base_depth, 6, "{chosen:?}");
+    let at_default = run(budget, Some(5)).expect("the default base fits the budget");
+    assert_eq!(at_default.base_depth, 5);
+    assert!(
+        at_default.slabs > chosen.slabs,
+        "{} slabs at base depth 5, {} at 6",
+        at_default.slabs,
+        chosen.slabs
+    );
+    assert!(dir.entries("tmp").is_empty());
+}
+
 /// Proves a cancel from the progress callback, at every pass, ends the run with `Cancelled` and
 /// leaves no temporary file; and that a bad point is refused with its index in the file.
 #[test]

@@ -403,8 +403,10 @@ struct Args {
 
     /// With --out-of-core: the depth up to which the system is solved once for the whole
     /// cloud (at least --full-depth, at most the depth − 2; finer depths are solved slab by
-    /// slab) [default: depth − 3, at most 7]. PoissonRecon: --baseDepth (of its distributed
-    /// programs).
+    /// slab, each with 24 columns of this depth + 2 of padding on each side) [default: depth
+    /// − 3, at most 7; with --max-memory and no --slabs, from there up to the depth − 2, the
+    /// one whose cut leaves each rank the least work, a finer one for thinner slabs].
+    /// PoissonRecon: --baseDepth (of its distributed programs).
     #[arg(long, value_name = "D", requires = "out_of_core")]
     base_depth: Option<u32>,
 
@@ -1137,10 +1139,12 @@ fn run_out_of_core(
             );
         }
         eprintln!(
-            "psr: {} points, depth {}, {} slabs: {} vertices, {} triangles in {:.2}s{}",
+            "psr: {} points, depth {}, {} slabs, base depth {}: {} vertices, {} triangles in \
+             {:.2}s{}",
             report.points,
             report.depth,
             report.slabs,
+            report.base_depth,
             report.vertices,
             report.triangles,
             report.seconds,

@@ -141,7 +141,11 @@ fn same_mesh_from_one_to_four_ranks_with(
             }
         }
         // Rank 0 reports, once.
-        assert_eq!(stderr.matches(" slabs: ").count(), 1, "{name}: {stderr}");
+        assert_eq!(
+            stderr.matches(" slabs, base depth ").count(),
+            1,
+            "{name}: {stderr}"
+        );
         if verbose && extra.contains(&"--screening-follows-noise") {
             assert_eq!(
                 stderr.matches("(the samples' noise: ").count(),

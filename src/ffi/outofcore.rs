@@ -63,9 +63,11 @@ pub struct psr_out_of_core_noise {
 /// report as the stages they correspond to: reading PSR_STAGE_POINTS, the base PSR_STAGE_SYSTEM,
 /// the slabs PSR_STAGE_SOLVE, seams and isovalue PSR_STAGE_ISOVALUE, the slabs' meshes
 /// PSR_STAGE_EXTRACT, the file PSR_STAGE_MESH). slabs 0 chooses the fewest slabs whose largest
-/// fits r's memory limit (psr_reconstructor_set_max_memory; then one must be set); a limit no
-/// cut fits is refused with PSR_STATUS_OUT_OF_MEMORY before the slabs are solved, the message
-/// giving the smallest workable limit. use_confidence non-zero weighs the points by their
+/// fits r's memory limit (psr_reconstructor_set_max_memory; then one must be set), and with
+/// them the depth up to which the whole cloud is solved at once (a finer one for a limit that
+/// cuts the cloud thin, so that each slab's padding is thinner: docs/out-of-core.md); a limit
+/// no cut fits is refused with PSR_STATUS_OUT_OF_MEMORY before the slabs are solved, the
+/// message giving the smallest workable limit. use_confidence non-zero weighs the points by their
 /// confidence (or value) property. The mesh is the in-memory psr_reconstructor_solve's to within
 /// the solver's tolerance, not bit for bit; colours and channels are not carried and vertex
 /// normals are refused (PSR_STATUS_INVALID_PARAMETER). report may be NULL.

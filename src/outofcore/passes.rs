@@ -38,15 +38,16 @@ use crate::system::{
 };
 use crate::{Params, Result};
 use glam::{DVec3, DVec4};
-use std::ops::Range;
+use std::ops::{Range, RangeInclusive};
 use std::path::{Path, PathBuf};
 
 /// How the run is cut: the base depth, the slabs asked for, their padding.
 #[derive(Debug, Clone)]
 pub(crate) struct Plan {
     /// B: depths 0..=B are solved once for the whole cloud (at least the full depth, at most
-    /// the depth − 2); `None`: the depth − 3, at most 7 (unless the full depth is more), and
-    /// lower when the samples do not reach two depths above it.
+    /// the depth − 2); `None`: the depth − 3, at most 7 (unless the full depth is more), or
+    /// under a budget the one [`cut`] chooses from there up to the depth − 2, and lower when
+    /// the samples do not reach two depths above it.
     pub(crate) base_depth: Option<u32>,
     /// How many slabs.
     pub(crate) slabs: SlabCount,
@@ -106,85 +107,216 @@ fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
     all
 }
 
-/// The fewest slabs for `budget` bytes (see [`SlabCount::Within`]), from the points' column
-/// counts and the surface's (`surface_by_column`, measured at `kernel_depth`); or, when no
-/// number of slabs fits, the smallest budget that any does (the most slabs' need).
-///
-/// A slab's need is the memory accounting's (`memory.rs`) for its points with its padding and
-/// for its tree: the base's depths (0..=`base_depth`, shared by every slab's tree) predicted
-/// for the whole cloud and the finer depths for the slab's points and its part of the surface
-/// ([`crate::memory::nodes_of_measured_surface`]): up to the wall depth over its padding,
-/// finer over its graded padding's band at each depth. Every member also holds `shared` bytes
-/// throughout (the whole cloud's density field, and the noise estimate's fits when the
-/// screening follows the noise), and beside them, while pass A prepares the
-/// slabs, the whole cloud's normals summed over the `kernel_slots` slots of the kernel depth
-/// (dropped before any slab's tree exists): a slab needs the larger of its solve's footprint
-/// and its points' with those sums (`Footprint::reading_density` without the field).
-#[allow(clippy::too_many_arguments)]
-fn slabs_within(
-    budget: u64,
-    counts: &[u64],
-    surface: &[f64],
+/// What the memory accounting (`memory.rs`) predicts for the slabs of a cut at one base depth,
+/// from the points' column counts and the surface's (`surface_by_column`, measured at
+/// `kernel_depth`), both over the columns of the wall depth, the base depth + 2.
+struct SlabModel<'a> {
+    counts: &'a [u64],
+    surface: &'a [f64],
     kernel_depth: u32,
-    layout_of: impl Fn(usize) -> SlabLayout,
     base_depth: u32,
-    params: &Params,
-    shared: u64,
-    kernel_slots: u64,
-) -> std::result::Result<usize, u64> {
-    let nodes = |points: u64, surface: f64| {
+    params: &'a Params,
+    /// The base's halo nodes per depth, predicted for the whole cloud (every slab's tree has
+    /// them up to the base depth).
+    base: Vec<u64>,
+}
+
+impl<'a> SlabModel<'a> {
+    fn new(
+        counts: &'a [u64],
+        surface: &'a [f64],
+        kernel_depth: u32,
+        base_depth: u32,
+        params: &'a Params,
+    ) -> Self {
+        let mut model = SlabModel {
+            counts,
+            surface,
+            kernel_depth,
+            base_depth,
+            params,
+            base: Vec::new(),
+        };
+        model.base = model.nodes(counts.iter().sum(), surface.iter().sum());
+        model
+    }
+
+    /// Halo nodes per depth for `points` points over `surface` nodes of the kernel depth.
+    fn nodes(&self, points: u64, surface: f64) -> Vec<u64> {
         crate::memory::nodes_of_measured_surface(
             points,
             surface,
-            kernel_depth,
-            params.depth,
-            params.effective_full_depth(),
+            self.kernel_depth,
+            self.params.depth,
+            self.params.effective_full_depth(),
         )
-    };
-    let base = nodes(counts.iter().sum(), surface.iter().sum());
-    let within = |columns: Range<u32>| {
-        let points = columns.clone().map(|c| counts[c as usize]).sum::<u64>();
-        (points, columns.map(|c| surface[c as usize]).sum::<f64>())
-    };
-    let need_of = |layout: &SlabLayout, k: usize| {
-        let (points, padded_surface) = within(layout.padded(k));
-        let mut tree = nodes(points, padded_surface);
-        tree[..=base_depth as usize].copy_from_slice(&base[..=base_depth as usize]);
-        // Finer than the walls, the graded padding's band ([`grade_padding`]), in the whole
-        // columns that hold it.
+    }
+
+    /// The points and the surface in `columns`.
+    fn within(&self, columns: Range<u32>) -> (u64, f64) {
+        let points = columns
+            .clone()
+            .map(|c| self.counts[c as usize])
+            .sum::<u64>();
+        (
+            points,
+            columns.map(|c| self.surface[c as usize]).sum::<f64>(),
+        )
+    }
+
+    /// Slab k's points with its padding, and its tree's halo nodes per depth: the base's up to
+    /// the base depth, then its padded columns' up to the wall depth and, finer, its graded
+    /// padding's band at each depth ([`grade_padding`]), in the whole columns that hold it.
+    fn slab(&self, layout: &SlabLayout, k: usize) -> (u64, Vec<u64>) {
+        let (points, padded_surface) = self.within(layout.padded(k));
+        let mut tree = self.nodes(points, padded_surface);
+        let b = self.base_depth as usize;
+        tree[..=b].copy_from_slice(&self.base[..=b]);
         let wall_depth = layout.wall_depth;
         for d in wall_depth + 1..tree.len() as u32 {
             let band = layout.band(k, d, FINE_PADDING_NODES);
             let shift = d - wall_depth;
             let first = (band.start >> shift).max(0) as u32;
-            let end = (((band.end - 1) >> shift) + 1).min(counts.len() as i64) as u32;
-            let (band_points, band_surface) = within(first..end);
-            tree[d as usize] = nodes(band_points, band_surface)[d as usize];
+            let end = (((band.end - 1) >> shift) + 1).min(self.counts.len() as i64) as u32;
+            let (band_points, band_surface) = self.within(first..end);
+            tree[d as usize] = self.nodes(band_points, band_surface)[d as usize];
         }
+        (points, tree)
+    }
+
+    /// The bytes slab k needs: the larger of its solve's footprint and its points' while pass
+    /// A holds the whole cloud's normals summed over `kernel_slots` slots
+    /// (`Footprint::reading_density` without the field), beside the `shared` bytes every
+    /// member holds throughout.
+    fn need(&self, layout: &SlabLayout, k: usize, shared: u64, kernel_slots: u64) -> u64 {
+        let (points, tree) = self.slab(layout, k);
         let solving = crate::memory::Footprint::with_nodes(points, 0, &tree, 0).peak();
         let preparing =
             crate::memory::Footprint::reading_density(points, 0, 0, kernel_slots).peak();
         solving.max(preparing).saturating_add(shared)
-    };
-    let mut least = u64::MAX;
-    let mut previous_len = 0;
-    for slabs in 1..=counts.len() {
+    }
+
+    /// The nodes one of `members` works on: its share of the slabs' trees finer than the base
+    /// (the nodes each slab splats, solves and extracts over, padding included), and the
+    /// whole base, which every member sums and solves itself.
+    fn member_work(&self, layout: &SlabLayout, members: usize) -> u64 {
+        let b = self.base_depth as usize;
+        let slabs: u64 = (0..layout.len())
+            .map(|k| self.slab(layout, k).1[b + 1..].iter().sum::<u64>())
+            .sum();
+        slabs.div_ceil(members.max(1) as u64) + self.base[..=b].iter().sum::<u64>()
+    }
+}
+
+/// The fewest slabs for `budget` bytes (see [`SlabCount::Within`]) by `model`'s needs
+/// ([`SlabModel::need`]: every member holds `shared` bytes throughout, the whole cloud's
+/// density field and the noise estimate's fits when the screening follows the noise, and the
+/// normals' sums over `kernel_slots` slots through pass A); or, when no number of slabs fits,
+/// the smallest budget that any does (the most slabs' need).
+///
+/// The count is found by doubling it until a cut fits, then halving the interval between the
+/// last that did not and the first that did: the need falls as slabs are added (up to the
+/// rounding of the walls to columns), and a search of every count, each over all its slabs,
+/// took seconds to refuse a budget at 4,096 columns, and minutes at 16,384.
+fn slabs_within(
+    budget: u64,
+    model: &SlabModel<'_>,
+    layout_of: impl Fn(usize) -> SlabLayout,
+    shared: u64,
+    kernel_slots: u64,
+) -> std::result::Result<usize, u64> {
+    let need_of = |slabs: usize| {
         let layout = layout_of(slabs);
-        if layout.len() == previous_len {
-            // No more slabs can be cut: every further count gives this layout.
-            break;
-        }
-        previous_len = layout.len();
-        let need = (0..layout.len())
-            .map(|k| need_of(&layout, k))
+        (0..layout.len())
+            .map(|k| model.need(&layout, k, shared, kernel_slots))
             .max()
-            .unwrap_or(0);
+            .unwrap_or(0)
+    };
+    let most = model.counts.len().max(1);
+    let mut least = u64::MAX;
+    // The last count that did not fit (0: none tried), then the first that did.
+    let mut too_few = 0;
+    let mut slabs = 1;
+    let fits = loop {
+        let need = need_of(slabs);
         if need <= budget {
-            return Ok(layout.len());
+            break slabs;
         }
         least = least.min(need);
+        if slabs == most {
+            return Err(least);
+        }
+        too_few = slabs;
+        slabs = (2 * slabs).min(most);
+    };
+    let mut fits = fits;
+    while fits - too_few > 1 {
+        let middle = too_few + (fits - too_few) / 2;
+        if need_of(middle) <= budget {
+            fits = middle;
+        } else {
+            too_few = middle;
+        }
     }
-    Err(least)
+    Ok(layout_of(fits).len())
+}
+
+/// The base depth among `base_depths` and the fewest slabs at it for `budget` bytes: at each
+/// base depth B the fewest slabs that fit ([`slabs_within`]), the walls on depth B + 2 with
+/// `padding_of(B + 2)` columns of padding and the surface `surface_of(B + 2)` over those
+/// columns; of those cuts (at least one slab per member of `members`), the one that leaves a
+/// member the fewest nodes to work on ([`SlabModel::member_work`]), the coarsest base of
+/// equals. `counted` is the points per column of depth `counted_depth`, at least
+/// `base_depths.end()` + 2. When no cut fits, the smallest budget that one at the coarsest base
+/// depth does: the finer ones need samples reaching two depths above them, which pass A finds
+/// out only after the cut (a run cut again at a coarser base must still fit what was named).
+#[allow(clippy::too_many_arguments)]
+fn base_and_slabs_within(
+    budget: u64,
+    counted: &[u64],
+    counted_depth: u32,
+    base_depths: RangeInclusive<u32>,
+    surface_of: impl Fn(u32) -> Vec<f64>,
+    padding_of: impl Fn(u32) -> u32,
+    kernel_depth: u32,
+    params: &Params,
+    members: usize,
+    shared: u64,
+    kernel_slots: u64,
+) -> std::result::Result<(u32, usize), u64> {
+    // (work, base depth, slabs) of the best cut so far.
+    let mut best: Option<(u64, u32, usize)> = None;
+    let mut least = None;
+    for base_depth in base_depths {
+        let wall_depth = base_depth + 2;
+        let counts = coarser_columns(counted, counted_depth - wall_depth);
+        let surface = surface_of(wall_depth);
+        let padding = padding_of(wall_depth);
+        let model = SlabModel::new(&counts, &surface, kernel_depth, base_depth, params);
+        let layout_of = |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
+        match slabs_within(budget, &model, layout_of, shared, kernel_slots) {
+            Ok(slabs) => {
+                let work = model.member_work(&layout_of(slabs.max(members)), members);
+                if best.is_none_or(|(least_work, ..)| work < least_work) {
+                    best = Some((work, base_depth, slabs));
+                }
+            }
+            Err(enough) => {
+                least.get_or_insert(enough);
+            }
+        }
+    }
+    best.map(|(_, base_depth, slabs)| (base_depth, slabs))
+        .ok_or(least.unwrap_or(u64::MAX))
+}
+
+/// The columns of depth `wall_depth − shift` counted from those of `wall_depth` (a point's
+/// column at a coarser depth is its finer column shifted: x·2^w is exact).
+fn coarser_columns(counts: &[u64], shift: u32) -> Vec<u64> {
+    counts
+        .chunks(1 << shift)
+        .map(|columns| columns.iter().sum())
+        .collect()
 }
 
 /// What the passes leave for the extraction.
@@ -562,6 +694,8 @@ fn load_solution_in(
 
 /// The cloud cut into slabs, binned, and pass A's sums: what a base depth decides.
 struct Cut {
+    /// B: depths 0..=B are solved once for the whole cloud; the walls lie on depth B + 2.
+    base_depth: u32,
     layout: SlabLayout,
     scratch: Scratch,
     files: SlabFiles,
@@ -668,11 +802,18 @@ impl SlabFiles {
     }
 }
 
-/// Counts the columns of depth `base_depth` + 2, cuts them into slabs (as `plan` says), bins
-/// the points, sums the density's kernel counts slab by slab, and runs pass A: each slab's own
-/// core sets up to the base depth, the finest depth, the screening totals. Every member counts
-/// and bins its part of the input (`part` of it, `part_count` points) and sums and prepares its
-/// own slabs.
+/// Chooses the base depth among `base_depths` and counts the columns of its depth + 2, cuts
+/// them into slabs (as `plan` says), bins the points, sums the density's kernel counts slab by
+/// slab, and runs pass A: each slab's own core sets up to the base depth, the finest depth, the
+/// screening totals. Every member counts and bins its part of the input (`part` of it,
+/// `part_count` points) and sums and prepares its own slabs.
+///
+/// Under a memory budget with more than one base depth to choose from, the cut of each is the
+/// fewest slabs that fit (at least one per member), and the base depth is the one whose cut
+/// leaves a member the fewest nodes to work on ([`SlabModel::member_work`]), the coarsest of
+/// equals. A finer base thins every slab's padding (24 columns of its depth + 2 on each side),
+/// which otherwise outgrows the slabs as a budget cuts them thin, at the price of a larger base
+/// every member solves; a cut that fits in one slab has no padding and keeps the coarsest.
 #[allow(clippy::too_many_arguments)]
 fn cut(
     input: &Input<'_>,
@@ -681,16 +822,17 @@ fn cut(
     part_count: u64,
     params: &Params,
     plan: &Plan,
-    base_depth: u32,
+    base_depths: RangeInclusive<u32>,
     team: &dyn Team,
     pool: &rayon::ThreadPool,
     keep_going: &mut dyn FnMut(&str, f32) -> bool,
 ) -> std::result::Result<Cut, OutOfCoreError> {
     let part = (team.rank(), team.size());
     let part_fraction = |done: u64| done as f32 / part_count.max(1) as f32;
-    let wall_depth = base_depth + 2;
+    // The columns are counted at the finest wall depth that can be chosen, and summed into
+    // each coarser one's.
+    let counted_depth = base_depths.end() + 2;
     let kernel_depth = params.effective_kernel_depth();
-    let padding = padding_for(plan.padding, wall_depth, kernel_depth);
     // The memory budget's cut measures the surface by the kernel's nodes.
     let budget = match plan.slabs {
         SlabCount::Within(budget) => Some(budget),
@@ -700,7 +842,7 @@ fn cut(
         input,
         part,
         &scan.map,
-        wall_depth,
+        counted_depth,
         budget.map(|_| kernel_depth),
         &mut |done| keep_going("columns", part_fraction(done)),
     );
@@ -710,14 +852,14 @@ fn cut(
         .iter()
         .map(|bytes| ColumnsOfPart::unpacked(bytes))
         .collect::<std::result::Result<Vec<_>, _>>()?;
-    let mut counts = vec![0u64; 1 << wall_depth];
+    let mut counted_columns = vec![0u64; 1 << counted_depth];
     for part in &parts {
-        for (sum, count) in counts.iter_mut().zip(&part.counts) {
+        for (sum, count) in counted_columns.iter_mut().zip(&part.counts) {
             *sum += count;
         }
     }
-    let slabs = match plan.slabs {
-        SlabCount::Exactly(n) => n,
+    let (base_depth, slabs) = match plan.slabs {
+        SlabCount::Exactly(n) => (*base_depths.start(), n),
         SlabCount::Within(budget) => {
             // The surface as the whole input's kernel nodes, in a field of their structure
             // (its tables as large as the counts' will be).
@@ -738,18 +880,16 @@ fn cut(
             let shared =
                 crate::memory::density_bytes(structure.slots() as u64).saturating_add(noise_fits);
             let kernel_slots = structure.kernel_slots() as u64;
-            let surface = surface_by_column(&structure, wall_depth);
-            drop(structure);
-            let layout_of =
-                |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
-            slabs_within(
+            base_and_slabs_within(
                 budget,
-                &counts,
-                &surface,
+                &counted_columns,
+                counted_depth,
+                base_depths,
+                |wall_depth| surface_by_column(&structure, wall_depth),
+                |wall_depth| padding_for(plan.padding, wall_depth, kernel_depth),
                 kernel_depth,
-                layout_of,
-                base_depth,
                 params,
+                team.size(),
                 shared,
                 kernel_slots,
             )
@@ -762,6 +902,9 @@ fn cut(
         }
     };
     drop(parts);
+    let wall_depth = base_depth + 2;
+    let counts = coarser_columns(&counted_columns, counted_depth - wall_depth);
+    let padding = padding_for(plan.padding, wall_depth, kernel_depth);
     // Every member has a slab to do (when the points fill enough columns).
     let layout = SlabLayout::balanced(&counts, wall_depth, slabs.max(team.size()), padding);
     let slabs = layout.len();
@@ -900,6 +1043,7 @@ fn cut(
         },
     )?;
     Ok(Cut {
+        base_depth,
         layout,
         scratch,
         files,
@@ -999,7 +1143,7 @@ pub(crate) fn solve_slabs(
             expected: what,
         })
     };
-    let mut base_depth = match plan.base_depth {
+    let base_depths = match plan.base_depth {
         Some(b) if b < full_depth || b + 2 > params.depth => {
             return Err(crate::Error::InvalidParameter {
                 name: "base_depth",
@@ -1008,7 +1152,7 @@ pub(crate) fn solve_slabs(
             }
             .into())
         }
-        Some(b) => b,
+        Some(b) => b..=b,
         None if full_depth + 2 > params.depth => {
             return Err(too_shallow(
                 params.depth,
@@ -1016,18 +1160,37 @@ pub(crate) fn solve_slabs(
                  depth or raise the depth)",
             ))
         }
-        None => params
-            .depth
-            .saturating_sub(3)
-            .clamp(full_depth, 7.max(full_depth)),
+        None => {
+            let default = params
+                .depth
+                .saturating_sub(3)
+                .clamp(full_depth, 7.max(full_depth));
+            match plan.slabs {
+                // A budget chooses the base depth with the cut (see `cut`).
+                SlabCount::Within(_) => default..=params.depth - 2,
+                SlabCount::Exactly(_) => default..=default,
+            }
+        }
     };
     // The cut and pass A; cut again with a lower base when the samples do not reach two
     // depths above it (a sparse cloud at a depth its samples do not resolve).
     let part_count = parts[team.rank()].count;
-    let mut cut = cut(
-        &input, scratch, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
-    )?;
-    if cut.finest < base_depth + 2 {
+    let mut cut_at = |scratch, base_depths| {
+        cut(
+            &input,
+            scratch,
+            &scan,
+            part_count,
+            &params,
+            plan,
+            base_depths,
+            team,
+            pool,
+            keep_going,
+        )
+    };
+    let mut cut = cut_at(scratch, base_depths.clone())?;
+    if cut.finest < cut.base_depth + 2 {
         let lowest = cut.finest.saturating_sub(2);
         if plan.base_depth.is_some() || lowest < full_depth {
             return Err(too_shallow(
@@ -1037,17 +1200,15 @@ pub(crate) fn solve_slabs(
                  reconstruct in memory)",
             ));
         }
-        base_depth = lowest;
         // Every member is done with the first cut's files before rank 0 removes them (with
         // their directory: the second cut has its own).
         agreed(team, Ok(()))?;
         drop(cut);
         let scratch = team_scratch(team, plan.temp_dir.as_deref())?;
-        cut = self::cut(
-            &input, scratch, &scan, part_count, &params, plan, base_depth, team, pool, keep_going,
-        )?;
+        cut = cut_at(scratch, (*base_depths.start()).min(lowest)..=lowest)?;
     }
     let Cut {
+        base_depth,
         layout,
         scratch,
         files,
@@ -1385,12 +1546,14 @@ fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, O
 #[cfg(test)]
 mod tests {
     use super::{
-        grade_padding, own_kernel_nodes, pack_groups, pack_sparse, padding_for, read_prepared,
-        slabs_within, surface_by_column, unpack_groups, unpack_sparse, write_prepared,
-        DensityField, DepthSample, KernelCounts, NormalSums, SampleDensity, Samples, SlabLayout,
+        base_and_slabs_within, coarser_columns, grade_padding, own_kernel_nodes, pack_groups,
+        pack_sparse, padding_for, read_prepared, slabs_within, surface_by_column, unpack_groups,
+        unpack_sparse, write_prepared, DensityField, DepthSample, KernelCounts, NormalSums,
+        SampleDensity, Samples, SlabLayout, SlabModel,
     };
     use crate::Params;
     use glam::DVec3;
+    use std::ops::RangeInclusive;
 
     /// Proves a slab's prepared samples read back bit for bit, and that a truncated file is an
     /// error, not samples.
@@ -1684,17 +1847,8 @@ mod tests {
         }
         let layout_of = |slabs| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
         let fewest_with_sums = |budget: u64, surface: &[f64], kernel_slots: u64| {
-            slabs_within(
-                budget,
-                &counts,
-                surface,
-                kernel_depth,
-                layout_of,
-                base_depth,
-                &params,
-                0,
-                kernel_slots,
-            )
+            let model = SlabModel::new(&counts, surface, kernel_depth, base_depth, &params);
+            slabs_within(budget, &model, layout_of, 0, kernel_slots)
         };
         let fewest = |budget: u64, surface: &[f64]| fewest_with_sums(budget, surface, 0);
         let least = fewest(0, &surface).expect_err("nothing fits no memory");
@@ -1722,6 +1876,83 @@ mod tests {
         let enough =
             fewest_with_sums(8 << 30, &surface, (10 << 30) / 33 + 1).expect_err("sums over budget");
         assert!(enough > 10 << 30, "the most slabs need {enough} bytes");
+    }
+
+    /// Proves the base depth a budget chooses: a cloud one slab holds keeps the coarsest base
+    /// (no padding to thin); a budget that cuts many slabs takes a finer base, whose thinner
+    /// padding leaves a member less to do and bins fewer points than the coarsest base's cut;
+    /// a team of many members gets no finer base than one process (every member solves the
+    /// base); and a budget no cut fits is refused with the least that one at the coarsest base
+    /// does, which then fits.
+    #[test]
+    fn a_budget_chooses_the_base_depth_whose_cut_leaves_the_least_work() {
+        // 200 million points at depth 12 over the middle 90 % of the columns, uniform across x
+        // as on a sphere, the surface about as the planet's field measures it (1.9 million
+        // nodes of the kernel depth 10; a whole number of them in each column, as
+        // `surface_by_column` gives, so the surface sums alike at every wall depth).
+        let params = Params::default().with_depth(12);
+        let (kernel_depth, base_depths) = (10u32, 7u32..=10);
+        let counted_depth = base_depths.end() + 2;
+        let columns = 1usize << counted_depth;
+        let filled = columns / 20..columns - columns / 20;
+        let mut counted = vec![0u64; columns];
+        for c in filled.clone() {
+            counted[c] = 200_000_000 / filled.len() as u64;
+        }
+        let kernel_nodes: Vec<u64> = counted
+            .iter()
+            .map(|&n| if n > 0 { 512 } else { 0 })
+            .collect();
+        let surface_of = |wall_depth: u32| {
+            coarser_columns(&kernel_nodes, counted_depth - wall_depth)
+                .into_iter()
+                .map(|n| n as f64)
+                .collect::<Vec<f64>>()
+        };
+        let padding_of = |wall_depth: u32| padding_for(24, wall_depth, kernel_depth);
+        let choose = |budget: u64, depths: RangeInclusive<u32>, members: usize| {
+            base_and_slabs_within(
+                budget,
+                &counted,
+                counted_depth,
+                depths,
+                surface_of,
+                padding_of,
+                kernel_depth,
+                &params,
+                members,
+                0,
+                0,
+            )
+        };
+        // The points each slab reads, padding included, summed over the cut.
+        let binned = |base_depth: u32, slabs: usize| {
+            let wall_depth = base_depth + 2;
+            let counts = coarser_columns(&counted, counted_depth - wall_depth);
+            let layout = SlabLayout::balanced(&counts, wall_depth, slabs, padding_of(wall_depth));
+            (0..layout.len())
+                .map(|k| layout.padded(k).map(|c| counts[c as usize]).sum::<u64>())
+                .sum::<u64>()
+        };
+        assert_eq!(choose(1 << 50, base_depths.clone(), 1), Ok((7, 1)));
+        for gib in [16u64, 8, 4] {
+            let (base_depth, slabs) = choose(gib << 30, base_depths.clone(), 1).unwrap();
+            let (_, coarsest_slabs) = choose(gib << 30, 7..=7, 1).unwrap();
+            assert!(base_depth > 7, "{gib} GiB");
+            assert!(
+                binned(base_depth, slabs) < binned(7, coarsest_slabs),
+                "{gib} GiB"
+            );
+        }
+        let alone = choose(8 << 30, base_depths.clone(), 1).unwrap();
+        let team = choose(8 << 30, base_depths.clone(), 64).unwrap();
+        assert!(team.0 <= alone.0, "{team:?} against {alone:?}");
+        // Refused with the least budget of the coarsest base (which a run cut again at a
+        // coarser base, its samples not reaching the finer one's walls, still fits).
+        let least = choose(1 << 20, base_depths.clone(), 1).expect_err("1 MiB fits no cut");
+        assert_eq!(choose(1 << 20, 7..=7, 1), Err(least));
+        assert!(choose(least, 7..=7, 1).is_ok());
+        choose(least, base_depths.clone(), 1).expect("the least budget fits");
     }
 
     /// Proves the graded padding: past the wall depth no splat lies beyond its depth's band,

@@ -29,9 +29,15 @@ pub struct OutOfCore {
     /// cancel.
     pub temp_dir: Option<PathBuf>,
     /// The depth up to which the system is solved once for the whole cloud, at least the full
-    /// depth and at most the depth − 2 (`None`: the depth − 3, at most 7 and at least the full
-    /// depth, lowered when the samples do not reach two depths above it). Finer depths are
-    /// solved slab by slab.
+    /// depth and at most the depth − 2. Finer depths are solved slab by slab, each slab over
+    /// 24 columns of the base depth + 2 of padding on each side. `None`: the depth − 3, at
+    /// most 7 and at least the full depth; or, under a memory budget ([`Params::max_memory`]
+    /// with no [`OutOfCore::slabs`]), from that up to the depth − 2, the one whose fewest
+    /// slabs that fit leave each member of the team the fewest octree nodes to work on (its
+    /// share of the slabs' nodes finer than the base, padding included, plus the whole base,
+    /// which every member solves): a budget that cuts the cloud thin takes a finer base,
+    /// whose padding is thinner. Lowered when the samples do not reach two depths above it;
+    /// the depth used is [`OutOfCoreReport::base_depth`].
     pub base_depth: Option<u32>,
     /// Weigh the points by their `confidence` (or `value`) property, as
     /// [`crate::PointSet::extend_weighted`] does (PoissonRecon's `--confidence`); a file
@@ -73,6 +79,9 @@ pub struct OutOfCoreReport {
     pub points: u64,
     /// Slabs the cloud was cut into.
     pub slabs: usize,
+    /// The base depth B used: depths 0..=B solved once for the whole cloud, the finer ones
+    /// slab by slab ([`OutOfCore::base_depth`], or as the memory budget chose it).
+    pub base_depth: u32,
     /// The depth used (from [`Params::width`] when set).
     pub depth: u32,
     /// Vertices written.
@@ -221,6 +230,7 @@ pub(crate) fn run(
     Ok(OutOfCoreReport {
         points: solved.scan.count,
         slabs,
+        base_depth: solved.layout.wall_depth - 2,
         depth: params.depth,
         vertices: assembled.vertices,
         triangles: assembled.triangles,
