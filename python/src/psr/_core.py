@@ -944,8 +944,9 @@ class Reconstructor:
         points. ``slabs``: how many slabs (at least 1); None chooses the fewest that fit
         ``max_memory``, which must then be set (else :class:`psr.InvalidParameterError`), and
         with them the depth solved once for the whole cloud (a finer one when the limit cuts
-        the cloud thin, so that each slab's padding is thinner); a limit no cut fits raises :class:`psr.OutOfMemoryError` before the slabs are solved,
-        naming the least workable limit. ``confidence=True`` weighs the points by their
+        the cloud thin, so that each slab's padding is thinner); a limit no cut fits raises
+        :class:`psr.OutOfMemoryError` before the slabs are solved, naming the least workable
+        limit. ``confidence=True`` weighs the points by their
         ``confidence`` (or ``value``) property. Colours and channels are not carried (the report
         says when the file had some); ``vertex_normals=True`` is refused.
 
