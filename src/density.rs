@@ -39,6 +39,7 @@ use crate::octree::NONE;
 use crate::parallel::{map_in_blocks, Watch};
 use glam::{DVec3, DVec4};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// B₄(0): the quartic B-spline's peak, the plane integral of the splatting kernel.
 const PLANE_KERNEL_PEAK: f64 = 115.0 / 192.0;
@@ -67,8 +68,10 @@ fn trilinear(p: DVec3, inv_h: f64) -> [([i32; 3], f64); 8] {
 /// The splatted sample counts at the kernel depth and at every coarser depth.
 pub struct DensityField {
     pub depth: u32,
-    /// `levels[d]`: the counts at depth d, for d in 0..=depth.
-    levels: Vec<BrickCounts>,
+    /// `levels[d]`: the counts at depth d, for d in 0..=depth (shared: the out-of-core path's
+    /// slabs each hold their own finer depths over one set of the coarse ones,
+    /// [`DensityField::with_finer`]).
+    levels: Vec<Arc<BrickCounts>>,
 }
 
 impl DensityField {
@@ -84,23 +87,40 @@ impl DensityField {
 
     /// The node slots of its bricks, all depths: what the memory budget counts for it.
     pub(crate) fn slots(&self) -> usize {
-        self.levels.iter().map(BrickCounts::slots).sum()
+        self.levels.iter().map(|level| level.slots()).sum()
+    }
+
+    /// The nodes of depth `depth` whose centre's x `keep` accepts, with their counts, sorted by
+    /// key.
+    pub(crate) fn sorted_nodes_at(
+        &self,
+        depth: u32,
+        keep: impl Fn(f64) -> bool,
+    ) -> Vec<(u64, f64)> {
+        self.levels[depth as usize].sorted_nodes_where(depth, keep)
+    }
+
+    /// A field of depths 0..=`self.depth` + `finer.len()`: this one's depths (shared, not
+    /// copied), then `finer[i]`'s nodes as the counts of depth `self.depth` + 1 + i. What it
+    /// gives is the field of all the samples wherever `finer` holds every node the evaluation
+    /// reads (the out-of-core path's slabs, `outofcore/field.rs`).
+    pub(crate) fn with_finer(&self, finer: Vec<Vec<(u64, f64)>>) -> DensityField {
+        let mut levels = self.levels.clone();
+        for nodes in finer {
+            let mut level = BrickCounts::default();
+            level.insert(nodes);
+            levels.push(Arc::new(level));
+        }
+        DensityField {
+            depth: levels.len() as u32 - 1,
+            levels,
+        }
     }
 
     /// The node slots of the kernel depth's bricks alone (those of [`NormalSums`] over the same
     /// samples).
     pub(crate) fn kernel_slots(&self) -> usize {
         self.levels[self.depth as usize].slots()
-    }
-
-    /// The x index of every node of the kernel depth's counts (one entry a node, in no
-    /// particular order): where the samples' surface lies across x, at the kernel depth's
-    /// resolution (the out-of-core path's slab accounting measures each slab's share of the
-    /// surface by it).
-    pub(crate) fn kernel_node_x(&self) -> impl Iterator<Item = i32> + '_ {
-        self.levels[self.depth as usize]
-            .nodes()
-            .map(|(key, _)| unmorton(key)[0])
     }
 
     /// W(q) = Σ_o count_o B_o(q) at the kernel depth.
@@ -376,12 +396,14 @@ impl KernelCounts {
     }
 
     /// Splats a unit weight per sample (times its confidence, when given) at the kernel depth.
+    #[cfg(test)]
     pub(crate) fn add(&mut self, positions: &[DVec3], confidence: Option<&[f64]>) {
         self.counts
             .splat(self.depth, positions, confidence, |_| 1.0);
     }
 
     /// The nodes touched so far, as sorted distinct keys.
+    #[cfg(test)]
     pub(crate) fn into_sorted_keys(self) -> Vec<u64> {
         self.counts
             .sorted_nodes()
@@ -399,13 +421,80 @@ impl KernelCounts {
     /// The field: the counts, restricted to every coarser depth.
     pub(crate) fn into_field(self) -> DensityField {
         let depth = self.depth;
-        let mut levels = vec![self.counts];
+        let mut levels = vec![Arc::new(self.counts)];
         for _ in 0..depth {
             let coarser = restrict(levels.last().expect("the kernel depth's counts"));
-            levels.push(coarser);
+            levels.push(Arc::new(coarser));
         }
         levels.reverse();
         DensityField { depth, levels }
+    }
+}
+
+/// The nodes of the kernel depth the samples' splats touch, without their counts: what the
+/// out-of-core path's planner measures the surface and the field by, gathered in any number of
+/// parts (each part's nodes, [`KernelNodes::into_sorted_keys`], [`KernelNodes::insert`]ed in
+/// any order). Its bricks are those of the field of the same samples, so it gives that field's
+/// node slots at every depth ([`KernelNodes::slots_by_depth`]), at 16 bytes a brick of 64
+/// slots instead of 528.
+pub(crate) struct KernelNodes {
+    depth: u32,
+    nodes: Bricks<()>,
+}
+
+impl KernelNodes {
+    pub(crate) fn new(depth: u32) -> Self {
+        KernelNodes {
+            depth,
+            nodes: Bricks::default(),
+        }
+    }
+
+    /// The nodes the splats of samples at `positions` touch (those [`KernelCounts::add`] would
+    /// give a count).
+    pub(crate) fn add(&mut self, positions: &[DVec3]) {
+        let inv_h = (self.depth as f64).exp2();
+        for &p in positions {
+            let nodes = trilinear(p, inv_h);
+            let mut bricks = BricksAround::new(nodes[0].0);
+            for (node, _) in nodes {
+                self.nodes.value_mut(&mut bricks, node);
+            }
+        }
+    }
+
+    /// Nodes found elsewhere (a node given twice is one node).
+    pub(crate) fn insert(&mut self, keys: impl IntoIterator<Item = u64>) {
+        self.nodes.insert(keys.into_iter().map(|key| (key, ())));
+    }
+
+    /// The nodes, as sorted distinct keys.
+    pub(crate) fn into_sorted_keys(self) -> Vec<u64> {
+        self.nodes
+            .sorted_nodes()
+            .into_iter()
+            .map(|(key, _)| key)
+            .collect()
+    }
+
+    /// The x index of every node (one entry a node, in no particular order): where the samples'
+    /// surface lies across x, at the kernel depth's resolution.
+    pub(crate) fn node_x(&self) -> impl Iterator<Item = i32> + '_ {
+        self.nodes.nodes().map(|(key, _)| unmorton(key)[0])
+    }
+
+    /// The node slots of the bricks of each depth, 0 to the kernel depth, of the density field
+    /// of the same samples (its counts inserted as these nodes were, then restricted).
+    pub(crate) fn slots_by_depth(&self) -> Vec<usize> {
+        let mut slots = vec![self.nodes.slots()];
+        let mut level: Option<Bricks<()>> = None;
+        for _ in 0..self.depth {
+            let coarser = restrict_with(level.as_ref().unwrap_or(&self.nodes), |_, _, _| {});
+            slots.push(coarser.slots());
+            level = Some(coarser);
+        }
+        slots.reverse();
+        slots
     }
 }
 
@@ -498,7 +587,19 @@ impl NormalSums {
 /// nodes reach lie within four of each other on every axis, so each fine brick looks up its
 /// coarse bricks once, not each node.
 fn restrict(fine: &BrickCounts) -> BrickCounts {
-    let mut coarse = BrickCounts::default();
+    restrict_with(fine, |sum, count, [wx, wy, wz]| {
+        *sum += count * wx * wy * wz
+    })
+}
+
+/// [`restrict`] of any values: `add(coarse, fine, weights)` adds a fine node's value with its
+/// weight on each axis to a coarse node's (for the nodes alone, without values, adds nothing:
+/// the coarse nodes and bricks are those of the counts).
+fn restrict_with<T: Copy + Default>(
+    fine: &Bricks<T>,
+    add: impl Fn(&mut T, T, [f64; 3]),
+) -> Bricks<T> {
+    let mut coarse = Bricks::<T>::default();
     coarse.bricks.reserve(fine.bricks.len() / 2);
     for brick in fine.sorted_bricks() {
         // Its node of local index 0; its nodes are 4b..4b + 3 per axis, so the coarse nodes
@@ -520,7 +621,11 @@ fn restrict(fine: &BrickCounts) -> BrickCounts {
             for (x, wx) in axis[0] {
                 for (y, wy) in axis[1] {
                     for (z, wz) in axis[2] {
-                        *coarse.value_mut(&mut bricks, [x, y, z]) += count * wx * wy * wz;
+                        add(
+                            coarse.value_mut(&mut bricks, [x, y, z]),
+                            count,
+                            [wx, wy, wz],
+                        );
                     }
                 }
             }
@@ -740,6 +845,39 @@ mod tests {
         assert!(q.windows(2).all(|w| w[0] <= w[1]));
         assert!(quantiles(&[]).is_empty());
         assert_eq!(quantiles(&[3.0]), vec![3.0f32; QUANTILE_STEPS + 1]);
+    }
+
+    /// Proves the nodes alone, found in parts and joined, are the nodes the counts touch, and
+    /// give the node slots of the field of those counts at every depth.
+    #[test]
+    fn the_kernel_nodes_alone_give_the_fields_nodes_and_slots() {
+        let positions: Vec<DVec3> = (0..20_000)
+            .map(|i| {
+                let t = i as f64 * 2.399_963;
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / 20_000.0;
+                let r = (1.0 - z * z).sqrt();
+                DVec3::splat(0.5) + 0.3 * DVec3::new(r * t.cos(), r * t.sin(), z)
+            })
+            .collect();
+        let depth = 6;
+        let mut counts = KernelCounts::new(depth);
+        counts.add(&positions, None);
+        let keys = counts.into_sorted_keys();
+        let mut joined = KernelNodes::new(depth);
+        for part in positions.chunks(7_000) {
+            let mut nodes = KernelNodes::new(depth);
+            nodes.add(part);
+            joined.insert(nodes.into_sorted_keys());
+        }
+        assert_eq!(joined.node_x().count(), keys.len());
+        let mut inserted = KernelCounts::new(depth);
+        inserted.insert(keys.iter().map(|&key| (key, 1.0)));
+        let field = inserted.into_field();
+        let slots = joined.slots_by_depth();
+        assert_eq!(slots.len(), depth as usize + 1);
+        assert_eq!(slots[depth as usize], field.kernel_slots());
+        assert_eq!(slots.iter().sum::<usize>(), field.slots());
+        assert_eq!(joined.into_sorted_keys(), keys);
     }
 
     /// A node's place in its brick is its key's low six bits, halo coordinates included.

@@ -6,12 +6,12 @@
 //! pieces' sizes, the vertices on walls, the counts) is gathered and folded in slab order, so
 //! the file is the same whatever the team's size.
 
+use super::field::FieldBySlab;
 use super::scratch::{fresh_token, read_lists, write_lists, Scratch};
 use super::seams::{SlabPart, SHARED_ABOVE, SHARED_BELOW};
 use super::team::{checked_by_others, from_first, rounds, Packer, Team, Unpacker};
 use super::OutOfCoreError;
 use crate::components::vertex_components;
-use crate::density::DensityField;
 use crate::points::UnitCubeMap;
 use glam::DVec3;
 use std::collections::{BTreeMap, HashMap};
@@ -577,7 +577,7 @@ pub(crate) fn write_ply(
     keep: &dyn Fn(u32) -> bool,
     map: &UnitCubeMap,
     origin: Option<DVec3>,
-    density: &DensityField,
+    density: &FieldBySlab,
     part: &dyn Fn(usize) -> Result<SlabPart, OutOfCoreError>,
     go_on: &mut dyn FnMut(usize) -> bool,
 ) -> Result<(u64, u64), OutOfCoreError> {
@@ -677,7 +677,7 @@ fn write_slab(
     keep: &dyn Fn(u32) -> bool,
     map: &UnitCubeMap,
     origin: Option<DVec3>,
-    density: &DensityField,
+    density: &FieldBySlab,
     part: &dyn Fn(usize) -> Result<SlabPart, OutOfCoreError>,
 ) -> Result<(), OutOfCoreError> {
     let output_error = |source: io::Error| OutOfCoreError::Output {
@@ -685,6 +685,13 @@ fn write_slab(
         source,
     };
     let part = part(k)?;
+    let density = density.for_vertices(
+        part.vertices
+            .iter()
+            .fold(f64::INFINITY..=f64::NEG_INFINITY, |x, q| {
+                x.start().min(q.x)..=x.end().max(q.x)
+            }),
+    )?;
     let of_vertex = pieces.of_vertices(k, &part)?;
     let wall_below = layout.wall_below[k].as_ref().ok_or_else(|| {
         OutOfCoreError::internal("a slab is written by a member that did not plan it")
@@ -730,7 +737,7 @@ fn write_slab(
                 }
             }
         }
-        entry.extend_from_slice(&(density.evaluate(q) as f32).to_le_bytes());
+        entry.extend_from_slice(&(density.evaluate(q)? as f32).to_le_bytes());
         vertex_out.write_all(&entry).map_err(output_error)?;
     }
     vertex_out.flush().map_err(output_error)?;

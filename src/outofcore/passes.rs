@@ -12,6 +12,7 @@
 
 use super::bands::{apply_bands, write_bands};
 use super::base::{coarse_cores, merge_groups, BaseParts};
+use super::field::{coarsest_exact_depth, write_own_part, FieldBySlab};
 use super::noise::{SlabNoise, TeamNoise};
 use super::scan::{
     bin_part, binned_file, columns_of_part, scan_of_parts, scan_part, ColumnsOfPart, Input, Scan,
@@ -24,7 +25,7 @@ use super::team::{
 };
 use super::OutOfCoreError;
 use crate::density::{
-    estimate, samples_by_depth, DensityField, DepthSample, KernelCounts, NormalSums, SampleDensity,
+    estimate, samples_by_depth, DepthSample, KernelCounts, KernelNodes, SampleDensity,
 };
 use crate::evaluate::Indicator;
 use crate::noise::AreaDepths;
@@ -37,7 +38,7 @@ use crate::system::{
     sample_weights_from_totals, FieldCarry, ScreeningWeights,
 };
 use crate::{Params, Result};
-use glam::{DVec3, DVec4};
+use glam::DVec3;
 use std::ops::{Range, RangeInclusive};
 use std::path::{Path, PathBuf};
 
@@ -75,14 +76,18 @@ pub(crate) enum SlabCount {
     Within(u64),
 }
 
-/// How much of the samples' surface lies in each column of `wall_depth`: the density field's
-/// nodes of the kernel depth over the column (a node wider than a column spread evenly over
-/// the columns it spans, one narrower counted in the column holding it).
-fn surface_by_column(field: &DensityField, wall_depth: u32) -> Vec<f64> {
+/// How much of the samples' surface lies in each column of `wall_depth`: the nodes of the
+/// kernel depth the samples' splats touch (their x indices, `node_x`) over the column (a node
+/// wider than a column spread evenly over the columns it spans, one narrower counted in the
+/// column holding it).
+fn surface_by_column(
+    node_x: impl Iterator<Item = i32>,
+    kernel_depth: u32,
+    wall_depth: u32,
+) -> Vec<f64> {
     let columns = 1i64 << wall_depth;
     let mut surface = vec![0.0f64; columns as usize];
-    let kernel_depth = field.depth;
-    for x in field.kernel_node_x() {
+    for x in node_x {
         let x = i64::from(x);
         if kernel_depth >= wall_depth {
             let column = (x >> (kernel_depth - wall_depth)).clamp(0, columns - 1);
@@ -97,14 +102,6 @@ fn surface_by_column(field: &DensityField, wall_depth: u32) -> Vec<f64> {
         }
     }
     surface
-}
-
-/// The distinct values of sorted `lists`, sorted.
-fn merge_sorted<'a>(lists: impl Iterator<Item = &'a [u64]>) -> Vec<u64> {
-    let mut all: Vec<u64> = lists.flatten().copied().collect();
-    all.sort_unstable();
-    all.dedup();
-    all
 }
 
 /// What the memory accounting (`memory.rs`) predicts for the slabs of a cut at one base depth,
@@ -237,7 +234,7 @@ fn slabs_within(
     // The last count that did not fit (0: none tried), then the first that did.
     let mut too_few = 0;
     let mut slabs = 1;
-    let fits = loop {
+    let mut fits = loop {
         let need = need_of(slabs);
         if need <= budget {
             break slabs;
@@ -249,7 +246,6 @@ fn slabs_within(
         too_few = slabs;
         slabs = (2 * slabs).min(most);
     };
-    let mut fits = fits;
     while fits - too_few > 1 {
         let middle = too_few + (fits - too_few) / 2;
         if need_of(middle) <= budget {
@@ -331,8 +327,9 @@ pub(crate) struct SolvedSlabs {
     pub(crate) files: SlabFiles,
     /// The base's core sets (depths 0..=B), shared by every slab's tree.
     pub(crate) base_cores: Vec<Vec<u64>>,
-    /// The density of all the samples (the slabs' samples' depths and areas come from it).
-    pub(crate) field: DensityField,
+    /// The density of all the samples, by slab (the slabs' samples' depths and areas come from
+    /// it, and the mesh's values).
+    pub(crate) field: FieldBySlab,
     /// The finest depth any sample reaches: every slab's tree has it.
     pub(crate) finest: u32,
     pub(crate) isovalue: f64,
@@ -355,7 +352,6 @@ impl SolvedSlabs {
             layout: &self.layout,
             files: &self.files,
             field: &self.field,
-            normals: None,
             screening: self.screening,
             pool,
             watch: Watch::new(),
@@ -469,10 +465,7 @@ struct Run<'a> {
     scan: &'a Scan,
     layout: &'a SlabLayout,
     files: &'a SlabFiles,
-    field: &'a DensityField,
-    /// The samples' normals summed at the kernel depth, while the slabs are prepared (pass A;
-    /// `None` after it, when every slab has been).
-    normals: Option<&'a NormalSums>,
+    field: &'a FieldBySlab,
     /// The screening's weights per depth: α·2^D at every depth until the noise, when the
     /// screening follows it, is estimated after pass B.
     screening: ScreeningWeights,
@@ -552,15 +545,17 @@ impl Run<'_> {
             .pool
             .install(|| Samples::in_morton_order(&set, &self.scan.map, params.depth))?;
         drop(set);
-        let normals = self.normals.ok_or_else(|| {
-            crate::Error::Internal(format!(
-                "slab {k} prepared after the density's normal sums were dropped"
-            ))
-        })?;
+        let (field, normal_sums) = self.field.for_samples(k)?;
+        if let Some(p) = samples.positions.iter().find(|&&p| !field.holds(p)) {
+            return Err(OutOfCoreError::internal(format!(
+                "slab {k} holds a sample at x = {} beyond its padding",
+                p.x
+            )));
+        }
         let density = self.pool.install(|| {
             estimate(
-                self.field,
-                Some(normals),
+                &field.field,
+                Some(&normal_sums),
                 &samples.positions,
                 params.depth,
                 params.samples_per_node as f64,
@@ -699,7 +694,7 @@ struct Cut {
     layout: SlabLayout,
     scratch: Scratch,
     files: SlabFiles,
-    field: DensityField,
+    field: FieldBySlab,
     /// Each slab's own core sets up to the base depth.
     own_cores: Vec<Vec<Vec<u64>>>,
     /// The finest depth any sample reaches.
@@ -759,27 +754,9 @@ pub(crate) fn grade_padding(
 /// kernel is so coarse that a node the slab owns gathers points from farther away (a node of
 /// the kernel depth reaches one node width from its centre, 2^(wall − kernel) columns when the
 /// kernel depth is the coarser).
-fn padding_for(asked: u32, wall_depth: u32, kernel_depth: u32) -> u32 {
+pub(crate) fn padding_for(asked: u32, wall_depth: u32, kernel_depth: u32) -> u32 {
     let reach = 1u32 << wall_depth.saturating_sub(kernel_depth).min(31);
     asked.max(reach)
-}
-
-/// The nodes of the density's kernel depth that slab k owns (their centres in its columns),
-/// each with its count and its sum of the points' unit `normals` ([`NormalSums`]), summed
-/// over `unit` (the slab's points and padding, in the unit cube, in input order) weighed by
-/// `confidence`. With a padding of [`padding_for`], these are the whole input's bit for bit:
-/// every point splatting onto such a node is among the slab's, and it adds in the input's
-/// order.
-fn own_kernel_nodes(
-    unit: &[DVec3],
-    confidence: &[f64],
-    normals: &[[f32; 3]],
-    layout: &SlabLayout,
-    k: usize,
-    kernel_depth: u32,
-) -> Vec<(u64, DVec4)> {
-    let sums = NormalSums::splat(unit, Some(confidence), normals, kernel_depth);
-    sums.sorted_nodes_where(|x| layout.slab_of_column(layout.column_of(x)) == k)
 }
 
 /// The slabs' files: each slab's binned points (one file per part of the input, in part order)
@@ -847,29 +824,27 @@ fn cut(
         &mut |done| keep_going("columns", part_fraction(done)),
     );
     let (_, parts) = agreed_with(team, counted, ColumnsOfPart::packed)?;
-    // Every member lays the slabs out itself, from the same parts.
-    let parts = parts
-        .iter()
-        .map(|bytes| ColumnsOfPart::unpacked(bytes))
-        .collect::<std::result::Result<Vec<_>, _>>()?;
+    // Every member lays the slabs out itself, from the same parts, each unpacked in turn: the
+    // counts added, the kernel nodes joined (for a budget's cut, the surface's measure).
     let mut counted_columns = vec![0u64; 1 << counted_depth];
-    for part in &parts {
+    let mut surface = budget.map(|_| KernelNodes::new(kernel_depth));
+    for bytes in &parts {
+        let part = ColumnsOfPart::unpacked(bytes)?;
         for (sum, count) in counted_columns.iter_mut().zip(&part.counts) {
             *sum += count;
         }
+        if let Some(surface) = &mut surface {
+            surface.insert(part.kernel_nodes);
+        }
     }
+    drop(parts);
     let (base_depth, slabs) = match plan.slabs {
         SlabCount::Exactly(n) => (*base_depths.start(), n),
         SlabCount::Within(budget) => {
-            // The surface as the whole input's kernel nodes, in a field of their structure
-            // (its tables as large as the counts' will be).
-            let mut structure = KernelCounts::new(kernel_depth);
-            structure.insert(
-                merge_sorted(parts.iter().map(|p| p.kernel_nodes.as_slice()))
-                    .into_iter()
-                    .map(|key| (key, 0.0)),
-            );
-            let structure = structure.into_field();
+            // The surface as the whole input's kernel nodes (whose bricks are the field's).
+            let surface = surface.ok_or_else(|| {
+                OutOfCoreError::internal("a budget's cut without the kernel nodes")
+            })?;
             // Beside the field, every member holds the fits of the noise estimate's cells of its
             // slabs from pass B on (counted as if one member fitted the whole cloud's).
             let noise_fits = if params.screening_follows_noise {
@@ -877,15 +852,20 @@ fn cut(
             } else {
                 0
             };
-            let shared =
-                crate::memory::density_bytes(structure.slots() as u64).saturating_add(noise_fits);
-            let kernel_slots = structure.kernel_slots() as u64;
+            // The planner counts the whole field beside every slab, and its normals' sums
+            // beside every slab's points, as when every member held them (`docs/out-of-core.md`,
+            // "Memory": a slab now holds only its share, but counting that share alone let
+            // finer bases through whose whole-cloud screening groups the accounting lacks).
+            let slots_by_depth = surface.slots_by_depth();
+            let shared = crate::memory::density_bytes(slots_by_depth.iter().sum::<usize>() as u64)
+                .saturating_add(noise_fits);
+            let kernel_slots = slots_by_depth.last().copied().unwrap_or(0) as u64;
             base_and_slabs_within(
                 budget,
                 &counted_columns,
                 counted_depth,
                 base_depths,
-                |wall_depth| surface_by_column(&structure, wall_depth),
+                |wall_depth| surface_by_column(surface.node_x(), kernel_depth, wall_depth),
                 |wall_depth| padding_for(plan.padding, wall_depth, kernel_depth),
                 kernel_depth,
                 params,
@@ -901,7 +881,6 @@ fn cut(
             })?
         }
     };
-    drop(parts);
     let wall_depth = base_depth + 2;
     let counts = coarser_columns(&counted_columns, counted_depth - wall_depth);
     let padding = padding_for(plan.padding, wall_depth, kernel_depth);
@@ -914,11 +893,13 @@ fn cut(
     agreed(team, binned)?;
     let files = SlabFiles::new(&scratch, slabs, team.size());
 
-    // The density's kernel counts, each slab summing those of the nodes it owns (whose centre
-    // is in its columns) over its points and padding in input order: each node's sum is then
-    // the single process's, whatever the parts and the members.
-    let mut kernel_counts = KernelCounts::new(kernel_depth);
-    let mut normal_sums = NormalSums::new(kernel_depth);
+    // The density, each slab summing the kernel counts of the nodes it owns (whose centre is
+    // in its columns) over its points and padding in input order, and restricting them to the
+    // coarser depths itself down to the coarsest it has exact: each node's sum is then the
+    // single process's, whatever the parts and the members (`outofcore/field.rs`). Its nodes
+    // of the coarsest are gathered by every member, the finer ones stay in its file.
+    let coarse_depth = coarsest_exact_depth(wall_depth, padding, kernel_depth);
+    let mut coarse = KernelCounts::new(coarse_depth);
     rounds(
         team,
         slabs,
@@ -939,37 +920,42 @@ fn cut(
                 .map(|r| unit_normal(r.normal).unwrap_or([0.0; 3]))
                 .collect();
             drop(records);
-            let sums = own_kernel_nodes(&unit, &confidence, &normals, &layout, k, kernel_depth);
+            let own = write_own_part(
+                &FieldBySlab::file_of(&scratch, k),
+                &unit,
+                &confidence,
+                &normals,
+                &layout,
+                k,
+                kernel_depth,
+                coarse_depth,
+            )?;
             let mut p = Packer::default();
-            p.u64s_by_steps(&sums.iter().map(|n| n.0).collect::<Vec<_>>());
-            p.f64s(&sums.iter().flat_map(|n| n.1.to_array()).collect::<Vec<_>>());
+            p.u64s_by_steps(&own.iter().map(|n| n.0).collect::<Vec<_>>());
+            p.f64s(&own.iter().map(|n| n.1).collect::<Vec<_>>());
             Ok(p.bytes)
         },
         |_, bytes| {
-            // Each node's count and normal sum; the counts are the field's.
             let mut u = Unpacker::new(bytes);
             let keys = u.u64s_by_steps()?;
-            let sums = u.f64s()?;
-            if sums.len() != 4 * keys.len() {
+            let counts = u.f64s()?;
+            if counts.len() != keys.len() {
                 return Err(crate::Error::Internal(
-                    "a slab's normal sums do not match their nodes".into(),
+                    "a slab's coarse counts do not match their nodes".into(),
                 )
                 .into());
             }
-            let sums: Vec<DVec4> = sums.chunks_exact(4).map(DVec4::from_slice).collect();
-            kernel_counts.insert(keys.iter().zip(&sums).map(|(&key, sum)| (key, sum.x)));
-            normal_sums.insert(keys.into_iter().zip(sums));
+            coarse.insert(keys.into_iter().zip(counts));
             Ok(())
         },
     )?;
-    let field = kernel_counts.into_field();
+    let field = FieldBySlab::new(&scratch, &layout, kernel_depth, coarse);
     let run = Run {
         params,
         scan,
         layout: &layout,
         files: &files,
         field: &field,
-        normals: Some(&normal_sums),
         screening: ScreeningWeights::full_at_every_depth(params.point_weight, params.depth),
         pool,
         watch: Watch::new(),
@@ -1225,7 +1211,6 @@ pub(crate) fn solve_slabs(
         layout: &layout,
         files: &files,
         field: &field,
-        normals: None,
         screening: ScreeningWeights::full_at_every_depth(params.point_weight, params.depth),
         pool,
         watch: Watch::new(),
@@ -1546,10 +1531,9 @@ fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, O
 #[cfg(test)]
 mod tests {
     use super::{
-        base_and_slabs_within, coarser_columns, grade_padding, own_kernel_nodes, pack_groups,
-        pack_sparse, padding_for, read_prepared, slabs_within, surface_by_column, unpack_groups,
-        unpack_sparse, write_prepared, DensityField, DepthSample, KernelCounts, NormalSums,
-        SampleDensity, Samples, SlabLayout, SlabModel,
+        base_and_slabs_within, coarser_columns, grade_padding, pack_groups, pack_sparse,
+        padding_for, read_prepared, slabs_within, surface_by_column, unpack_groups, unpack_sparse,
+        write_prepared, DepthSample, KernelNodes, SampleDensity, Samples, SlabLayout, SlabModel,
     };
     use crate::Params;
     use glam::DVec3;
@@ -1732,85 +1716,15 @@ mod tests {
         assert!(unpack_groups(&mut Unpacker::new(&p.bytes)).is_err());
     }
 
-    /// Proves the slabs' own kernel nodes, each summed over the slab's points and padding, make
-    /// the whole cloud's density field bit for bit, when the padding is [`padding_for`]'s,
-    /// for kernels finer and coarser than the walls; and that the asked padding alone is not
-    /// enough for a kernel far coarser than the walls (so the rule is needed).
-    #[test]
-    fn the_slabs_own_kernel_nodes_make_the_whole_field_bit_for_bit() {
-        let points: Vec<DVec3> = sphere(20_000)
-            .into_iter()
-            .map(|p| p + DVec3::new(0.05 * (p.y * 40.0).sin(), 0.0, 0.0))
-            .collect();
-        let confidence: Vec<f64> = (0..points.len()).map(|i| 0.5 + (i % 7) as f64).collect();
-        let normals: Vec<[f32; 3]> = points
-            .iter()
-            .map(|p| (*p - DVec3::splat(0.5)).normalize().as_vec3().to_array())
-            .collect();
-        let wall_depth = 6;
-        let field_of_slabs = |kernel_depth: u32, padding: u32| {
-            let columns = SlabLayout::balanced(&vec![0; 1 << wall_depth], wall_depth, 1, 0);
-            let mut counts = vec![0u64; 1 << wall_depth];
-            for p in &points {
-                counts[columns.column_of(p.x) as usize] += 1;
-            }
-            let layout = SlabLayout::balanced(&counts, wall_depth, 5, padding);
-            assert_eq!(layout.len(), 5);
-            let mut merged = KernelCounts::new(kernel_depth);
-            let mut merged_sums = NormalSums::new(kernel_depth);
-            for k in 0..layout.len() {
-                let read: Vec<usize> = (0..points.len())
-                    .filter(|&i| {
-                        layout
-                            .slabs_reading(layout.column_of(points[i].x))
-                            .contains(&k)
-                    })
-                    .collect();
-                let unit: Vec<DVec3> = read.iter().map(|&i| points[i]).collect();
-                let weights: Vec<f64> = read.iter().map(|&i| confidence[i]).collect();
-                let slab_normals: Vec<[f32; 3]> = read.iter().map(|&i| normals[i]).collect();
-                let nodes =
-                    own_kernel_nodes(&unit, &weights, &slab_normals, &layout, k, kernel_depth);
-                merged.insert(nodes.iter().map(|&(key, sum)| (key, sum.x)));
-                merged_sums.insert(nodes);
-            }
-            (merged.into_field(), merged_sums)
-        };
-        let probes: Vec<DVec3> = points.iter().step_by(97).copied().collect();
-        let same =
-            |(a, a_sums): &(DensityField, NormalSums), b: &DensityField, b_sums: &NormalSums| {
-                (0..=a.depth).all(|d| {
-                    probes
-                        .iter()
-                        .all(|&q| a.evaluate_at(d, q).to_bits() == b.evaluate_at(d, q).to_bits())
-                }) && a.kernel_node_x().count() == b.kernel_node_x().count()
-                    && probes.iter().all(|&q| {
-                        let (x, y) = (a_sums.density_and_spread(q), b_sums.density_and_spread(q));
-                        x.0.to_bits() == y.0.to_bits() && x.1.to_bits() == y.1.to_bits()
-                    })
-            };
-        for kernel_depth in [8, 6, 5, 2] {
-            let whole = DensityField::splat(&points, Some(&confidence), kernel_depth);
-            let whole_sums = NormalSums::splat(&points, Some(&confidence), &normals, kernel_depth);
-            let padding = padding_for(2, wall_depth, kernel_depth);
-            assert!(
-                same(&field_of_slabs(kernel_depth, padding), &whole, &whole_sums),
-                "kernel depth {kernel_depth}, padding {padding}"
-            );
-        }
-        let whole = DensityField::splat(&points, Some(&confidence), 2);
-        let whole_sums = NormalSums::splat(&points, Some(&confidence), &normals, 2);
-        assert!(!same(&field_of_slabs(2, 2), &whole, &whole_sums));
-    }
-
     /// Proves the surface's measure counts every node of the kernel depth once, in the columns
     /// over it, whether the columns are finer or coarser than the kernel depth's nodes.
     #[test]
     fn the_surface_by_column_counts_each_kernel_node_once_where_it_lies() {
-        let field = DensityField::splat(&sphere(20_000), None, 6);
-        let nodes = field.kernel_node_x().count() as f64;
+        let mut kernel_nodes = KernelNodes::new(6);
+        kernel_nodes.add(&sphere(20_000));
+        let nodes = kernel_nodes.node_x().count() as f64;
         for wall_depth in [4, 6, 9] {
-            let surface = surface_by_column(&field, wall_depth);
+            let surface = surface_by_column(kernel_nodes.node_x(), 6, wall_depth);
             assert_eq!(surface.len(), 1 << wall_depth);
             let total: f64 = surface.iter().sum();
             assert!((total - nodes).abs() < 1e-6 * nodes, "{total} vs {nodes}");

@@ -8,7 +8,7 @@ use super::scratch::{PointRecord, Scratch, SlabWriter};
 use super::slabs::SlabLayout;
 use super::team::{Packer, Unpacker};
 use super::OutOfCoreError;
-use crate::density::KernelCounts;
+use crate::density::KernelNodes;
 use crate::ply::{read_point_cloud_part_chunks, PlyPoints};
 use crate::points::{Bounds, PointSet, UnitCubeMap};
 use crate::Error;
@@ -234,7 +234,7 @@ impl ColumnsOfPart {
     pub(crate) fn packed(&self) -> Vec<u8> {
         let mut p = Packer::default();
         p.u64s(&self.counts);
-        p.u64s(&self.kernel_nodes);
+        p.u64s_by_steps(&self.kernel_nodes);
         p.bytes
     }
 
@@ -242,7 +242,7 @@ impl ColumnsOfPart {
         let mut u = Unpacker::new(bytes);
         Ok(ColumnsOfPart {
             counts: u.u64s()?,
-            kernel_nodes: u.u64s()?,
+            kernel_nodes: u.u64s_by_steps()?,
         })
     }
 }
@@ -261,14 +261,14 @@ pub(crate) fn columns_of_part(
 ) -> Result<ColumnsOfPart, OutOfCoreError> {
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
-    let mut kernel_counts = kernel_depth.map(KernelCounts::new);
+    let mut kernel_nodes = kernel_depth.map(KernelNodes::new);
     for_each_chunk(input, part, false, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
             .map(|r| map.to_unit_f64(r.position))
             .collect();
-        if let Some(kernel_counts) = &mut kernel_counts {
-            kernel_counts.add(&unit, None);
+        if let Some(kernel_nodes) = &mut kernel_nodes {
+            kernel_nodes.add(&unit);
         }
         for p in &unit {
             counts[columns.column_of(p.x) as usize] += 1;
@@ -277,7 +277,7 @@ pub(crate) fn columns_of_part(
     })?;
     Ok(ColumnsOfPart {
         counts,
-        kernel_nodes: kernel_counts.map_or_else(Vec::new, KernelCounts::into_sorted_keys),
+        kernel_nodes: kernel_nodes.map_or_else(Vec::new, KernelNodes::into_sorted_keys),
     })
 }
 
