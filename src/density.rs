@@ -90,16 +90,6 @@ impl DensityField {
         self.levels.iter().map(|level| level.slots()).sum()
     }
 
-    /// The nodes of depth `depth` whose centre's x `keep` accepts, with their counts, sorted by
-    /// key.
-    pub(crate) fn sorted_nodes_at(
-        &self,
-        depth: u32,
-        keep: impl Fn(f64) -> bool,
-    ) -> Vec<(u64, f64)> {
-        self.levels[depth as usize].sorted_nodes_where(depth, keep)
-    }
-
     /// A field of depths 0..=`self.depth` + `finer.len()`: this one's depths (shared, not
     /// copied), then `finer[i]`'s nodes as the counts of depth `self.depth` + 1 + i. What it
     /// gives is the field of all the samples wherever `finer` holds every node the evaluation
@@ -323,9 +313,8 @@ impl<T: Copy + Default> Bricks<T> {
     /// Its nodes, which are of depth `depth`, whose centre's x `keep` accepts, with their
     /// values, sorted by key.
     fn sorted_nodes_where(&self, depth: u32, keep: impl Fn(f64) -> bool) -> Vec<(u64, T)> {
-        let h = (-(depth as f64)).exp2();
         let mut nodes = self.sorted_nodes();
-        nodes.retain(|&(key, _)| keep((unmorton(key)[0] as f64 + 0.5) * h));
+        nodes.retain(|&(key, _)| keep(node_centre_x(key, depth)));
         nodes
     }
 
@@ -429,6 +418,29 @@ impl KernelCounts {
         levels.reverse();
         DensityField { depth, levels }
     }
+
+    /// The counts restricted depth by depth from the kernel's down to `coarsest`: `visit(d,
+    /// nodes)` gets, for each depth d below the kernel's, from the finest, its nodes whose
+    /// centre's x `keep` accepts, with their counts, sorted by key. (The depths of
+    /// [`KernelCounts::into_field`] from `coarsest` up, without making the coarser ones or
+    /// holding more than two depths at once.)
+    pub(crate) fn restrict_down_to(
+        self,
+        coarsest: u32,
+        keep: impl Fn(f64) -> bool,
+        mut visit: impl FnMut(u32, Vec<(u64, f64)>),
+    ) {
+        let mut level = self.counts;
+        for d in (coarsest..self.depth).rev() {
+            level = restrict(&level);
+            visit(d, level.sorted_nodes_where(d, &keep));
+        }
+    }
+}
+
+/// The x of the centre of the node of depth `depth` with key `key`, in the unit cube.
+pub(crate) fn node_centre_x(key: u64, depth: u32) -> f64 {
+    (f64::from(unmorton(key)[0]) + 0.5) * (-f64::from(depth)).exp2()
 }
 
 /// The nodes of the kernel depth the samples' splats touch, without their counts: what the

@@ -25,7 +25,7 @@ use super::scratch::{scratch_error, Scratch};
 use super::slabs::SlabLayout;
 use super::team::{Packer, Unpacker};
 use super::OutOfCoreError;
-use crate::density::{DensityField, KernelCounts, NormalSums};
+use crate::density::{node_centre_x, DensityField, KernelCounts, NormalSums};
 use glam::{DVec3, DVec4};
 use std::ops::{Range, RangeInclusive};
 use std::path::PathBuf;
@@ -83,14 +83,18 @@ pub(crate) fn write_own_part(
             .collect()
     } else {
         drop(kernel_nodes);
-        let local = sums.kernel_counts().into_field();
+        let counts = sums.kernel_counts();
         drop(sums);
-        for d in (coarse_depth + 1..kernel_depth).rev() {
-            let nodes = local.sorted_nodes_at(d, own);
-            p.u64s_by_steps(&nodes.iter().map(|n| n.0).collect::<Vec<_>>());
-            p.f64s(&nodes.iter().map(|n| n.1).collect::<Vec<_>>());
-        }
-        local.sorted_nodes_at(coarse_depth, own)
+        let mut coarse = Vec::new();
+        counts.restrict_down_to(coarse_depth, own, |d, nodes| {
+            if d == coarse_depth {
+                coarse = nodes;
+            } else {
+                p.u64s_by_steps(&nodes.iter().map(|n| n.0).collect::<Vec<_>>());
+                p.f64s(&nodes.iter().map(|n| n.1).collect::<Vec<_>>());
+            }
+        });
+        coarse
     };
     std::fs::write(file, &p.bytes).map_err(scratch_error("write a slab's density", file))?;
     Ok(coarse)
@@ -202,9 +206,6 @@ impl FieldBySlab {
             layout.slab_of_column(layout.column_of(widest.start))
                 ..layout.slab_of_column(layout.column_of(widest.end)) + 1
         };
-        let centre_x = |key: u64, d: u32| {
-            (f64::from(crate::grid::unmorton(key)[0]) + 0.5) * (-f64::from(d)).exp2()
-        };
         // finer[i]: depth C + 1 + i.
         let mut finer: Vec<Vec<(u64, f64)>> =
             vec![Vec::new(); (kernel_depth - coarse_depth) as usize];
@@ -226,7 +227,7 @@ impl FieldBySlab {
             }
             let within = reach(kernel_depth);
             for (key, sum) in keys.into_iter().zip(values.chunks_exact(4)) {
-                if within.contains(&centre_x(key, kernel_depth)) {
+                if within.contains(&node_centre_x(key, kernel_depth)) {
                     if with_normals {
                         sums.push((key, DVec4::from_slice(sum)));
                     }
@@ -245,7 +246,7 @@ impl FieldBySlab {
                 finer[(d - coarse_depth - 1) as usize].extend(
                     keys.into_iter()
                         .zip(values)
-                        .filter(|&(key, _)| within.contains(&centre_x(key, d))),
+                        .filter(|&(key, _)| within.contains(&node_centre_x(key, d))),
                 );
             }
         }
