@@ -151,6 +151,8 @@ type BrickCounts = Bricks<f64>;
 
 /// Bits of a node's key that place it in its brick: two per axis.
 const BRICK_SHIFT: u32 = 6;
+/// Nodes along each axis of a brick.
+pub(crate) const BRICK_SIDE: u32 = 1 << (BRICK_SHIFT / 3);
 
 #[derive(Clone)]
 struct Brick<T> {

@@ -66,6 +66,13 @@ const PER_DENSITY_SLOT: u64 = 9;
 const PER_NORMAL_SUM_SLOT: u64 = 33;
 /// What a reconstruction needs whatever its size (tables, thread stacks, small buffers).
 const FIXED: u64 = 32 << 20;
+/// Bytes per screening group of the out-of-core base (its cell, Σ w·p and Σ w): every member
+/// holds the whole cloud's groups of every depth up to the base, merged from the slabs' in
+/// pass B, until the base is solved.
+const PER_BASE_GROUP: u64 = 48;
+/// Bytes per screening proxy (its node, weight and offset), made from the groups of one depth
+/// at a time while that depth is solved.
+const PER_PROXY: u64 = 24;
 
 /// The bytes a reconstruction's big arrays need, by part; [`Footprint::peak`] is the estimate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -116,6 +123,27 @@ impl Footprint {
                 .saturating_mul(PER_NODE_KEPT)
                 .saturating_add(density_slots.saturating_mul(PER_DENSITY_SLOT)),
             stage: heaviest.saturating_mul(PER_HEAVIEST_NODE),
+        }
+    }
+
+    /// What every member of an out-of-core run holds for the base's solve, with no slab in
+    /// memory: the base's tree (`nodes` per depth, up to the base depth) and the whole cloud's
+    /// screening groups of its depths (`groups` in all, `heaviest_groups` of the depth with
+    /// the most); on top, the larger of a depth's groups held twice while a slab's are merged
+    /// in (the slabs' come one by one) and the solve's vectors with that depth's proxies.
+    pub(crate) fn base_solve(nodes: &[u64], groups: u64, heaviest_groups: u64) -> Footprint {
+        let solving = Footprint::with_nodes(0, 0, nodes, 0);
+        let merging = heaviest_groups.saturating_mul(2 * PER_BASE_GROUP);
+        Footprint {
+            tree: solving
+                .tree
+                .saturating_add(groups.saturating_mul(PER_BASE_GROUP)),
+            stage: merging.max(
+                solving
+                    .stage
+                    .saturating_add(heaviest_groups.saturating_mul(PER_PROXY)),
+            ),
+            ..solving
         }
     }
 

@@ -348,8 +348,10 @@ fn a_budget_too_small_is_refused_up_front_with_the_smallest_that_works() {
 
 /// Proves a budget that cuts the cloud thin chooses a finer base depth than the default, whose
 /// thinner padding cuts fewer slabs: a sphere at depth 8 (default base 5, walls on depth 7)
-/// under half as much again as the least budget the default base fits runs at base 6 in fewer
-/// slabs than `--base-depth 5` needs for the same budget.
+/// under an eighth and a quarter more than the least budget the default base fits runs at base
+/// 6 in fewer slabs than `--base-depth 5` needs for the same budget. (A budget twice the least
+/// cuts two slabs at either base: a slab holds its share of the density field, so the need
+/// falls fast with the slabs.)
 #[test]
 fn a_thin_budget_takes_a_finer_base_in_fewer_slabs() {
     let dir = TestDir::new("finer-base");
@@ -375,17 +377,18 @@ fn a_thin_budget_takes_a_finer_base_in_fewer_slabs() {
         })) => enough,
         other => panic!("expected OutOfMemory with the smallest budget, got {other:?}"),
     };
-    let budget = least + least / 2;
-    let chosen = run(budget, None).expect("the budget fits");
-    assert_eq!(chosen.base_depth, 6, "{chosen:?}");
-    let at_default = run(budget, Some(5)).expect("the default base fits the budget");
-    assert_eq!(at_default.base_depth, 5);
-    assert!(
-        at_default.slabs > chosen.slabs,
-        "{} slabs at base depth 5, {} at 6",
-        at_default.slabs,
-        chosen.slabs
-    );
+    for budget in [least + least / 8, least + least / 4] {
+        let chosen = run(budget, None).expect("the budget fits");
+        assert_eq!(chosen.base_depth, 6, "{chosen:?}");
+        let at_default = run(budget, Some(5)).expect("the default base fits the budget");
+        assert_eq!(at_default.base_depth, 5);
+        assert!(
+            at_default.slabs > chosen.slabs,
+            "{budget} bytes: {} slabs at base depth 5, {} at 6",
+            at_default.slabs,
+            chosen.slabs
+        );
+    }
     assert!(dir.entries("tmp").is_empty());
 }
 

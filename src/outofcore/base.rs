@@ -2,7 +2,7 @@
 //! slabs' contributions.
 
 use crate::grid::morton_nested;
-use glam::DVec3;
+use crate::solve::ProxyGroup;
 
 /// The whole cloud's core sets at depths 0..=`base_depth` from the core sets of its slabs'
 /// own points (each a `Vec` per depth of sorted packed keys, as
@@ -26,29 +26,40 @@ pub(crate) fn coarse_cores<'a>(
     cores
 }
 
-/// The whole cloud's screening groups at one proxy depth from its slabs' (each in Morton order
-/// of the cells, as [`crate::system::sample_groups`] gives them): a cell split by a wall has a
-/// group in each slab, and their sums add up (in slab order).
-pub(crate) fn merge_groups<'a>(
-    slab_groups: impl IntoIterator<Item = &'a [([i32; 3], DVec3, f64)]>,
-) -> Vec<([i32; 3], DVec3, f64)> {
-    let mut all: Vec<([i32; 3], DVec3, f64)> = slab_groups
-        .into_iter()
-        .flat_map(|groups| groups.iter().copied())
-        .collect();
-    // Stable: a cell's groups stay in slab order.
-    all.sort_by_key(|g| morton_nested(g.0.map(|v| v.max(0) as u32)));
-    let mut merged: Vec<([i32; 3], DVec3, f64)> = Vec::with_capacity(all.len());
-    for (cell, sum_p, sum_w) in all {
-        match merged.last_mut() {
-            Some(last) if last.0 == cell => {
-                last.1 += sum_p;
-                last.2 += sum_w;
-            }
-            _ => merged.push((cell, sum_p, sum_w)),
+/// The screening groups at one proxy depth of the slabs before one, `merged` (in Morton order
+/// of the cells, each cell once), with that slab's (`slab`, as [`crate::system::sample_groups`]
+/// gives them): a cell split by a wall has a group in each slab, and their sums add up in slab
+/// order. Merged slab by slab as they come, the whole cloud's groups are held once, not once
+/// in the slabs' lists and again merged (on a 20-million-point cloud at a base of depth 9,
+/// eleven million groups of 48 bytes).
+pub(crate) fn merge_groups(merged: Vec<ProxyGroup>, slab: &[ProxyGroup]) -> Vec<ProxyGroup> {
+    let key = |g: &ProxyGroup| morton_nested(g.0.map(|v| v.max(0) as u32));
+    let mut sorted;
+    let slab = if slab.is_sorted_by_key(key) {
+        slab
+    } else {
+        sorted = slab.to_vec();
+        // Stable: a cell given twice keeps its order.
+        sorted.sort_by_key(key);
+        &sorted[..]
+    };
+    let mut out: Vec<ProxyGroup> = Vec::with_capacity(merged.len() + slab.len());
+    let mut add = |(cell, sum_p, sum_w): ProxyGroup| match out.last_mut() {
+        Some(last) if last.0 == cell => {
+            last.1 += sum_p;
+            last.2 += sum_w;
         }
+        _ => out.push((cell, sum_p, sum_w)),
+    };
+    let mut earlier = merged.into_iter().peekable();
+    for &group in slab {
+        while let Some(before) = earlier.next_if(|before| key(before) <= key(&group)) {
+            add(before);
+        }
+        add(group);
     }
-    merged
+    earlier.for_each(add);
+    out
 }
 
 /// The base's right-hand sides ρ_d and fields V_d, d ≤ B: the sums, node by node, of the

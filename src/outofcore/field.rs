@@ -25,7 +25,7 @@ use super::scratch::{scratch_error, Scratch};
 use super::slabs::SlabLayout;
 use super::team::{Packer, Unpacker};
 use super::OutOfCoreError;
-use crate::density::{node_centre_x, DensityField, KernelCounts, NormalSums};
+use crate::density::{node_centre_x, DensityField, KernelCounts, NormalSums, BRICK_SIDE};
 use glam::{DVec3, DVec4};
 use std::ops::{Range, RangeInclusive};
 use std::path::PathBuf;
@@ -49,6 +49,15 @@ pub(crate) fn coarsest_exact_depth(wall_depth: u32, padding: u32, kernel_depth: 
 /// the nodes whose centres lie within 1.5 widths of q (the quadratic B-spline's support); two
 /// is taken.
 const READ_REACH_NODES: f64 = 2.0;
+
+/// Columns of `wall_depth` beyond a range that a slab's field over it holds nodes of `depth`
+/// from (a depth finer than the coarse ones, whose nodes are read from the slabs' files):
+/// those within [`READ_REACH_NODES`] of the range, in whole bricks. What the planner counts a
+/// slab's share of the field by (`passes.rs`).
+pub(crate) fn held_margin_columns(wall_depth: u32, depth: u32) -> u32 {
+    let nodes = READ_REACH_NODES + f64::from(BRICK_SIDE - 1);
+    (nodes * (f64::from(wall_depth) - f64::from(depth)).exp2()).ceil() as u32
+}
 
 /// Slab k's part of the field, from its points and padding (`unit`, in the unit cube, in input
 /// order, with their `confidence` and unit `normals`): the nodes it owns finer than

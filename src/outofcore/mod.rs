@@ -20,6 +20,7 @@
 pub(crate) mod assemble;
 pub(crate) mod bands;
 pub(crate) mod base;
+pub(crate) mod cells;
 pub(crate) mod field;
 pub(crate) mod noise;
 pub(crate) mod passes;

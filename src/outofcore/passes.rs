@@ -12,7 +12,8 @@
 
 use super::bands::{apply_bands, write_bands};
 use super::base::{coarse_cores, merge_groups, BaseParts};
-use super::field::{coarsest_exact_depth, write_own_part, FieldBySlab};
+use super::cells::OccupiedCells;
+use super::field::{coarsest_exact_depth, held_margin_columns, write_own_part, FieldBySlab};
 use super::noise::{SlabNoise, TeamNoise};
 use super::scan::{
     bin_part, binned_file, columns_of_part, scan_of_parts, scan_part, ColumnsOfPart, Input, Scan,
@@ -71,8 +72,9 @@ pub(crate) enum SlabCount {
     /// This many (fewer when the points fill fewer columns).
     Exactly(usize),
     /// The fewest whose largest, with its padding, fits this many bytes by the memory
-    /// accounting (`memory.rs`) beside the density field of the whole cloud (its tables'
-    /// real size: their nodes are found before the slabs are counted).
+    /// accounting (`memory.rs`) with its share of the density field (the tables' real size:
+    /// their nodes are found before the slabs are counted), and whose base's solve fits them
+    /// too.
     Within(u64),
 }
 
@@ -106,7 +108,8 @@ fn surface_by_column(
 
 /// What the memory accounting (`memory.rs`) predicts for the slabs of a cut at one base depth,
 /// from the points' column counts and the surface's (`surface_by_column`, measured at
-/// `kernel_depth`), both over the columns of the wall depth, the base depth + 2.
+/// `kernel_depth`), both over the columns of the wall depth, the base depth + 2, and for the
+/// base's solve from the cells the points occupy.
 struct SlabModel<'a> {
     counts: &'a [u64],
     surface: &'a [f64],
@@ -116,16 +119,78 @@ struct SlabModel<'a> {
     /// The base's halo nodes per depth, predicted for the whole cloud (every slab's tree has
     /// them up to the base depth).
     base: Vec<u64>,
+    /// The base's screening groups, all its depths' and the most of one depth's: one per
+    /// cell of the proxy depth (depth d's, d + 2, or the finest sample depth when coarser)
+    /// that the points occupy.
+    base_groups: (u64, u64),
+    /// What a member holds of the density field beside a slab.
+    field: FieldHeld,
+    /// The whole surface, `surface` summed.
+    surface_total: f64,
+}
+
+/// What a member holds of the density field (`outofcore/field.rs`), for the planner: the
+/// coarse depths, whole, throughout; beside a slab, the finer depths over the columns it
+/// reads, and through pass A the normals' sums over them.
+#[derive(Debug, Clone, Default)]
+struct FieldHeld {
+    /// Bytes every member holds throughout: the field's depths up to the coarsest each slab
+    /// has exact ([`coarsest_exact_depth`]), whole, and the noise estimate's fits when the
+    /// screening follows the noise.
+    shared: u64,
+    /// Each finer depth's node slots, the whole cloud's, with the columns of the wall depth a
+    /// slab holds them over beyond its padded columns ([`held_margin_columns`]).
+    finer: Vec<(u64, u32)>,
+    /// The kernel depth's slots, whole cloud, and the columns beyond: the normals' sums pass A
+    /// holds over a slab's.
+    kernel: (u64, u32),
+}
+
+impl FieldHeld {
+    /// For the field whose bricks have `slots_by_depth[d]` slots at depth d (up to the kernel
+    /// depth), cut with walls on `wall_depth` and `padding` columns of padding.
+    fn of(
+        slots_by_depth: &[u64],
+        wall_depth: u32,
+        padding: u32,
+        kernel_depth: u32,
+        noise_fits: u64,
+    ) -> Self {
+        let coarse_depth = coarsest_exact_depth(wall_depth, padding, kernel_depth);
+        let slots = |d: u32| slots_by_depth.get(d as usize).copied().unwrap_or(0);
+        let coarse: u64 = (0..=coarse_depth).map(slots).sum();
+        FieldHeld {
+            shared: crate::memory::density_bytes(coarse).saturating_add(noise_fits),
+            finer: (coarse_depth + 1..=kernel_depth)
+                .map(|d| (slots(d), held_margin_columns(wall_depth, d)))
+                .collect(),
+            kernel: (
+                slots(kernel_depth),
+                held_margin_columns(wall_depth, kernel_depth),
+            ),
+        }
+    }
 }
 
 impl<'a> SlabModel<'a> {
+    /// The model of a cut at `base_depth`; `occupied_at(D)`: the cells of depth D (at least
+    /// up to the base depth + 2) the points occupy.
     fn new(
         counts: &'a [u64],
         surface: &'a [f64],
         kernel_depth: u32,
         base_depth: u32,
         params: &'a Params,
+        occupied_at: impl Fn(u32) -> f64,
+        field: FieldHeld,
     ) -> Self {
+        let points: u64 = counts.iter().sum();
+        let surface_total: f64 = surface.iter().sum();
+        // The proxy depth d + 2 at most (the finest sample depth is not known before the
+        // cut); a depth's groups are at most the points.
+        let groups: Vec<u64> = (0..=base_depth)
+            .map(|d| (occupied_at(d + 2).ceil() as u64).min(points))
+            .collect();
         let mut model = SlabModel {
             counts,
             surface,
@@ -133,8 +198,14 @@ impl<'a> SlabModel<'a> {
             base_depth,
             params,
             base: Vec::new(),
+            base_groups: (
+                groups.iter().sum(),
+                groups.iter().copied().max().unwrap_or(0),
+            ),
+            field,
+            surface_total,
         };
-        model.base = model.nodes(counts.iter().sum(), surface.iter().sum());
+        model.base = model.nodes(points, surface_total);
         model
     }
 
@@ -181,16 +252,52 @@ impl<'a> SlabModel<'a> {
         (points, tree)
     }
 
+    /// The share of `slots` slots a slab holds over its padded columns `padded` and `margin`
+    /// columns beyond: its part of the surface there (the slots follow the kernel nodes).
+    fn held_slots(&self, padded: &Range<u32>, (slots, margin): (u64, u32)) -> u64 {
+        let total = self.surface_total;
+        if total <= 0.0 {
+            return slots;
+        }
+        let columns = padded.start.saturating_sub(margin)
+            ..padded
+                .end
+                .saturating_add(margin)
+                .min(self.surface.len() as u32);
+        let share = (self.within(columns).1 / total).min(1.0);
+        (slots as f64 * share).ceil() as u64
+    }
+
     /// The bytes slab k needs: the larger of its solve's footprint and its points' while pass
-    /// A holds the whole cloud's normals summed over `kernel_slots` slots
-    /// (`Footprint::reading_density` without the field), beside the `shared` bytes every
-    /// member holds throughout.
-    fn need(&self, layout: &SlabLayout, k: usize, shared: u64, kernel_slots: u64) -> u64 {
+    /// A holds its normals' sums (`Footprint::reading_density` without the field), with its
+    /// share of the field's finer depths, beside the bytes every member holds throughout.
+    fn need(&self, layout: &SlabLayout, k: usize) -> u64 {
         let (points, tree) = self.slab(layout, k);
+        let padded = layout.padded(k);
+        let finer_slots: u64 = self
+            .field
+            .finer
+            .iter()
+            .map(|&depth| self.held_slots(&padded, depth))
+            .sum();
+        let sums_slots = self.held_slots(&padded, self.field.kernel);
         let solving = crate::memory::Footprint::with_nodes(points, 0, &tree, 0).peak();
-        let preparing =
-            crate::memory::Footprint::reading_density(points, 0, 0, kernel_slots).peak();
-        solving.max(preparing).saturating_add(shared)
+        let preparing = crate::memory::Footprint::reading_density(points, 0, 0, sums_slots).peak();
+        solving
+            .max(preparing)
+            .saturating_add(crate::memory::density_bytes(finer_slots))
+            .saturating_add(self.field.shared)
+    }
+
+    /// The bytes every member needs for the base's solve, between pass B and pass C with no
+    /// slab in memory ([`crate::memory::Footprint::base_solve`]), beside the bytes it holds
+    /// throughout.
+    fn base_need(&self) -> u64 {
+        let (groups, heaviest) = self.base_groups;
+        let base = &self.base[..=self.base_depth as usize];
+        crate::memory::Footprint::base_solve(base, groups, heaviest)
+            .peak()
+            .saturating_add(self.field.shared)
     }
 
     /// The nodes one of `members` works on: its share of the slabs' trees finer than the base
@@ -206,10 +313,10 @@ impl<'a> SlabModel<'a> {
 }
 
 /// The fewest slabs for `budget` bytes (see [`SlabCount::Within`]) by `model`'s needs
-/// ([`SlabModel::need`]: every member holds `shared` bytes throughout, the whole cloud's
-/// density field and the noise estimate's fits when the screening follows the noise, and the
-/// normals' sums over `kernel_slots` slots through pass A); or, when no number of slabs fits,
-/// the smallest budget that any does (the most slabs' need).
+/// ([`SlabModel::need`]: a slab, its share of the density field, and what every member holds
+/// throughout) and the base's solve's
+/// ([`SlabModel::base_need`], the same for every cut); or, when no number of slabs fits, the
+/// smallest budget that any does (the most slabs' need, or the base's when larger).
 ///
 /// The count is found by doubling it until a cut fits, then halving the interval between the
 /// last that did not and the first that did: the need falls as slabs are added (up to the
@@ -219,17 +326,21 @@ fn slabs_within(
     budget: u64,
     model: &SlabModel<'_>,
     layout_of: impl Fn(usize) -> SlabLayout,
-    shared: u64,
-    kernel_slots: u64,
 ) -> std::result::Result<usize, u64> {
+    // The base's solve needs the same whatever the cut.
+    let base_need = model.base_need();
     let need_of = |slabs: usize| {
         let layout = layout_of(slabs);
         (0..layout.len())
-            .map(|k| model.need(&layout, k, shared, kernel_slots))
+            .map(|k| model.need(&layout, k))
             .max()
             .unwrap_or(0)
+            .max(base_need)
     };
     let most = model.counts.len().max(1);
+    if base_need > budget {
+        return Err(need_of(most));
+    }
     let mut least = u64::MAX;
     // The last count that did not fit (0: none tried), then the first that did.
     let mut too_few = 0;
@@ -259,10 +370,12 @@ fn slabs_within(
 
 /// The base depth among `base_depths` and the fewest slabs at it for `budget` bytes: at each
 /// base depth B the fewest slabs that fit ([`slabs_within`]), the walls on depth B + 2 with
-/// `padding_of(B + 2)` columns of padding and the surface `surface_of(B + 2)` over those
-/// columns; of those cuts (at least one slab per member of `members`), the one that leaves a
-/// member the fewest nodes to work on ([`SlabModel::member_work`]), the coarsest base of
-/// equals. `counted` is the points per column of depth `counted_depth`, at least
+/// `padding_of(B + 2)` columns of padding, the surface `surface_of(B + 2)` over those
+/// columns, `occupied_at(D)` cells of depth D ≤ B + 2 holding points, and the density field
+/// of `field_slots[d]` node slots at depth d held as [`FieldHeld`] says, beside `noise_fits`
+/// bytes every member holds; of those cuts (at least one slab per member of `members`), the
+/// one that leaves a member the fewest nodes to work on ([`SlabModel::member_work`]), the
+/// coarsest base of equals. `counted` is the points per column of depth `counted_depth`, at least
 /// `base_depths.end()` + 2. When no cut fits, the smallest budget that one at the coarsest base
 /// depth does: the finer ones need samples reaching two depths above them, which pass A finds
 /// out only after the cut (a run cut again at a coarser base must still fit what was named).
@@ -274,11 +387,12 @@ fn base_and_slabs_within(
     base_depths: RangeInclusive<u32>,
     surface_of: impl Fn(u32) -> Vec<f64>,
     padding_of: impl Fn(u32) -> u32,
+    occupied_at: impl Fn(u32) -> f64,
     kernel_depth: u32,
     params: &Params,
     members: usize,
-    shared: u64,
-    kernel_slots: u64,
+    field_slots: &[u64],
+    noise_fits: u64,
 ) -> std::result::Result<(u32, usize), u64> {
     // (work, base depth, slabs) of the best cut so far.
     let mut best: Option<(u64, u32, usize)> = None;
@@ -288,9 +402,17 @@ fn base_and_slabs_within(
         let counts = coarser_columns(counted, counted_depth - wall_depth);
         let surface = surface_of(wall_depth);
         let padding = padding_of(wall_depth);
-        let model = SlabModel::new(&counts, &surface, kernel_depth, base_depth, params);
+        let model = SlabModel::new(
+            &counts,
+            &surface,
+            kernel_depth,
+            base_depth,
+            params,
+            &occupied_at,
+            FieldHeld::of(field_slots, wall_depth, padding, kernel_depth, noise_fits),
+        );
         let layout_of = |slabs: usize| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
-        match slabs_within(budget, &model, layout_of, shared, kernel_slots) {
+        match slabs_within(budget, &model, layout_of) {
             Ok(slabs) => {
                 let work = model.member_work(&layout_of(slabs.max(members)), members);
                 if best.is_none_or(|(least_work, ..)| work < least_work) {
@@ -825,9 +947,11 @@ fn cut(
     );
     let (_, parts) = agreed_with(team, counted, ColumnsOfPart::packed)?;
     // Every member lays the slabs out itself, from the same parts, each unpacked in turn: the
-    // counts added, the kernel nodes joined (for a budget's cut, the surface's measure).
+    // counts added, the kernel nodes and the occupied cells joined (for a budget's cut, the
+    // surface's measure and the base's screening groups).
     let mut counted_columns = vec![0u64; 1 << counted_depth];
     let mut surface = budget.map(|_| KernelNodes::new(kernel_depth));
+    let mut occupied: Option<OccupiedCells> = None;
     for bytes in &parts {
         let part = ColumnsOfPart::unpacked(bytes)?;
         for (sum, count) in counted_columns.iter_mut().zip(&part.counts) {
@@ -836,13 +960,17 @@ fn cut(
         if let Some(surface) = &mut surface {
             surface.insert(part.kernel_nodes);
         }
+        match (&mut occupied, part.occupied) {
+            (Some(joined), Some(theirs)) => joined.join(&theirs),
+            (joined, theirs) => *joined = joined.take().or(theirs),
+        }
     }
     drop(parts);
     let (base_depth, slabs) = match plan.slabs {
         SlabCount::Exactly(n) => (*base_depths.start(), n),
         SlabCount::Within(budget) => {
             // The surface as the whole input's kernel nodes (whose bricks are the field's).
-            let surface = surface.ok_or_else(|| {
+            let (surface, occupied) = surface.zip(occupied).ok_or_else(|| {
                 OutOfCoreError::internal("a budget's cut without the kernel nodes")
             })?;
             // Beside the field, every member holds the fits of the noise estimate's cells of its
@@ -852,14 +980,11 @@ fn cut(
             } else {
                 0
             };
-            // The planner counts the whole field beside every slab, and its normals' sums
-            // beside every slab's points, as when every member held them (`docs/out-of-core.md`,
-            // "Memory": a slab now holds only its share, but counting that share alone let
-            // finer bases through whose whole-cloud screening groups the accounting lacks).
-            let slots_by_depth = surface.slots_by_depth();
-            let shared = crate::memory::density_bytes(slots_by_depth.iter().sum::<usize>() as u64)
-                .saturating_add(noise_fits);
-            let kernel_slots = slots_by_depth.last().copied().unwrap_or(0) as u64;
+            let slots_by_depth: Vec<u64> = surface
+                .slots_by_depth()
+                .into_iter()
+                .map(|slots| slots as u64)
+                .collect();
             base_and_slabs_within(
                 budget,
                 &counted_columns,
@@ -867,11 +992,12 @@ fn cut(
                 base_depths,
                 |wall_depth| surface_by_column(surface.node_x(), kernel_depth, wall_depth),
                 |wall_depth| padding_for(plan.padding, wall_depth, kernel_depth),
+                |depth| occupied.at(depth),
                 kernel_depth,
                 params,
                 team.size(),
-                shared,
-                kernel_slots,
+                &slots_by_depth,
+                noise_fits,
             )
             .map_err(|enough| crate::Error::OutOfMemory {
                 what: "the largest slab a cut of the cloud can make, with its padding",
@@ -1226,7 +1352,8 @@ pub(crate) fn solve_slabs(
     let noise_depth = area_depths.and_then(|depths| depths.median_depth());
     let mut slab_noise = SlabNoise::default();
     let mut sums = BaseParts::default();
-    let mut groups: Vec<Vec<Vec<ProxyGroup>>> = vec![Vec::new(); b + 1];
+    // The whole cloud's screening groups of each depth up to B, merged as the slabs' come.
+    let mut groups: Vec<Vec<ProxyGroup>> = vec![Vec::new(); b + 1];
     rounds(
         team,
         slabs,
@@ -1273,14 +1400,14 @@ pub(crate) fn solve_slabs(
         |_, bytes| {
             let mut u = Unpacker::new(bytes);
             let (mut rho, mut field_v) = (Vec::with_capacity(b + 1), Vec::with_capacity(b + 1));
-            for per_slab in groups.iter_mut() {
+            for merged in groups.iter_mut() {
                 rho.push(unpack_sparse(&mut u)?);
                 field_v.push([
                     unpack_sparse(&mut u)?,
                     unpack_sparse(&mut u)?,
                     unpack_sparse(&mut u)?,
                 ]);
-                per_slab.push(unpack_groups(&mut u)?);
+                *merged = merge_groups(std::mem::take(merged), &unpack_groups(&mut u)?);
             }
             sums.add(&rho, &field_v, b);
             Ok(())
@@ -1297,10 +1424,6 @@ pub(crate) fn solve_slabs(
     run.screening = ScreeningWeights::new(params.point_weight, params.depth, screening_depth);
     // The base, solved by every member (it is small beside a slab).
     let solved_base = (|| {
-        let groups: Vec<Vec<ProxyGroup>> = groups
-            .iter()
-            .map(|per_slab| merge_groups(per_slab.iter().map(|g| g.as_slice())))
-            .collect();
         let base_tree = run.slab_tree(&base_cores, Vec::new())?;
         let mut carry = FieldCarry::new(&base_tree, finest, b);
         for (d, v) in std::mem::take(&mut sums.field_v).into_iter().enumerate() {
@@ -1529,11 +1652,12 @@ fn unpack_groups(u: &mut Unpacker<'_>) -> std::result::Result<Vec<ProxyGroup>, O
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::{
-        base_and_slabs_within, coarser_columns, grade_padding, pack_groups, pack_sparse,
-        padding_for, read_prepared, slabs_within, surface_by_column, unpack_groups, unpack_sparse,
-        write_prepared, DepthSample, KernelNodes, SampleDensity, Samples, SlabLayout, SlabModel,
+        base_and_slabs_within, coarser_columns, coarsest_exact_depth, grade_padding, pack_groups,
+        pack_sparse, padding_for, read_prepared, slabs_within, surface_by_column, unpack_groups,
+        unpack_sparse, write_prepared, DepthSample, FieldHeld, KernelNodes, SampleDensity, Samples,
+        SlabLayout, SlabModel,
     };
     use crate::Params;
     use glam::DVec3;
@@ -1591,7 +1715,7 @@ mod tests {
     }
 
     /// Points on a sphere of radius 0.3 around (0.5, 0.5, 0.5) (a golden spiral).
-    fn sphere(n: usize) -> Vec<DVec3> {
+    pub(crate) fn sphere(n: usize) -> Vec<DVec3> {
         let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
         (0..n)
             .map(|i| {
@@ -1743,7 +1867,10 @@ mod tests {
     /// Proves a slab's predicted need follows its part of the surface: the need of the cut
     /// falls as slabs are added (its tree shares the whole surface's nodes among the slabs,
     /// not the whole surface's per slab), so a cloud whose tree outweighs its points fits a
-    /// budget a few slabs make room for; and a slab over more surface needs more.
+    /// budget a few slabs make room for; a slab over more surface needs more; a slab holds
+    /// its share of the density field's finer depths and of the normals' sums, so a field
+    /// bigger than the budget fits in more slabs; and the base's solve, the same for every
+    /// cut, refuses every cut of a budget below it.
     #[test]
     fn a_slab_needs_its_part_of_the_surface() {
         // A sphere's surface and its samples are uniform across x (Archimedes): 10 million
@@ -1760,11 +1887,21 @@ mod tests {
             surface[c] = 1.8e6 / filled.len() as f64;
         }
         let layout_of = |slabs| SlabLayout::balanced(&counts, wall_depth, slabs, padding);
-        let fewest_with_sums = |budget: u64, surface: &[f64], kernel_slots: u64| {
-            let model = SlabModel::new(&counts, surface, kernel_depth, base_depth, &params);
-            slabs_within(budget, &model, layout_of, 0, kernel_slots)
+        let field_of =
+            |field_slots: &[u64]| FieldHeld::of(field_slots, wall_depth, padding, kernel_depth, 0);
+        let fewest_with = |budget: u64, surface: &[f64], field_slots: &[u64]| {
+            let model = SlabModel::new(
+                &counts,
+                surface,
+                kernel_depth,
+                base_depth,
+                &params,
+                |_| 0.0,
+                field_of(field_slots),
+            );
+            slabs_within(budget, &model, layout_of)
         };
-        let fewest = |budget: u64, surface: &[f64]| fewest_with_sums(budget, surface, 0);
+        let fewest = |budget: u64, surface: &[f64]| fewest_with(budget, surface, &[]);
         let least = fewest(0, &surface).expect_err("nothing fits no memory");
         let mut previous = 0;
         for gib in [16u64, 8, 4, 3] {
@@ -1780,16 +1917,44 @@ mod tests {
         // The same points over four times the surface: more nodes, so more slabs.
         let rougher: Vec<f64> = surface.iter().map(|s| 4.0 * s).collect();
         assert!(fewest(6 << 30, &rougher).unwrap() > fewest(6 << 30, &surface).unwrap());
-        // The normals' sums held through pass A: beside a slab's points they bind no more
-        // slabs than the solve does while they are small, and when they outweigh any slab's
-        // solve no cut fits a budget below them.
+        // The field: its coarse depths (up to 5 with 24 columns of padding, 4 under the walls)
+        // held whole by every member, the finer ones (6..=10) and the normals' sums at the
+        // kernel depth by share. Small, they bind no more slabs than the solve does; 12 GiB of
+        // them, whole, would outweigh an 8 GiB budget, but a slab's share fits in more slabs.
+        assert_eq!(coarsest_exact_depth(wall_depth, padding, kernel_depth), 5);
+        let small = [0, 0, 0, 0, 0, 0, 0, 1 << 10, 1 << 12, 1 << 14, 1 << 16];
         assert_eq!(
-            fewest_with_sums(4 << 30, &surface, (64 << 20) / 33),
+            fewest_with(4 << 30, &surface, &small),
             fewest(4 << 30, &surface)
         );
-        let enough =
-            fewest_with_sums(8 << 30, &surface, (10 << 30) / 33 + 1).expect_err("sums over budget");
-        assert!(enough > 10 << 30, "the most slabs need {enough} bytes");
+        let big = [0, 0, 0, 0, 0, 0, 0, 0, 0, (4 << 30) / 9, (8 << 30) / 9];
+        let whole_field = crate::memory::density_bytes(big.iter().sum());
+        assert!(whole_field > 11 << 30, "{whole_field}");
+        let slabs = fewest_with(8 << 30, &surface, &big).expect("the field's shares fit");
+        assert!(slabs > fewest(8 << 30, &surface).unwrap(), "{slabs} slabs");
+        // Its coarse depths are every member's: 9 GiB of them at depth 5 fit no 8 GiB cut.
+        let coarse = [0, 0, 0, 0, 0, (9 << 30) / 9];
+        let enough = fewest_with(8 << 30, &surface, &coarse).expect_err("coarse over budget");
+        assert!(enough > 9 << 30, "the most slabs need {enough} bytes");
+        // The base's screening groups: 5 million a depth of the 8 (48 bytes each, held once,
+        // and the largest depth's twice more while a slab's are merged in) need what no cut can
+        // share; the most slabs' need is then the base's.
+        let grouped = SlabModel::new(
+            &counts,
+            &surface,
+            kernel_depth,
+            base_depth,
+            &params,
+            |_| 5e6,
+            field_of(&[]),
+        );
+        let base_need = grouped.base_need();
+        assert!(base_need > 8 * 5_000_000 * 48 + 2 * 5_000_000 * 48);
+        assert_eq!(
+            slabs_within(base_need - 1, &grouped, layout_of),
+            Err(base_need)
+        );
+        assert!(slabs_within(base_need, &grouped, layout_of).is_ok());
     }
 
     /// Proves the base depth a budget chooses: a cloud one slab holds keeps the coarsest base
@@ -1824,6 +1989,11 @@ mod tests {
                 .collect::<Vec<f64>>()
         };
         let padding_of = |wall_depth: u32| padding_for(24, wall_depth, kernel_depth);
+        // The cells the points occupy: a quarter as many as the kernel's nodes at depth 10, 4
+        // times more a depth finer (the bunny's and the Buddha's scans have 2.0–2.1 kernel
+        // nodes per occupied cell of their kernel depth; on a sphere the splats of a cell
+        // reach across the nodes of its neighbours).
+        let occupied_at = |depth: u32| 0.5e6 * 4f64.powi(depth as i32 - 10);
         let choose = |budget: u64, depths: RangeInclusive<u32>, members: usize| {
             base_and_slabs_within(
                 budget,
@@ -1832,10 +2002,11 @@ mod tests {
                 depths,
                 surface_of,
                 padding_of,
+                occupied_at,
                 kernel_depth,
                 &params,
                 members,
-                0,
+                &[],
                 0,
             )
         };

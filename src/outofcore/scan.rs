@@ -4,6 +4,7 @@
 //! the wall depth's columns, and the binning of every point into the files of the slabs that
 //! read it.
 
+use super::cells::OccupiedCells;
 use super::scratch::{PointRecord, Scratch, SlabWriter};
 use super::slabs::SlabLayout;
 use super::team::{Packer, Unpacker};
@@ -219,7 +220,8 @@ pub(crate) fn scan_of_parts(
 }
 
 /// What pass 2 finds in one part of the input: how many of its points lie in each column of
-/// the wall depth and, when asked, which nodes of the kernel depth their splats touch.
+/// the wall depth and, when asked, which nodes of the kernel depth their splats touch and how
+/// many cells of each depth they occupy.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct ColumnsOfPart {
     /// Points per column (2^wall_depth of them).
@@ -227,6 +229,9 @@ pub(crate) struct ColumnsOfPart {
     /// The kernel depth's nodes the part's points splat onto, as sorted distinct keys (empty
     /// unless asked for).
     pub(crate) kernel_nodes: Vec<u64>,
+    /// The cells of depths 0..=wall depth the part's points occupy, counted (when asked for,
+    /// with the kernel nodes).
+    pub(crate) occupied: Option<OccupiedCells>,
 }
 
 impl ColumnsOfPart {
@@ -235,6 +240,10 @@ impl ColumnsOfPart {
         let mut p = Packer::default();
         p.u64s(&self.counts);
         p.u64s_by_steps(&self.kernel_nodes);
+        p.u64(u64::from(self.occupied.is_some()));
+        if let Some(occupied) = &self.occupied {
+            occupied.pack(&mut p);
+        }
         p.bytes
     }
 
@@ -243,14 +252,20 @@ impl ColumnsOfPart {
         Ok(ColumnsOfPart {
             counts: u.u64s()?,
             kernel_nodes: u.u64s_by_steps()?,
+            occupied: match u.u64()? {
+                0 => None,
+                _ => Some(OccupiedCells::unpack(&mut u)?),
+            },
         })
     }
 }
 
 /// Pass 2 over `part` of the input (as [`scan_part`]): the number of its points in each column
 /// of `wall_depth`, and with `kernel_depth` the nodes of that depth their splats touch (the
-/// surface the memory budget's cut measures). Exact whatever the parts: the counts add and the
-/// nodes join into the whole input's.
+/// surface the memory budget's cut measures) and the cells of each depth up to `wall_depth`
+/// they occupy (the base's screening groups, [`OccupiedCells`]). Exact whatever the parts: the
+/// counts add, the nodes join into the whole input's, and the occupied cells' sketches join
+/// into the one of the whole input.
 pub(crate) fn columns_of_part(
     input: &Input<'_>,
     part: (usize, usize),
@@ -262,6 +277,7 @@ pub(crate) fn columns_of_part(
     let mut counts = vec![0u64; 1 << wall_depth];
     let columns = SlabLayout::balanced(&counts, wall_depth, 1, 0);
     let mut kernel_nodes = kernel_depth.map(KernelNodes::new);
+    let mut occupied = kernel_depth.map(|_| OccupiedCells::new(wall_depth));
     for_each_chunk(input, part, false, keep_going, |_, records| {
         let unit: Vec<DVec3> = records
             .iter()
@@ -269,6 +285,9 @@ pub(crate) fn columns_of_part(
             .collect();
         if let Some(kernel_nodes) = &mut kernel_nodes {
             kernel_nodes.add(&unit);
+        }
+        if let Some(occupied) = &mut occupied {
+            occupied.add(&unit);
         }
         for p in &unit {
             counts[columns.column_of(p.x) as usize] += 1;
@@ -278,6 +297,7 @@ pub(crate) fn columns_of_part(
     Ok(ColumnsOfPart {
         counts,
         kernel_nodes: kernel_nodes.map_or_else(Vec::new, KernelNodes::into_sorted_keys),
+        occupied,
     })
 }
 

@@ -800,7 +800,9 @@ fn the_base_proxies_are_the_merge_of_the_slabs_groups() {
                 sample_groups(&positions, &weights, proxy_depth)
             })
             .collect();
-        let merged = merge_groups(slab_groups.iter().map(|g| g.as_slice()));
+        let merged = slab_groups
+            .iter()
+            .fold(Vec::new(), |merged, slab| merge_groups(merged, slab));
         let base = Proxies::from_groups(level, &merged, proxy_depth);
         assert_eq!(base.cell, whole.cell, "depth {d}");
         assert!(!whole.is_empty());
