@@ -31,7 +31,7 @@ pub(crate) fn coarse_cores<'a>(
 /// gives them): a cell split by a wall has a group in each slab, and their sums add up in slab
 /// order. Merged slab by slab as they come, the whole cloud's groups are held once, not once
 /// in the slabs' lists and again merged (on a 20-million-point cloud at a base of depth 9,
-/// eleven million groups of 48 bytes).
+/// 14 million groups of 48 bytes).
 pub(crate) fn merge_groups(merged: Vec<ProxyGroup>, slab: &[ProxyGroup]) -> Vec<ProxyGroup> {
     let key = |g: &ProxyGroup| morton_nested(g.0.map(|v| v.max(0) as u32));
     let mut sorted;

@@ -28,6 +28,7 @@ pub(crate) struct OccupiedCells {
 
 impl OccupiedCells {
     pub(crate) fn new(finest: u32) -> Self {
+        debug_assert!(finest <= crate::params::MAX_DEPTH);
         OccupiedCells {
             registers: vec![vec![0; REGISTERS]; finest as usize + 1],
         }
@@ -44,6 +45,7 @@ impl OccupiedCells {
             for (d, registers) in self.registers.iter_mut().enumerate() {
                 let shift = finest - d as u32;
                 let [x, y, z] = cell.map(|c| c >> shift);
+                // 21 bits an axis hold any depth up to `params::MAX_DEPTH` (16).
                 let hash = mix(x | y << 21 | z << 42);
                 let register = (hash >> (64 - INDEX_BITS)) as usize;
                 let rank = ((hash << INDEX_BITS) | (1 << (INDEX_BITS - 1))).leading_zeros() + 1;
