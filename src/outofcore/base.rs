@@ -34,15 +34,11 @@ pub(crate) fn coarse_cores<'a>(
 /// 14 million groups of 48 bytes).
 pub(crate) fn merge_groups(merged: Vec<ProxyGroup>, slab: &[ProxyGroup]) -> Vec<ProxyGroup> {
     let key = |g: &ProxyGroup| morton_nested(g.0.map(|v| v.max(0) as u32));
-    let mut sorted;
-    let slab = if slab.is_sorted_by_key(key) {
-        slab
-    } else {
-        sorted = slab.to_vec();
-        // Stable: a cell given twice keeps its order.
-        sorted.sort_by_key(key);
-        &sorted[..]
-    };
+    // `sample_groups` gives each cell once, in Morton order (and checks it).
+    debug_assert!(
+        slab.is_sorted_by_key(key),
+        "a slab's groups not in Morton order"
+    );
     let mut out: Vec<ProxyGroup> = Vec::with_capacity(merged.len() + slab.len());
     let mut add = |(cell, sum_p, sum_w): ProxyGroup| match out.last_mut() {
         Some(last) if last.0 == cell => {
